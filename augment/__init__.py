@@ -1,0 +1,1 @@
+"""augment package (see DESIGN.md)."""

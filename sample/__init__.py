@@ -1,0 +1,1 @@
+"""sample package (see DESIGN.md)."""

@@ -1,0 +1,88 @@
+"""The ``trumans`` console script: one subcommand per job (DESIGN.md "Command surface").
+
+Each subcommand lives in the package that owns it, as a module with
+``add_arguments(parser: argparse.ArgumentParser) -> None`` and ``run(args) -> int``.
+Modules are imported lazily, so ``trumans`` itself never imports train/sample/augment at
+import time. A command whose module is not built yet says so and exits with status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# (command path, module, one-line help, issue that builds it)
+COMMANDS: list[tuple[tuple[str, ...], str, str, str]] = [
+    (("data", "synth"), "trumans.synth.cli", "build the embedded synthetic HSI dataset", "#2"),
+    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release or BVH data into the dataset format", "#2"),
+    (("augment",), "augment.cli", "contact-preserving CCD-IK augmentation of a dataset", "#3"),
+    (("train",), "train.cli", "train the generator (or filter / contact model) from a config", "#4"),
+    (("sample",), "sample.cli", "sample a long motion in a scene from a plan", "sampling issue"),
+    (("refine",), "sample.refine_cli", "refine a tracked HOI sequence with the diffusion filter", "HOI-filter issue"),
+    (("view",), "trumans.viz.cli", "render a sequence to GIF/MP4 and a top-down PNG", "#2"),
+    (("eval", "synthesis"), "sample.eval_synthesis", "synthesis benchmark figures", "sampling issue"),
+    (("eval", "augment"), "augment.evaluate", "augmentation benchmark figures", "#3"),
+    (("eval", "train"), "train.evaluate", "recompute a checkpoint's validation loss", "#4"),
+    (("eval", "refine"), "sample.eval_refine", "HOI-filter benchmark figures", "HOI-filter issue"),
+    (("eval", "contacts"), "sample.eval_contacts", "contact-prediction benchmark figures", "tracker issue"),
+    (("eval", "local-query"), "scenes.bench_local_query", "local occupancy query benchmark", "#2"),
+]
+
+
+def _load(module: str):
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as e:
+        if e.name and (module == e.name or module.startswith(e.name + ".")):
+            return None  # the command's own module does not exist yet
+        raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="trumans", description="Human-scene interaction motion framework.")
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"trumans {__version__}")
+    groups: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="command", metavar="COMMAND")}
+    group_parsers: dict[tuple[str, ...], argparse.ArgumentParser] = {}
+    for path, module, help_, issue in COMMANDS:
+        for depth in range(1, len(path)):
+            key = path[:depth]
+            if key not in groups:
+                gp = groups[path[:depth - 1]].add_parser(key[-1], help=f"{key[-1]} subcommands")
+                group_parsers[key] = gp
+                groups[key] = gp.add_subparsers(dest="_".join(key) + "_command", metavar="SUBCOMMAND")
+        sub = groups[path[:-1]].add_parser(path[-1], help=help_, description=help_)
+        mod = _load(module)
+        if mod is None:
+            sub.set_defaults(_run=_not_built(" ".join(path), issue))
+        else:
+            mod.add_arguments(sub)
+            sub.set_defaults(_run=mod.run)
+    for key, gp in group_parsers.items():
+        gp.set_defaults(_run=_usage(gp))
+    parser.set_defaults(_run=_usage(parser))
+    return parser
+
+
+def _not_built(name: str, issue: str):
+    def run(args) -> int:
+        print(f"trumans {name}: not built yet (tracked in {issue}).", file=sys.stderr)
+        return 2
+    return run
+
+
+def _usage(p: argparse.ArgumentParser):
+    def run(args) -> int:
+        p.print_help(sys.stderr)
+        return 2
+    return run
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args._run(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""The sequence file format (DESIGN.md "Files"): one ``.npz`` per clip, read without pickle.
+
+Keys: ``joints (T,24,3) float32`` (m, z-up world), ``fps ()``, optional ``rotations (T,24,6)``
+(6D local, root first) and ``root_pos (T,3)``, ``actions (T,N_A)`` + ``action_names (N_A,)``,
+``contacts (T,24) bool``, ``scene`` (id or path), and per dynamic object
+``objects/<name>/pose (T,4,4)``, ``objects/<name>/category``, optional ``objects/<name>/imu_rot (T,6)``,
+``objects/<name>/imu_acc (T,3)``. Extra arrays live under ``extra/<key>``.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .skeleton import NUM_JOINTS
+
+__all__ = ["ObjectTrack", "Sequence", "save_sequence", "load_sequence", "atomic_write"]
+
+
+@dataclass
+class ObjectTrack:
+    """A dynamic object's trajectory: pose (T, 4, 4) world-from-object, category name."""
+
+    pose: np.ndarray
+    category: str
+    imu_rot: np.ndarray | None = None  # (T, 6)
+    imu_acc: np.ndarray | None = None  # (T, 3), m/s^2
+
+
+@dataclass
+class Sequence:
+    """One motion clip. joints: (T, 24, 3) float32 metres, z-up world; fps in Hz."""
+
+    joints: np.ndarray
+    fps: float
+    rotations: np.ndarray | None = None  # (T, 24, 6) local 6D
+    root_pos: np.ndarray | None = None  # (T, 3) FK root translation (pelvis), m
+    actions: np.ndarray | None = None  # (T, N_A), 0 off, 1 + progress while on
+    action_names: list[str] = field(default_factory=list)
+    contacts: np.ndarray | None = None  # (T, 24) bool
+    scene: str = ""
+    objects: dict[str, ObjectTrack] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.joints = np.asarray(self.joints, dtype=np.float32)
+        self.validate()
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.joints.shape[0])
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first inconsistent field."""
+        j = self.joints
+        if j.ndim != 3 or j.shape[1:] != (NUM_JOINTS, 3):
+            raise ValueError(f"joints must be (T, 24, 3), got {j.shape}")
+        if not np.isfinite(j).all():
+            raise ValueError("joints contain NaN or inf; clean the sequence before saving/using it")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number, got {self.fps}")
+        T = j.shape[0]
+        if self.rotations is not None and np.shape(self.rotations) != (T, NUM_JOINTS, 6):
+            raise ValueError(f"rotations must be ({T}, 24, 6), got {np.shape(self.rotations)}")
+        if self.root_pos is not None and np.shape(self.root_pos) != (T, 3):
+            raise ValueError(f"root_pos must be ({T}, 3), got {np.shape(self.root_pos)}")
+        if self.actions is not None:
+            a = np.asarray(self.actions)
+            if a.ndim != 2 or a.shape[0] != T or a.shape[1] != len(self.action_names):
+                raise ValueError(
+                    f"actions must be ({T}, {len(self.action_names)}) to match action_names, got {a.shape}")
+        if self.contacts is not None and np.shape(self.contacts) != (T, NUM_JOINTS):
+            raise ValueError(f"contacts must be ({T}, 24), got {np.shape(self.contacts)}")
+        for name, ob in self.objects.items():
+            if "/" in name or not name:
+                raise ValueError(f"object name {name!r} must be non-empty and contain no '/'")
+            if np.shape(ob.pose) != (T, 4, 4):
+                raise ValueError(f"objects/{name}/pose must be ({T}, 4, 4), got {np.shape(ob.pose)}")
+
+
+def atomic_write(path: str | Path, write_fn) -> None:
+    """Call ``write_fn(tmp_path)`` then rename onto ``path``: readers never see a half-written file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write_fn(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save_sequence(seq: Sequence, path: str | Path) -> None:
+    """Write ``seq`` to ``path`` (.npz, uncompressed, atomically)."""
+    seq.validate()
+    arrays: dict[str, np.ndarray] = {
+        "joints": seq.joints.astype(np.float32),
+        "fps": np.asarray(seq.fps, dtype=np.float32),
+        "scene": np.asarray(str(seq.scene)),
+    }
+    if seq.rotations is not None:
+        arrays["rotations"] = np.asarray(seq.rotations, dtype=np.float32)
+    if seq.root_pos is not None:
+        arrays["root_pos"] = np.asarray(seq.root_pos, dtype=np.float32)
+    if seq.actions is not None:
+        arrays["actions"] = np.asarray(seq.actions, dtype=np.float32)
+        arrays["action_names"] = np.asarray(list(seq.action_names), dtype=np.str_)
+    if seq.contacts is not None:
+        arrays["contacts"] = np.asarray(seq.contacts, dtype=bool)
+    for name, ob in seq.objects.items():
+        arrays[f"objects/{name}/pose"] = np.asarray(ob.pose, dtype=np.float32)
+        arrays[f"objects/{name}/category"] = np.asarray(ob.category)
+        if ob.imu_rot is not None:
+            arrays[f"objects/{name}/imu_rot"] = np.asarray(ob.imu_rot, dtype=np.float32)
+        if ob.imu_acc is not None:
+            arrays[f"objects/{name}/imu_acc"] = np.asarray(ob.imu_acc, dtype=np.float32)
+    for k, v in seq.extra.items():
+        arrays[f"extra/{k}"] = np.asarray(v)
+
+    def _write(tmp: str) -> None:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+
+    atomic_write(path, _write)
+
+
+def load_sequence(path: str | Path) -> Sequence:
+    """Read a sequence ``.npz`` (never unpickles). Raises FileNotFoundError / ValueError with the fix."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"sequence file {path} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as e:
+        raise ValueError(f"{path} is not a readable sequence .npz ({e}); re-create or re-export it") from e
+    if "joints" not in data or "fps" not in data:
+        raise ValueError(f"{path} lacks 'joints' and/or 'fps'; it is not a trumans sequence file")
+    objects: dict[str, ObjectTrack] = {}
+    for k in data:
+        if k.startswith("objects/") and k.endswith("/pose"):
+            name = k[len("objects/"):-len("/pose")]
+            pre = f"objects/{name}/"
+            objects[name] = ObjectTrack(
+                pose=data[k],
+                category=str(data.get(pre + "category", np.asarray(""))),
+                imu_rot=data.get(pre + "imu_rot"),
+                imu_acc=data.get(pre + "imu_acc"),
+            )
+    return Sequence(
+        joints=data["joints"],
+        fps=float(data["fps"]),
+        rotations=data.get("rotations"),
+        root_pos=data.get("root_pos"),
+        actions=data.get("actions"),
+        action_names=[str(s) for s in data.get("action_names", [])],
+        contacts=data.get("contacts"),
+        scene=str(data.get("scene", "")),
+        objects=objects,
+        extra={k[len("extra/"):]: v for k, v in data.items() if k.startswith("extra/")},
+    )

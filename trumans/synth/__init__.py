@@ -1,0 +1,1 @@
+"""Procedural synthetic HSI data: motion primitives, room scripts, labels, metrics."""

@@ -1,0 +1,117 @@
+"""`trumans data import`: bring a TRUMANS release folder or BVH files into the dataset format."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..sequence import Sequence, atomic_write, save_sequence
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("src", nargs="+", help="a TRUMANS release folder, or one or more .bvh files")
+    p.add_argument("--format", choices=["trumans", "bvh"], required=True, help="layout of SRC")
+    p.add_argument("--out", required=True, help="dataset folder to write (sequences/, scenes/, index.json)")
+    p.add_argument("--action-names", help="TRUMANS: JSON list or text file (one per line) naming the label columns")
+    p.add_argument("--joint-map", help="BVH: JSON object {our_joint_name: bvh_joint_name} extending the default map")
+    p.add_argument("--unit-scale", type=float, help="BVH: metres per file unit (default: guessed from the skeleton size)")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="BVH: up axis of the file (default y)")
+    p.add_argument("--fps", type=float, help="resample to this frame rate (default: keep the file's)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the train/val/test split")
+    p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
+
+
+def _read_names(path: str | None) -> list[str] | None:
+    if path is None:
+        return None
+    text = Path(path).read_text()
+    try:
+        names = json.loads(text)
+    except json.JSONDecodeError:
+        names = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        raise ValueError(f"{path} must hold a JSON list of strings or one name per line")
+    return names
+
+
+def split_by_group(groups: list[str], seed: int, fracs: tuple[float, float] = (0.8, 0.1)) -> list[str]:
+    """Assign each item the split of its group (e.g. scene): returns 'train' | 'val' | 'test' per item."""
+    uniq = sorted(set(groups))
+    rng = np.random.default_rng(seed)
+    order = [uniq[i] for i in rng.permutation(len(uniq))]
+    n = len(order)
+    n_val = max(1, round(fracs[1] * n)) if n >= 3 else 0
+    n_test = max(1, round((1 - fracs[0] - fracs[1]) * n)) if n >= 3 else 0
+    which = {g: ("val" if i < n_val else "test" if i < n_val + n_test else "train") for i, g in enumerate(order)}
+    return [which[g] for g in groups]
+
+
+def write_dataset(out: Path, sequences: list[tuple[str, Sequence]], scene_grids: dict, name: str, seed: int) -> dict:
+    """Write sequences + occupancy-only scenes + index.json; returns the index."""
+    from ..sequence import atomic_write as _aw
+
+    out.mkdir(parents=True, exist_ok=True)
+    scenes_index = {}
+    for sid, g in scene_grids.items():
+        folder = out / "scenes" / sid
+        folder.mkdir(parents=True, exist_ok=True)
+
+        def _w(tmp: str, g=g) -> None:
+            with open(tmp, "wb") as f:
+                np.savez(f, grid=g.grid, origin=np.asarray(g.origin, dtype=np.float64), voxel=np.asarray(g.voxel))
+        _aw(folder / "occupancy.npz", _w)
+        scenes_index[sid] = f"scenes/{sid}"
+    rels = []
+    for stem, seq in sequences:
+        rel = f"sequences/{stem}.npz"
+        save_sequence(seq, out / rel)
+        rels.append(rel)
+    groups = [seq.scene or stem for stem, seq in sequences]
+    if len(set(groups)) < 3:  # too few scenes to hold any out: split by sequence instead
+        groups = [stem for stem, _ in sequences]
+    splits = {"train": [], "val": [], "test": []}
+    for rel, s in zip(rels, split_by_group(groups, seed)):
+        splits[s].append(rel)
+    vocab = sequences[0][1].action_names if sequences else []
+    index = {
+        "name": name, "version": 1, "seed": seed,
+        "fps": float(sequences[0][1].fps) if sequences else 0.0,
+        "vocabulary": list(vocab), "splits": splits, "scenes": scenes_index,
+        "counts": {"sequences": len(rels), "frames": int(sum(s.num_frames for _, s in sequences))},
+    }
+    atomic_write(out / "index.json", lambda tmp: Path(tmp).write_text(json.dumps(index, indent=1)))
+    return index
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if args.format == "trumans":
+        from .trumans_release import read_release
+
+        if len(args.src) != 1:
+            raise SystemExit("--format trumans takes exactly one release folder")
+        rel = read_release(args.src[0], action_names=_read_names(args.action_names))
+        seqs = rel.sequences
+        if args.fps:
+            from ..resample import resample_sequence
+            seqs = [resample_sequence(s, args.fps) for s in seqs]
+        named = [(f"trumans_{i:05d}", s) for i, s in enumerate(seqs)]
+        index = write_dataset(out, named, rel.scenes, name=f"trumans-import:{Path(args.src[0]).name}", seed=args.seed)
+    else:
+        from ..bvh import import_bvh
+
+        joint_map = json.loads(Path(args.joint_map).read_text()) if args.joint_map else None
+        named = []
+        for src in args.src:
+            seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps)
+            named.append((Path(src).stem, seq))
+        index = write_dataset(out, named, {}, name="bvh-import", seed=args.seed)
+    summary = {"sequences": index["counts"]["sequences"], "frames": index["counts"]["frames"],
+               "scenes": len(index["scenes"]), "out": str(out)}
+    print(f"imported {summary['sequences']} sequences ({summary['frames']} frames) into {out}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary))
+    return 0

@@ -1,0 +1,80 @@
+"""Time resampling of sequences (e.g. 30 fps capture -> the generator's 10 fps).
+
+Joints and root positions interpolate linearly, rotations by slerp (via scipy), labels and contacts
+take the nearest source frame. The new clip spans the same duration: frame i is at time i / fps.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from .rotations import matrix_to_6d, sixd_to_matrix
+from .sequence import ObjectTrack, Sequence
+
+__all__ = ["resample_times", "resample_sequence", "interp_rotations"]
+
+
+def resample_times(num_frames: int, fps_in: float, fps_out: float) -> np.ndarray:
+    """Source-frame coordinates (float) of the output frames: (T_out,)."""
+    if fps_in <= 0 or fps_out <= 0:
+        raise ValueError(f"frame rates must be positive, got {fps_in} -> {fps_out}")
+    duration = (num_frames - 1) / fps_in
+    t_out = np.arange(int(np.floor(duration * fps_out + 1e-9)) + 1) / fps_out
+    return t_out * fps_in
+
+
+def _lerp(x: np.ndarray, src: np.ndarray) -> np.ndarray:
+    i0 = np.clip(np.floor(src).astype(int), 0, len(x) - 1)
+    i1 = np.clip(i0 + 1, 0, len(x) - 1)
+    w = (src - i0).reshape(-1, *([1] * (x.ndim - 1)))
+    return (1 - w) * x[i0] + w * x[i1]
+
+
+def interp_rotations(R: np.ndarray, src: np.ndarray) -> np.ndarray:
+    """Slerp rotation matrices R (T, ..., 3, 3) at fractional frames src (T_out,) -> (T_out, ..., 3, 3)."""
+    T = R.shape[0]
+    lead = R.shape[1:-2]
+    flat = R.reshape(T, -1, 3, 3)
+    out = np.empty((len(src), flat.shape[1], 3, 3))
+    times = np.arange(T)
+    s = np.clip(src, 0, T - 1)
+    for j in range(flat.shape[1]):  # loop over joints only; frames are vectorised inside Slerp
+        if T == 1:
+            out[:, j] = flat[0, j]
+        else:
+            out[:, j] = Slerp(times, Rotation.from_matrix(flat[:, j]))(s).as_matrix()
+    return out.reshape(len(src), *lead, 3, 3)
+
+
+def resample_sequence(seq: Sequence, fps: float) -> Sequence:
+    """A copy of ``seq`` at ``fps`` Hz (same duration)."""
+    if abs(seq.fps - fps) < 1e-9:
+        return seq
+    src = resample_times(seq.num_frames, seq.fps, fps)
+    near = np.clip(np.rint(src).astype(int), 0, seq.num_frames - 1)
+    rot = None
+    if seq.rotations is not None:
+        rot = matrix_to_6d(interp_rotations(sixd_to_matrix(np.asarray(seq.rotations, np.float64)), src)).astype(np.float32)
+    objects = {}
+    for name, ob in seq.objects.items():
+        pose = np.tile(np.eye(4), (len(src), 1, 1))
+        pose[:, :3, :3] = interp_rotations(np.asarray(ob.pose[:, :3, :3], np.float64), src)
+        pose[:, :3, 3] = _lerp(np.asarray(ob.pose[:, :3, 3], np.float64), src)
+        objects[name] = ObjectTrack(
+            pose=pose.astype(np.float32), category=ob.category,
+            imu_rot=None if ob.imu_rot is None else matrix_to_6d(
+                interp_rotations(sixd_to_matrix(np.asarray(ob.imu_rot, np.float64)), src)).astype(np.float32),
+            imu_acc=None if ob.imu_acc is None else _lerp(np.asarray(ob.imu_acc), src).astype(np.float32),
+        )
+    return Sequence(
+        joints=_lerp(seq.joints.astype(np.float64), src).astype(np.float32),
+        fps=float(fps),
+        rotations=rot,
+        root_pos=None if seq.root_pos is None else _lerp(np.asarray(seq.root_pos, np.float64), src).astype(np.float32),
+        actions=None if seq.actions is None else np.asarray(seq.actions)[near],
+        action_names=list(seq.action_names),
+        contacts=None if seq.contacts is None else np.asarray(seq.contacts)[near],
+        scene=seq.scene,
+        objects=objects,
+        extra={},
+    )

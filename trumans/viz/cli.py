@@ -1,0 +1,82 @@
+"""`trumans view SEQ.npz [OTHER.npz ...]`: animated GIF/MP4 + top-down PNG of sequences."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..sequence import load_sequence
+from .render import SceneView, render_animation, render_topdown
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("seq", nargs="+", help="sequence .npz; several are shown side by side (e.g. original and augmented)")
+    p.add_argument("--scene", help="scene folder (default: found from the sequence's 'scene' field and the dataset index)")
+    p.add_argument("--out", help="output prefix (default: next to the first sequence)")
+    p.add_argument("--format", choices=["gif", "mp4"], default="gif", help="animation format (default gif)")
+    p.add_argument("--camera", choices=["fixed", "follow"], default="fixed", help="fixed camera or follow the body")
+    p.add_argument("--stride", type=int, default=3, help="render every N-th frame (default 3)")
+    p.add_argument("--max-frames", type=int, default=300, help="render at most this many frames (default 300)")
+    p.add_argument("--no-animation", action="store_true", help="only write the top-down PNG")
+    p.add_argument("--seed", type=int, default=0, help="unused (rendering is deterministic); accepted for uniformity")
+    p.add_argument("--json", action="store_true", help="print the written paths as JSON on the last line")
+
+
+def find_scene_dir(seq_path: Path, scene_field: str, explicit: str | None) -> Path | None:
+    """The scene folder of a sequence: ``explicit``, else ``scene_field`` as a path, else the dataset
+    index (``index.json`` beside or above the sequence) mapping scene ids to folders."""
+    if explicit:
+        d = Path(explicit)
+        if not d.is_dir():
+            raise FileNotFoundError(f"scene folder {d} does not exist")
+        return d
+    if scene_field and Path(scene_field).is_dir():
+        return Path(scene_field)
+    for root in (seq_path.parent, seq_path.parent.parent):
+        idx = root / "index.json"
+        if idx.is_file() and scene_field:
+            scenes = json.loads(idx.read_text()).get("scenes", {})
+            if scene_field in scenes and (root / scenes[scene_field]).is_dir():
+                return root / scenes[scene_field]
+    return None
+
+
+def load_scene_view(folder: Path | None) -> SceneView | None:
+    """Meshes from ``scene.json`` (when present) and the grid from ``occupancy.npz`` (when present)."""
+    if folder is None:
+        return None
+    static, dynamic = [], {}
+    if (folder / "scene.json").is_file():
+        from scenes.io import load_scene
+
+        sc = load_scene(folder)
+        static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values() if not o.dynamic]
+        dynamic = {name: o.mesh for name, o in sc.objects.items() if o.dynamic}
+    grid = origin = voxel = None
+    if (folder / "occupancy.npz").is_file():
+        with np.load(folder / "occupancy.npz", allow_pickle=False) as z:
+            grid, origin, voxel = z["grid"].astype(bool), z["origin"], float(z["voxel"])
+    return SceneView(static=static, dynamic=dynamic, grid=grid, origin=origin, voxel=voxel)
+
+
+def run(args: argparse.Namespace) -> int:
+    paths = [Path(p) for p in args.seq]
+    seqs = [load_sequence(p) for p in paths]
+    if args.max_frames < 1:
+        raise SystemExit("--max-frames must be >= 1")
+    scene = load_scene_view(find_scene_dir(paths[0], seqs[0].scene, args.scene))
+    prefix = Path(args.out) if args.out else paths[0].with_suffix("")
+    written = {"topdown": str(render_topdown(seqs[0], prefix.with_name(prefix.name + "_top.png"), scene))}
+    if not args.no_animation:
+        stride = max(args.stride, int(np.ceil(min(s.num_frames for s in seqs) / args.max_frames)))
+        anim = prefix.with_name(prefix.name + "." + args.format)
+        render_animation(seqs, anim, scene, camera=args.camera, stride=stride, titles=[p.stem for p in paths])
+        written["animation"] = str(anim)
+    for k, v in written.items():
+        print(f"{k}: {v}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(written))
+    return 0

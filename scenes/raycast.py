@@ -1,0 +1,147 @@
+"""Inside/outside tests for triangle meshes with open3d ray casting, robust to overlapping bodies.
+
+Convention (owned here): ``inside`` / occupancy ``True`` means the point lies in the solid.
+
+open3d's ``RaycastingScene.compute_occupancy`` counts ray crossings (parity). When two closed
+bodies overlap (e.g. furniture built by concatenating boxes), a point in the overlap crosses
+both surfaces and the parities cancel. We therefore split every mesh into connected components
+("bodies"), test each watertight body on its own scene and OR the results. Non-watertight
+components (scans, meshes with holes) cannot be split meaningfully, so they are kept together as
+one body and tested with a majority vote of the ray-crossing parities along ``NSAMPLES_OPEN``
+fixed directions spread over the sphere (``RaycastingScene.count_intersections``): a point
+inside a box with one face missing is still classified inside by most directions unless it is
+close to the opening. (open3d's own ``compute_occupancy(nsamples=k)`` was checked and does not
+help here: its sample rays are nearly parallel, so they all escape through the same hole.)
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import open3d as o3d
+import trimesh
+
+__all__ = ["nthreads", "Watertight", "to_o3d_scene", "Body", "split_bodies", "bodies_inside", "check_mesh"]
+
+Watertight = Literal["auto", True, False]
+
+# Ray parity votes for bodies that are watertight (3 guards against rays grazing an edge) and
+# for open bodies (majority vote over fixed spread directions; must be odd).
+NSAMPLES_CLOSED = 3
+NSAMPLES_OPEN = 15
+
+
+def nthreads() -> int:
+    """Threads for open3d ray casting: ``OMP_NUM_THREADS`` if set, else 0 (= all cores)."""
+    try:
+        return max(0, int(os.environ.get("OMP_NUM_THREADS", "0")))
+    except ValueError:
+        return 0
+
+
+def sphere_directions(k: int) -> np.ndarray:
+    """(k, 3) float32 unit vectors on a Fibonacci sphere, tilted off the axes (no grazing rays)."""
+    i = np.arange(k) + 0.5
+    z = 1 - 2 * i / k
+    r = np.sqrt(1 - z**2)
+    phi = i * np.pi * (3 - np.sqrt(5)) + 0.1234
+    d = np.stack([r * np.cos(phi), r * np.sin(phi), z], 1)
+    d = d @ trimesh.transformations.euler_matrix(0.0123, 0.0456, 0.0789)[:3, :3].T
+    return (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+
+
+def check_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> None:
+    """Raise ValueError if ``mesh`` is not a Trimesh with at least one face and finite vertices."""
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise ValueError(f"{name} must be a trimesh.Trimesh, got {type(mesh).__name__}")
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
+        raise ValueError(f"{name} is empty (no faces); give a mesh with at least one triangle")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise ValueError(f"{name} has non-finite vertices; clean the mesh before using it")
+
+
+def to_o3d_scene(*meshes: trimesh.Trimesh) -> tuple[o3d.t.geometry.RaycastingScene, list[int]]:
+    """A RaycastingScene with one geometry per mesh; returns (scene, geometry ids in order)."""
+    scene = o3d.t.geometry.RaycastingScene()
+    ids = []
+    for m in meshes:
+        v = o3d.core.Tensor(np.ascontiguousarray(m.vertices, dtype=np.float32))
+        f = o3d.core.Tensor(np.ascontiguousarray(m.faces, dtype=np.uint32))
+        ids.append(int(scene.add_triangles(v, f)))
+    return scene, ids
+
+
+@dataclass
+class Body:
+    """One solid tested on its own: a ray-casting scene, its AABB (2, 3), vote count, closed flag."""
+
+    scene: o3d.t.geometry.RaycastingScene
+    bounds: np.ndarray  # (2, 3) world, m
+    nsamples: int
+    closed: bool
+
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """points: (N, 3) float -> (N,) bool, True inside. Points outside the AABB skip ray casting."""
+        out = np.zeros(len(points), dtype=bool)
+        eps = 1e-6
+        m = np.all((points >= self.bounds[0] - eps) & (points <= self.bounds[1] + eps), axis=1)
+        if m.any():
+            q = np.ascontiguousarray(points[m], dtype=np.float32)
+            if self.closed:
+                t = o3d.core.Tensor(q)
+                occ = self.scene.compute_occupancy(t, nthreads=nthreads(), nsamples=self.nsamples).numpy()
+                out[m] = occ > 0.5
+            else:  # majority vote of crossing parities over fixed spread directions
+                out[m] = self._vote(q)
+        return out
+
+
+    def _vote(self, q: np.ndarray, chunk: int = 1 << 16) -> np.ndarray:
+        d = sphere_directions(self.nsamples)
+        votes = np.empty(len(q), dtype=bool)
+        for i in range(0, len(q), chunk):  # chunked: rays take 24 * nsamples bytes per point
+            qc = q[i:i + chunk]
+            rays = np.concatenate(np.broadcast_arrays(qc[:, None, :], d[None]), axis=-1)  # (n, k, 6)
+            hits = self.scene.count_intersections(o3d.core.Tensor(np.ascontiguousarray(rays)), nthreads=nthreads())
+            votes[i:i + chunk] = ((hits.numpy() % 2) == 1).sum(axis=1) * 2 > self.nsamples
+        return votes
+
+
+def split_bodies(mesh: trimesh.Trimesh, watertight: Watertight = "auto") -> list[Body]:
+    """Split ``mesh`` into bodies tested separately (see module doc).
+
+    watertight: ``'auto'`` checks each connected component; ``True`` trusts every component to be
+    closed (single-ray-family parity); ``False`` treats the whole mesh as open (majority vote).
+    """
+    check_mesh(mesh)
+    if watertight is False:
+        parts_closed, parts_open = [], [mesh]
+    else:
+        # A fresh processed copy merges duplicate vertices, so faces that share positions connect.
+        merged = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), process=True)
+        comps = merged.split(only_watertight=False) if merged.body_count > 1 else [merged]
+        if watertight is True:
+            parts_closed, parts_open = list(comps), []
+        else:
+            parts_closed = [c for c in comps if c.is_watertight]
+            parts_open = [c for c in comps if not c.is_watertight]
+            if parts_open:
+                parts_open = [trimesh.util.concatenate(parts_open)]
+    bodies = []
+    for part, closed in [(p, True) for p in parts_closed] + [(p, False) for p in parts_open]:
+        if len(part.faces) == 0:
+            continue
+        scene, _ = to_o3d_scene(part)
+        ns = NSAMPLES_CLOSED if closed else NSAMPLES_OPEN
+        bodies.append(Body(scene, np.asarray(part.bounds, dtype=np.float64), ns, closed))
+    return bodies
+
+
+def bodies_inside(bodies: list[Body], points: np.ndarray) -> np.ndarray:
+    """points: (N, 3) -> (N,) bool, True if inside any body (OR over bodies, no parity cancelling)."""
+    out = np.zeros(len(points), dtype=bool)
+    for b in bodies:
+        out |= b.inside(points)
+    return out

@@ -1,0 +1,514 @@
+"""BVH motion files: a generic reader, a writer for our 24-joint skeleton, and an importer.
+
+Conventions owned here:
+- Rotation channels: a joint's rotation is the product of its rotation channels *in the order they
+  are listed* (``Zrotation Xrotation Yrotation`` -> ``R = Rz @ Rx @ Ry``, degrees), acting on column
+  vectors: ``x_parent = R @ x_local + t``. Any order the file lists is read.
+- Position channels: where a joint has them (the root; some files give other joints 6 channels)
+  the channel values *replace* the joint's OFFSET as its translation (as Blender does); a missing
+  axis keeps the OFFSET's value. Joints without position channels are translated by their OFFSET.
+- ``write_bvh`` writes our skeleton (``trumans.skeleton.JOINT_NAMES``) in metres, **y-up**, as
+  Blender/MotionBuilder expect: ``(X, Y, Z)_bvh = (y, z, x)_ours`` (left, up, forward); the root has
+  6 channels ``Xposition Yposition Zposition Zrotation Xrotation Yrotation``, others 3 (ZXY);
+  leaf joints get an End Site. ``import_bvh(..., up="y")`` converts back to our z-up.
+"""
+from __future__ import annotations
+
+import logging
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .ik import fit_error, fit_rotations
+from .rotations import matrix_to_6d
+from .sequence import Sequence, atomic_write
+from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, REST_JOINTS, children
+
+__all__ = ["BvhData", "read_bvh", "write_bvh", "import_bvh", "DEFAULT_JOINT_MAP", "map_joints", "Y_UP_FROM_Z_UP"]
+
+log = logging.getLogger(__name__)
+
+# (X, Y, Z)_bvh = C @ (x, y, z)_ours : left, up, forward (det +1, a cyclic permutation).
+Y_UP_FROM_Z_UP: np.ndarray = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+_AXES = {"X": 0, "Y": 1, "Z": 2}
+
+
+@dataclass
+class BvhData:
+    """A parsed BVH file (file units, file axes).
+
+    names: (J,) joint names; parents: (J,) int, -1 for the root(s); offsets: (J, 3);
+    channels: per joint, its channel names (e.g. ``["Zrotation", "Xrotation", "Yrotation"]``);
+    motion: (T, C) float64 channel values, C = total channel count; frame_time: seconds;
+    end_sites: {joint index: (3,) End Site offset}.
+    """
+
+    names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    channels: list[list[str]]
+    motion: np.ndarray
+    frame_time: float
+    end_sites: dict[int, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.motion.shape[0])
+
+    @property
+    def fps(self) -> float:
+        """1 / frame_time, snapped to the nearest integer when within 0.01 % (0.0083333 s -> 120)."""
+        f = 1.0 / self.frame_time
+        return float(round(f)) if abs(f - round(f)) < 1e-4 * f else f
+
+    def index(self, name: str) -> int:
+        """Index of joint ``name`` (ValueError listing the file's joints if absent)."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise ValueError(f"joint {name!r} is not in the BVH; it has: {', '.join(self.names)}") from None
+
+    def local_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-joint local rotations (T, J, 3, 3) and translations (T, J, 3) in file units."""
+        T, J = self.num_frames, len(self.names)
+        R = np.broadcast_to(np.eye(3), (T, J, 3, 3)).copy()
+        t = np.broadcast_to(self.offsets, (T, J, 3)).copy()
+        col = 0
+        for j, chans in enumerate(self.channels):
+            rot_axes, rot_cols = [], []
+            for k, ch in enumerate(chans):
+                axis, kind = ch[0].upper(), ch[1:].lower()
+                if kind == "position":
+                    t[:, j, _AXES[axis]] = self.motion[:, col + k]
+                else:
+                    rot_axes.append(axis)
+                    rot_cols.append(col + k)
+            if rot_axes:
+                # intrinsic rotations in channel order: R = R_a1 @ R_a2 @ R_a3 (scipy upper-case)
+                R[:, j] = Rotation.from_euler("".join(rot_axes), self.motion[:, rot_cols], degrees=True).as_matrix()
+            col += len(chans)
+        return R, t
+
+    def forward_kinematics(self) -> tuple[np.ndarray, np.ndarray]:
+        """World joint positions (T, J, 3) and rotations (T, J, 3, 3), file units and axes.
+
+        Loops over joints only; every step is vectorised over frames."""
+        R, t = self.local_transforms()
+        G = np.empty_like(R)
+        P = np.empty_like(t)
+        for j in range(len(self.names)):  # parents precede children in a BVH
+            p = self.parents[j]
+            if p < 0:
+                G[:, j], P[:, j] = R[:, j], t[:, j]
+            else:
+                G[:, j] = G[:, p] @ R[:, j]
+                P[:, j] = P[:, p] + (G[:, p] @ t[:, j, :, None])[..., 0]
+        return P, G
+
+
+# ----------------------------------------------------------------------------------------- reading
+
+_CHANNEL_RE = re.compile(r"^[XYZxyz](position|rotation)$", re.IGNORECASE)
+
+
+def read_bvh(path: str | Path) -> BvhData:
+    """Parse any BVH file (hierarchy, offsets, 3- or 6-channel joints, any rotation order, frames).
+
+    Raises FileNotFoundError if ``path`` is missing and ValueError (with the line) if it is malformed
+    or truncated."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"BVH file {path} does not exist")
+    text = path.read_text(errors="replace")
+    m = re.search(r"^\s*MOTION\s*$", text, flags=re.MULTILINE)
+    if not text.lstrip().upper().startswith("HIERARCHY"):
+        raise ValueError(f"{path} is not a BVH file: it must start with HIERARCHY")
+    if m is None:
+        raise ValueError(f"{path} has no MOTION section; the file is truncated or not a BVH")
+    names, parents, offsets, channels, end_sites = _parse_hierarchy(text[:m.start()], path)
+    motion, frame_time = _parse_motion(text[m.end():], path, sum(len(c) for c in channels))
+    return BvhData(names, np.asarray(parents, np.int64), np.asarray(offsets, np.float64).reshape(-1, 3),
+                   channels, motion, frame_time, end_sites)
+
+
+def _parse_hierarchy(head: str, path: Path):
+    tokens = head.split()
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float]] = []
+    channels: list[list[str]] = []
+    end_sites: dict[int, np.ndarray] = {}
+    stack: list[int] = []  # joint index per open brace; -2 marks an End Site block
+    pending: int | None = None  # joint (or -2) whose '{' is expected next
+    i = 1  # skip HIERARCHY
+
+    def need(n: int, what: str) -> list[str]:
+        if i + n > len(tokens):
+            raise ValueError(f"{path}: hierarchy ends inside {what}; the file is truncated")
+        return tokens[i:i + n]
+
+    def floats(vals: list[str], what: str) -> list[float]:
+        try:
+            return [float(v) for v in vals]
+        except ValueError:
+            raise ValueError(f"{path}: {what} must be 3 numbers, got {' '.join(vals)!r}") from None
+
+    while i < len(tokens):
+        tok = tokens[i]
+        up = tok.upper()
+        if up in ("ROOT", "JOINT"):
+            (name,) = need(2, f"{tok} declaration")[1:]
+            if up == "ROOT" and stack:
+                raise ValueError(f"{path}: ROOT {name} declared inside another joint")
+            if up == "JOINT" and not stack:
+                raise ValueError(f"{path}: JOINT {name} appears outside any ROOT")
+            if name in names:
+                raise ValueError(f"{path}: joint name {name!r} is used twice; joint names must be unique")
+            parents.append(stack[-1] if stack else -1)
+            if parents[-1] == -2:
+                raise ValueError(f"{path}: JOINT {name} is declared inside an End Site")
+            names.append(name)
+            offsets.append([0.0, 0.0, 0.0])
+            channels.append([])
+            pending = len(names) - 1
+            i += 2
+        elif up == "END":
+            need(2, "End Site")
+            if not stack or stack[-1] < 0:
+                raise ValueError(f"{path}: End Site outside a joint")
+            pending = -2
+            end_owner = stack[-1]
+            i += 2
+        elif tok == "{":
+            if pending is None:
+                raise ValueError(f"{path}: unexpected '{{' (token {i})")
+            stack.append(pending)
+            pending = None
+            i += 1
+        elif tok == "}":
+            if not stack:
+                raise ValueError(f"{path}: unbalanced '}}' in the hierarchy")
+            stack.pop()
+            i += 1
+        elif up == "OFFSET":
+            vals = floats(need(4, "OFFSET")[1:], "OFFSET")
+            if not stack:
+                raise ValueError(f"{path}: OFFSET outside a joint")
+            if stack[-1] == -2:
+                end_sites[end_owner] = np.asarray(vals)
+            else:
+                offsets[stack[-1]] = vals
+            i += 4
+        elif up == "CHANNELS":
+            (n,) = need(2, "CHANNELS")[1:]
+            if not n.isdigit():
+                raise ValueError(f"{path}: CHANNELS must be followed by a count, got {n!r}")
+            chans = need(2 + int(n), "CHANNELS")[2:]
+            bad = [c for c in chans if not _CHANNEL_RE.match(c)]
+            if bad:
+                raise ValueError(f"{path}: unknown channel(s) {bad}; expected [XYZ]position / [XYZ]rotation")
+            if not stack or stack[-1] < 0:
+                raise ValueError(f"{path}: CHANNELS outside a joint")
+            channels[stack[-1]] = chans
+            i += 2 + int(n)
+        else:
+            raise ValueError(f"{path}: unexpected token {tok!r} in the hierarchy")
+    if stack:
+        raise ValueError(f"{path}: the hierarchy has {len(stack)} unclosed '{{'; the file is truncated")
+    if not names:
+        raise ValueError(f"{path}: the hierarchy declares no joints")
+    return names, parents, offsets, channels, end_sites
+
+
+def _parse_motion(body: str, path: Path, n_channels: int) -> tuple[np.ndarray, float]:
+    lines = body.strip().splitlines()
+    if len(lines) < 2:
+        raise ValueError(f"{path}: MOTION needs 'Frames: N' and 'Frame Time: dt' lines; the file is truncated")
+    m1 = re.match(r"^\s*Frames:\s*(\d+)\s*$", lines[0], flags=re.IGNORECASE)
+    m2 = re.match(r"^\s*Frame\s+Time:\s*([0-9.eE+-]+)\s*$", lines[1], flags=re.IGNORECASE)
+    if m1 is None or m2 is None:
+        raise ValueError(f"{path}: MOTION must begin with 'Frames: N' and 'Frame Time: dt', got {lines[:2]}")
+    n_frames, frame_time = int(m1.group(1)), float(m2.group(1))
+    if not (frame_time > 0 and np.isfinite(frame_time)):
+        raise ValueError(f"{path}: Frame Time must be positive, got {frame_time}")
+    rows = [ln for ln in lines[2:] if ln.strip()]
+    if len(rows) < n_frames:
+        raise ValueError(f"{path}: header says {n_frames} frames but only {len(rows)} are present; "
+                         "the file is truncated (re-export it)")
+    rows = rows[:n_frames]
+    try:
+        flat = np.array(" ".join(rows).split(), dtype=np.float64)
+    except ValueError as e:
+        raise ValueError(f"{path}: a frame holds a non-numeric value ({e})") from None
+    if flat.size != n_frames * n_channels:
+        counts = [len(r.split()) for r in rows]
+        bad = next(k for k, c in enumerate(counts) if c != n_channels)
+        raise ValueError(f"{path}: frame {bad} has {counts[bad]} values but the hierarchy declares "
+                         f"{n_channels} channels; the file is corrupt or truncated")
+    motion = flat.reshape(n_frames, n_channels)
+    if not np.isfinite(motion).all():
+        raise ValueError(f"{path}: the motion holds NaN or inf values")
+    return motion, frame_time
+
+
+# ----------------------------------------------------------------------------------------- writing
+
+def write_bvh(path: str | Path, rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, fps: float) -> None:
+    """Write our skeleton's motion as BVH (metres, y-up, ZXY Euler degrees; see the module docstring).
+
+    rot: (T, 24, 3, 3) local rotations; root: (T, 3) pelvis positions, m, z-up world;
+    offsets: (24, 3) rest offsets (m); fps: frames per second."""
+    rot = np.asarray(rot, np.float64)
+    root = np.asarray(root, np.float64)
+    offsets = np.asarray(offsets, np.float64)
+    if rot.ndim != 4 or rot.shape[1:] != (NUM_JOINTS, 3, 3):
+        raise ValueError(f"rot must be (T, 24, 3, 3), got {rot.shape}")
+    if root.shape != (rot.shape[0], 3):
+        raise ValueError(f"root must be ({rot.shape[0]}, 3), got {root.shape}")
+    if offsets.shape != (NUM_JOINTS, 3):
+        raise ValueError(f"offsets must be (24, 3), got {offsets.shape}")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be positive, got {fps}")
+    C = Y_UP_FROM_Z_UP
+    rb = C @ rot @ C.T  # (T, 24, 3, 3) in the y-up frame
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # gimbal-lock notices: the matrix is still reproduced
+        eul = Rotation.from_matrix(rb.reshape(-1, 3, 3)).as_euler("ZXY", degrees=True).reshape(-1, NUM_JOINTS, 3)
+    pos = root @ C.T
+    off = offsets @ C.T
+    lines = ["HIERARCHY"]
+
+    def emit(j: int, depth: int) -> None:
+        ind = "\t" * depth
+        kind = "ROOT" if j == 0 else "JOINT"
+        lines.append(f"{ind}{kind} {JOINT_NAMES[j]}")
+        lines.append(f"{ind}{{")
+        o = off[j]
+        lines.append(f"{ind}\tOFFSET {o[0]:.6f} {o[1]:.6f} {o[2]:.6f}")
+        if j == 0:
+            lines.append(f"{ind}\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation")
+        else:
+            lines.append(f"{ind}\tCHANNELS 3 Zrotation Xrotation Yrotation")
+        kids = children(j)
+        for c in kids:
+            emit(c, depth + 1)
+        if not kids:  # End Site: half the joint's own bone further on (at least 5 cm)
+            n = np.linalg.norm(off[j])
+            e = off[j] / n * max(0.05, 0.5 * n) if n > 1e-9 else np.array([0.0, 0.05, 0.0])
+            lines.append(f"{ind}\tEnd Site")
+            lines.append(f"{ind}\t{{")
+            lines.append(f"{ind}\t\tOFFSET {e[0]:.6f} {e[1]:.6f} {e[2]:.6f}")
+            lines.append(f"{ind}\t}}")
+        lines.append(f"{ind}}}")
+
+    emit(0, 0)
+    # channel order per frame: root position, then each joint's (Z, X, Y) in depth-first order
+    order = _depth_first()
+    values = np.concatenate([pos[:, None, :], eul[:, order]], axis=1).reshape(len(rot), -1)
+    lines += ["MOTION", f"Frames: {len(rot)}", f"Frame Time: {1.0 / fps:.8f}"]
+    body = "\n".join(lines) + "\n" + "\n".join(" ".join(f"{v:.6f}" for v in row) for row in values) + "\n"
+    atomic_write(path, lambda tmp: Path(tmp).write_text(body))
+
+
+def _depth_first() -> list[int]:
+    out: list[int] = []
+
+    def rec(j: int) -> None:
+        out.append(j)
+        for c in children(j):
+            rec(c)
+    rec(0)
+    return out
+
+
+# ----------------------------------------------------------------------------------------- import
+
+# Our joint -> candidate BVH names, first present (and not yet taken) wins. Covers our own export,
+# the CMU "3dsMax-friendly" conversion (LeftHip/LeftKnee/LeftAnkle/LeftToe, lowerback/Chest/Chest2,
+# LeftCollar/LeftShoulder/LeftElbow/LeftWrist, LFingers), the CMU/Mixamo style (LeftUpLeg/LeftLeg/
+# LeftFoot/LeftToeBase, Spine/Spine1/Spine2, LeftShoulder = clavicle, LeftArm/LeftForeArm/LeftHand)
+# and a few others. Joints resolve in this order, so "LeftShoulder" is the upper arm only where no
+# "LeftArm" exists. Extend it with ``import_bvh(joint_map={our_name: bvh_name})``.
+DEFAULT_JOINT_MAP: dict[str, list[str]] = {
+    "pelvis": ["pelvis", "Hips", "hip", "Hip", "Pelvis", "Root"],
+    "left_hip": ["left_hip", "LeftHip", "LeftUpLeg", "LeftThigh", "LThigh", "lThigh"],
+    "right_hip": ["right_hip", "RightHip", "RightUpLeg", "RightThigh", "RThigh", "rThigh"],
+    "left_knee": ["left_knee", "LeftKnee", "LeftLeg", "LeftShin", "LeftLowLeg", "LShin", "lShin"],
+    "right_knee": ["right_knee", "RightKnee", "RightLeg", "RightShin", "RightLowLeg", "RShin", "rShin"],
+    "left_ankle": ["left_ankle", "LeftAnkle", "LeftFoot", "LFoot", "lFoot"],
+    "right_ankle": ["right_ankle", "RightAnkle", "RightFoot", "RFoot", "rFoot"],
+    "left_foot": ["left_foot", "LeftToe", "LeftToeBase", "LeftToes", "LToe", "lToe"],
+    "right_foot": ["right_foot", "RightToe", "RightToeBase", "RightToes", "RToe", "rToe"],
+    "spine1": ["spine1", "lowerback", "Spine", "LowerBack", "Abdomen", "abdomen"],
+    "spine2": ["spine2", "Chest", "Spine1", "Spine2", "chest"],
+    "spine3": ["spine3", "Chest2", "Spine2", "Spine3", "UpperChest", "upperback"],
+    "neck": ["neck", "Neck", "Neck1", "neck1"],
+    "head": ["head", "Head"],
+    "left_shoulder": ["left_shoulder", "LeftArm", "LeftUpArm", "LeftUpperArm", "LShldr", "lShldr", "LeftShoulder"],
+    "right_shoulder": ["right_shoulder", "RightArm", "RightUpArm", "RightUpperArm", "RShldr", "rShldr", "RightShoulder"],
+    "left_collar": ["left_collar", "LeftCollar", "LeftClavicle", "LCollar", "lCollar", "LeftShoulder"],
+    "right_collar": ["right_collar", "RightCollar", "RightClavicle", "RCollar", "rCollar", "RightShoulder"],
+    "left_elbow": ["left_elbow", "LeftElbow", "LeftForeArm", "LeftLowArm", "LForeArm", "lForeArm"],
+    "right_elbow": ["right_elbow", "RightElbow", "RightForeArm", "RightLowArm", "RForeArm", "rForeArm"],
+    "left_wrist": ["left_wrist", "LeftWrist", "LeftHand", "LHand", "lHand"],
+    "right_wrist": ["right_wrist", "RightWrist", "RightHand", "RHand", "rHand"],
+    "left_index1": ["left_index1", "LeftHandIndex1", "LeftFingerBase", "LeftInHandIndex", "LFingers"],
+    "right_index1": ["right_index1", "RightHandIndex1", "RightFingerBase", "RightInHandIndex", "RFingers"],
+}
+# Resolution order: upper arms before clavicles (see above), then the rest.
+_RESOLVE_ORDER = ["left_shoulder", "right_shoulder"] + [n for n in JOINT_NAMES if n not in ("left_shoulder", "right_shoulder")]
+# Joints that may be synthesised when absent or degenerate (sitting on their parent), between the
+# (parent, nearest present chain descendant), or (index1) from the wrist along the forearm.
+_CHAIN_NEXT = {"spine1": "spine2", "spine2": "spine3", "spine3": "neck", "neck": "head",
+               "left_collar": "left_shoulder", "right_collar": "right_shoulder"}
+_DEGENERATE_M = 0.01  # a mapped joint closer than this (median) to its mapped parent is re-synthesised
+_KNOWN_UNITS = {"metres": 1.0, "centimetres": 0.01, "millimetres": 0.001, "inches": 0.0254,
+                "CMU units (1/0.0564444 m)": 0.0564444}
+
+
+def map_joints(names: list[str], joint_map: dict[str, str] | None = None) -> dict[str, int | None]:
+    """Our joint name -> index of the BVH joint it comes from (None = to be synthesised).
+
+    ``joint_map`` ({our_name: bvh_name}) overrides the defaults; unknown names on either side raise."""
+    user = dict(joint_map or {})
+    bad_ours = [k for k in user if k not in JOINT_INDEX]
+    if bad_ours:
+        raise ValueError(f"joint_map keys {bad_ours} are not our joints; use names from trumans.skeleton.JOINT_NAMES: "
+                         f"{', '.join(JOINT_NAMES)}")
+    bad_theirs = {k: v for k, v in user.items() if v not in names}
+    if bad_theirs:
+        raise ValueError(f"joint_map values {bad_theirs} are not joints of the BVH; it has: {', '.join(names)}")
+    out: dict[str, int | None] = {}
+    taken = {v for v in user.values()}
+    for ours in _RESOLVE_ORDER:
+        if ours in user:
+            out[ours] = names.index(user[ours])
+            continue
+        out[ours] = None
+        for cand in DEFAULT_JOINT_MAP[ours]:
+            if cand in names and cand not in taken:
+                out[ours] = names.index(cand)
+                taken.add(cand)
+                break
+    missing = [n for n, v in out.items() if v is None and n not in _CHAIN_NEXT and not n.endswith("_index1")]
+    if missing:
+        raise ValueError(f"BVH joints for {missing} not found (tried {[DEFAULT_JOINT_MAP[m] for m in missing]}); "
+                         f"pass joint_map={{our_name: bvh_name}}. The BVH has: {', '.join(names)}")
+    return {n: out[n] for n in JOINT_NAMES}
+
+
+def _synthesise(P: np.ndarray, have: np.ndarray) -> np.ndarray:
+    """Fill joints with have[j] False in P (T, 24, 3): chain joints by interpolating between their
+    parent and the nearest present chain descendant at the rest pose's arc-length fraction; index1
+    from the wrist along the forearm direction at the rest length ratio."""
+    P = P.copy()
+    have = have.copy()
+    rest_len = np.linalg.norm(REST_JOINTS - REST_JOINTS[np.maximum(PARENTS, 0)], axis=-1)
+    for j in range(NUM_JOINTS):
+        if have[j]:
+            continue
+        name = JOINT_NAMES[j]
+        p = PARENTS[j]
+        if name.endswith("_index1"):
+            e = PARENTS[p]
+            ratio = rest_len[j] / rest_len[p]
+            P[:, j] = P[:, p] + (P[:, p] - P[:, e]) * ratio
+        else:
+            chain, k = [j], JOINT_INDEX[_CHAIN_NEXT[name]]
+            while not have[k]:
+                chain.append(k)
+                k = JOINT_INDEX[_CHAIN_NEXT[JOINT_NAMES[k]]]
+            arcs = np.cumsum([rest_len[c] for c in chain] + [rest_len[k]])
+            P[:, j] = P[:, p] + (P[:, k] - P[:, p]) * (arcs[0] / arcs[-1])
+        have[j] = True
+    return P
+
+
+def _guess_unit_scale(height: float) -> float:
+    """Metres per file unit: the common unit that makes the standing height closest to 1.7 m."""
+    if not height > 0:
+        raise ValueError("cannot guess the BVH units from a zero-height skeleton; pass unit_scale")
+    name, s = min(_KNOWN_UNITS.items(), key=lambda kv: abs(np.log(height * kv[1] / 1.7)))
+    if not 0.8 <= height * s <= 2.6:
+        raise ValueError(f"cannot guess the BVH units (skeleton height {height:.3g} file units); pass unit_scale "
+                         "(metres per file unit)")
+    log.info("BVH units guessed as %s (skeleton height %.2f m)", name, height * s)
+    return s
+
+
+def import_bvh(
+    path: str | Path,
+    joint_map: dict[str, str] | None = None,
+    unit_scale: float | None = None,
+    up: Literal["y", "z"] = "y",
+    fps: float | None = None,
+    refine_steps: int = 30,
+) -> Sequence:
+    """Read a BVH of any skeleton as a trumans Sequence (24 joints, metres, z-up, rotations + root_pos).
+
+    joint_map: {our_joint_name: bvh_joint_name} overriding ``DEFAULT_JOINT_MAP``; absent collars /
+    spine joints (or ones sitting on their parent) are interpolated along the chain and absent
+    index1 joints are placed beyond the wrist along the forearm. unit_scale: metres per file unit
+    (None: guessed from the skeleton's height among m / cm / mm / inch / CMU units). up: the file's
+    up axis ('y': ``(x, y, z)_ours = (Z, X, Y)_file``, the inverse of ``write_bvh``). fps: resample
+    to this rate (None keeps the file's). Files whose skeleton is exactly ours (``write_bvh``)
+    keep their rotations; others are fitted with ``trumans.ik.fit_rotations``, and the fit's
+    error (m) is stored in ``extra["ik_error_mean"]`` / ``extra["ik_error_max"]``."""
+    if up not in ("y", "z"):
+        raise ValueError(f"up must be 'y' or 'z', got {up!r}")
+    if unit_scale is not None and not (np.isfinite(unit_scale) and unit_scale > 0):
+        raise ValueError(f"unit_scale must be a positive number of metres per file unit, got {unit_scale}")
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be positive, got {fps}")
+    bvh = read_bvh(path)
+    if bvh.num_frames == 0:
+        raise ValueError(f"{path} holds no frames")
+    src = map_joints(bvh.names, joint_map)
+    Pw, Gw = bvh.forward_kinematics()
+    # file axes -> ours: y-up files use (x, y, z) = (Z, X, Y); z-up files are taken as they are
+    C = Y_UP_FROM_Z_UP.T if up == "y" else np.eye(3)
+    Pw = Pw @ C.T
+    if unit_scale is None:
+        rest, _ = BvhData(bvh.names, bvh.parents, bvh.offsets, [[] for _ in bvh.names],
+                          np.zeros((1, 0)), 1.0).forward_kinematics()
+        pts = np.concatenate([rest[0], [rest[0, j] + e for j, e in bvh.end_sites.items()]]) @ C.T
+        height = float(np.ptp(pts[:, 2]))
+        unit_scale = _guess_unit_scale(height)
+    Pw = Pw * unit_scale
+    T = bvh.num_frames
+    P = np.zeros((T, NUM_JOINTS, 3))
+    have = np.zeros(NUM_JOINTS, bool)
+    for j, name in enumerate(JOINT_NAMES):
+        if src[name] is not None:
+            P[:, j] = Pw[:, src[name]]
+            have[j] = True
+    for j, name in enumerate(JOINT_NAMES):  # mapped but sitting on the parent (e.g. CMU collars)
+        if have[j] and (name in _CHAIN_NEXT) and have[PARENTS[j]] and (
+                joint_map is None or name not in joint_map):
+            if np.median(np.linalg.norm(P[:, j] - P[:, PARENTS[j]], axis=-1)) < _DEGENERATE_M:
+                have[j] = False
+    P = _synthesise(P, have)
+    rotations = root_pos = None
+    extra: dict[str, np.ndarray] = {}
+    ours = len(bvh.names) == NUM_JOINTS and all(v is not None for v in src.values()) and all(
+        bvh.parents[src[n]] == src[JOINT_NAMES[PARENTS[j]]] for j, n in enumerate(JOINT_NAMES) if j > 0)
+    if ours:  # our own export: keep the file's rotations exactly
+        rot = C @ Gw[:, [src[n] for n in JOINT_NAMES]] @ C.T  # global, our axes
+        rot[:, 1:] = np.swapaxes(rot[:, PARENTS[1:]], -1, -2) @ rot[:, 1:]  # global -> local
+        rotations, root_pos = matrix_to_6d(rot).astype(np.float32), P[:, 0].astype(np.float32)
+    seq = Sequence(joints=P.astype(np.float32), fps=bvh.fps, rotations=rotations, root_pos=root_pos)
+    if fps is not None and abs(fps - bvh.fps) > 1e-6:
+        from .resample import resample_sequence
+        seq = resample_sequence(seq, fps)
+    if seq.rotations is None:
+        R, root, off = fit_rotations(seq.joints, refine_steps=refine_steps)
+        err = fit_error(seq.joints, R, root, off)
+        extra = {"ik_error_mean": np.asarray(err["mean"]), "ik_error_max": np.asarray(err["max"])}
+        seq = Sequence(joints=seq.joints, fps=seq.fps, rotations=matrix_to_6d(R).astype(np.float32),
+                       root_pos=root.astype(np.float32), extra=extra)
+    return seq

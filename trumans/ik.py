@@ -1,0 +1,235 @@
+"""Joint positions -> local rotations of the 24-joint skeleton (inverse kinematics by fitting).
+
+``fit_rotations`` first solves every joint analytically, parent before child and vectorised over
+frames:
+
+- joints with several children (pelvis, spine3): the rotation that best maps the rest offsets of
+  all children onto the observed child bones (weighted Kabsch / SVD);
+- joints with one child: the *swing* that turns the rest bone onto the observed bone, taking the
+  parent's frame as the twist reference ("follow the parent"); at the hips and shoulders the twist
+  is instead set from the plane of the limb (thigh + shin, upper arm + forearm), blended in as the
+  knee / elbow bends, so that knees and elbows come out as hinges;
+- leaf joints (head, feet, index1) keep their parent's orientation (their twist is unobservable).
+
+Then a few Adam steps on 6D rotations (``trumans.rotations``) reduce the joint position error
+through ``trumans.skeleton.forward_kinematics``; per frame the better of the two solutions is kept.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import torch
+
+from .rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
+from .skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, REST_JOINTS, children, forward_kinematics, rest_offsets
+
+__all__ = ["fit_rotations", "offsets_from_joints", "fit_error", "kabsch", "rotation_between"]
+
+log = logging.getLogger(__name__)
+
+_CHILDREN = [children(j) for j in range(NUM_JOINTS)]
+# Limb-plane twist hints, in the joint's rest frame (= world rest frame: facing +x, z up): the
+# direction in which the grandchild bone bends away from the child bone. Knees bend the shin
+# backwards (-x); in the T-pose rest the elbows bend the forearm forwards (+x).
+_TWIST_HINTS: dict[int, np.ndarray] = {
+    JOINT_INDEX["left_hip"]: np.array([-1.0, 0.0, 0.0]),
+    JOINT_INDEX["right_hip"]: np.array([-1.0, 0.0, 0.0]),
+    JOINT_INDEX["left_shoulder"]: np.array([1.0, 0.0, 0.0]),
+    JOINT_INDEX["right_shoulder"]: np.array([1.0, 0.0, 0.0]),
+}
+_BEND_LO, _BEND_HI = 0.05, 0.25  # sin(bend angle) below which the limb plane is ignored / fully trusted
+
+
+def _unit(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    return K
+
+
+def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Smallest rotation taking direction u to direction v: (..., 3), (..., 3) -> (..., 3, 3).
+
+    Zero vectors give the identity; opposite vectors a half turn about an axis perpendicular to u."""
+    u, v = np.broadcast_arrays(np.asarray(u, np.float64), np.asarray(v, np.float64))
+    nu, nv = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
+    a, b = _unit(u), _unit(v)
+    c = (a * b).sum(-1)
+    K = _skew(np.cross(a, b))
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    denom = np.maximum(1.0 + c, 1e-12)[..., None, None]
+    R = eye + K + K @ K / denom
+    anti = c < -1.0 + 1e-9
+    if anti.any():  # half turn about any axis n perpendicular to a: R = 2 n n^T - I
+        aa = a[anti]
+        helper = np.where(np.abs(aa[:, :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+        n = _unit(np.cross(aa, helper))
+        R[anti] = 2 * n[:, :, None] * n[:, None, :] - np.eye(3)
+    degenerate = (nu < 1e-9) | (nv < 1e-9)
+    R[degenerate] = np.eye(3)
+    return R
+
+
+def kabsch(a: np.ndarray, b: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """Rotation R minimising sum_i w_i |R a_i - b_i|^2 (no translation).
+
+    a: (..., N, 3) source vectors, b: (..., N, 3) targets, w: (N,) or (..., N) weights -> (..., 3, 3)."""
+    a, b = np.broadcast_arrays(np.asarray(a, np.float64), np.asarray(b, np.float64))
+    if w is None:
+        w = np.ones(a.shape[-2])
+    H = np.einsum("...n,...ni,...nj->...ij", np.broadcast_to(w, a.shape[:-1]), b, a)  # sum w b a^T
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    D = np.zeros(H.shape)
+    D[..., 0, 0] = D[..., 1, 1] = 1.0
+    D[..., 2, 2] = d
+    return U @ D @ Vt
+
+
+def offsets_from_joints(joints: np.ndarray) -> np.ndarray:
+    """Rest offsets (24, 3) for a clip: median bone lengths of ``joints (T, 24, 3)`` (m) along the
+    rest directions of ``rest_offsets()``; the root entry puts the rest feet on the floor."""
+    P = np.asarray(joints, np.float64)
+    L = np.median(np.linalg.norm(P[:, 1:] - P[:, PARENTS[1:]], axis=-1), axis=0)
+    base = rest_offsets()
+    off = np.zeros((NUM_JOINTS, 3))
+    off[1:] = _unit(base[1:]) * L[:, None]
+    off[0] = _root_rest(off, base[0])
+    return off
+
+
+def _root_rest(off: np.ndarray, root_xy: np.ndarray) -> np.ndarray:
+    """Root rest position that puts the rest pose's lowest foot joint at the canonical foot height."""
+    rest, _ = forward_kinematics(np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)).copy(), np.zeros(3), off)
+    foot_h = REST_JOINTS[[10, 11], 2].min()
+    return np.array([root_xy[0], 0.0, foot_h - rest[[10, 11], 2].min()])
+
+
+def _analytic(P: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Analytic local rotations (T, 24, 3, 3) for joints P (T, 24, 3) with offsets off (24, 3)."""
+    T = P.shape[0]
+    G = np.zeros((T, NUM_JOINTS, 3, 3))
+    R = np.zeros((T, NUM_JOINTS, 3, 3))
+    eye = np.broadcast_to(np.eye(3), (T, 3, 3))
+    for j in range(NUM_JOINTS):
+        Gp = eye if j == 0 else G[:, PARENTS[j]]
+        kids = _CHILDREN[j]
+        if len(kids) >= 2:
+            w = np.linalg.norm(off[kids], axis=-1)
+            Gj = kabsch(off[kids], P[:, kids] - P[:, j:j + 1], w=(w > 1e-9).astype(float))
+        elif len(kids) == 1:
+            c = kids[0]
+            b1 = P[:, c] - P[:, j]
+            Gj = rotation_between(Gp @ off[c], b1) @ Gp
+            gk = _CHILDREN[c]
+            if j in _TWIST_HINTS and len(gk) == 1 and np.linalg.norm(off[c]) > 1e-9:
+                Gj = _limb_plane_twist(Gj, off[c], _TWIST_HINTS[j], b1, P[:, gk[0]] - P[:, c])
+        else:
+            Gj = Gp
+        G[:, j] = Gj
+        R[:, j] = np.swapaxes(Gp, -1, -2) @ Gj
+    return R
+
+
+def _limb_plane_twist(Gs: np.ndarray, a1: np.ndarray, hint: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+    """Turn the swing solution Gs (T, 3, 3) about the observed bone b1 (T, 3) so that the hint
+    direction (rest frame, perpendicular part to a1) points where the next bone b2 bends; the turn is
+    faded out as the limb straightens (the plane is then undefined)."""
+    a1 = _unit(a1)
+    h = _unit(hint - (hint @ a1) * a1)
+    nb1 = _unit(b1)
+    b2n = np.linalg.norm(b2, axis=-1)
+    perp = b2 - (b2 * nb1).sum(-1, keepdims=True) * nb1
+    s = np.linalg.norm(perp, axis=-1) / np.maximum(b2n, 1e-12)  # sin of the bend angle
+    u = Gs @ h
+    v = _unit(perp)
+    theta = np.arctan2((nb1 * np.cross(u, v)).sum(-1), (u * v).sum(-1))
+    wgt = np.clip((s - _BEND_LO) / (_BEND_HI - _BEND_LO), 0.0, 1.0)
+    return axis_angle_to_matrix(nb1 * (wgt * theta)[:, None]) @ Gs
+
+
+def fit_error(joints: np.ndarray, rot: np.ndarray, root: np.ndarray, offsets: np.ndarray) -> dict[str, float]:
+    """Joint position error (m) of FK(rot, root, offsets) against ``joints (T, 24, 3)``:
+    ``{"mean": ..., "max": ...}`` over frames and joints."""
+    J, _ = forward_kinematics(np.asarray(rot, np.float64), np.asarray(root, np.float64), np.asarray(offsets, np.float64))
+    e = np.linalg.norm(J - np.asarray(joints, np.float64), axis=-1)
+    return {"mean": float(e.mean()) if e.size else 0.0, "max": float(e.max()) if e.size else 0.0}
+
+
+def _refine(P: np.ndarray, R: np.ndarray, root: np.ndarray, off: np.ndarray, steps: int,
+            lr: float = 2e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Adam on 6D rotations + root minimising squared joint error; per frame keeps the better one."""
+    Pt = torch.as_tensor(P, dtype=torch.float64)
+    offt = torch.as_tensor(off, dtype=torch.float64)
+    r6 = torch.as_tensor(matrix_to_6d(R), dtype=torch.float64).clone().requires_grad_(True)
+    rt = torch.as_tensor(root, dtype=torch.float64).clone().requires_grad_(True)
+    opt = torch.optim.Adam([r6, rt], lr=lr)
+    for _ in range(steps):
+        opt.zero_grad()
+        J, _ = forward_kinematics(sixd_to_matrix(r6), rt, offt)
+        loss = ((J - Pt) ** 2).sum(-1).mean()
+        loss.backward()
+        opt.step()
+    with torch.no_grad():
+        R_new = sixd_to_matrix(r6).numpy()
+        root_new = rt.numpy().copy()
+    e_old = np.linalg.norm(forward_kinematics(R, root, off)[0] - P, axis=-1).mean(-1)
+    e_new = np.linalg.norm(forward_kinematics(R_new, root_new, off)[0] - P, axis=-1).mean(-1)
+    better = e_new < e_old
+    return np.where(better[:, None, None, None], R_new, R), np.where(better[:, None], root_new, root)
+
+
+def fit_rotations(
+    joints: np.ndarray,
+    offsets: np.ndarray | None = None,
+    refine_steps: int = 30,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local rotations that reproduce joint positions.
+
+    joints: (T, 24, 3) metres, z-up world. offsets: (24, 3) rest offsets in metres (the skeleton's
+    convention); None measures bone lengths from the data (median over frames) along the rest
+    directions of ``rest_offsets()`` and then re-estimates each offset as the mean observed bone in
+    the fitted parent frames (so that pelvis / spine3 children, whose relative layout differs
+    between skeletons, become rigid and consistent with the data).
+    refine_steps: Adam steps after the analytic fit (0 = analytic only).
+    Returns ``(rot (T, 24, 3, 3) float64, root (T, 3) float64 pelvis positions, offsets (24, 3))``.
+    The reconstruction error is logged at INFO; ``fit_error`` computes it.
+    """
+    P = np.asarray(joints, dtype=np.float64)
+    if P.ndim != 3 or P.shape[1:] != (NUM_JOINTS, 3):
+        raise ValueError(f"joints must be (T, 24, 3), got {P.shape}")
+    if P.shape[0] == 0:
+        raise ValueError("joints has no frames")
+    if not np.isfinite(P).all():
+        raise ValueError("joints contain NaN or inf; clean or interpolate them before fitting rotations")
+    if refine_steps < 0:
+        raise ValueError(f"refine_steps must be >= 0, got {refine_steps}")
+    root = P[:, 0].copy()
+    if offsets is None:
+        off = offsets_from_joints(P)
+        R = _analytic(P, off)
+        _, G = forward_kinematics(R, root, off)
+        d = P[:, 1:] - P[:, PARENTS[1:]]
+        off = off.copy()
+        # mean of G_parent^T (p_j - p_parent): the data's bone in the fitted parent frame
+        off[1:] = np.einsum("tjki,tjk->ji", G[:, PARENTS[1:]], d) / len(P)
+        off[0] = _root_rest(off, off[0])
+    else:
+        off = np.asarray(offsets, dtype=np.float64)
+        if off.shape != (NUM_JOINTS, 3):
+            raise ValueError(f"offsets must be (24, 3), got {off.shape}")
+    R = _analytic(P, off)
+    if refine_steps > 0:
+        before = fit_error(P, R, root, off)["max"]
+        if before > 1e-5:
+            R, root = _refine(P, R, root, off, refine_steps)
+    err = fit_error(P, R, root, off)
+    log.info("fit_rotations: %d frames, joint error mean %.2f mm, max %.2f mm", len(P), 1e3 * err["mean"], 1e3 * err["max"])
+    return R, root, off

@@ -1,0 +1,421 @@
+"""Cyclic coordinate descent IK (Kenwright 2012) on the 24-joint skeleton, vectorised over frames.
+
+TRUMANS §3.3 / appendix B.5: after the contact targets move, the pose is recomputed by CCD with
+per-bone rotation clipping and regularisation toward the original pose, bones further from the
+root being allowed to rotate more. Conventions:
+
+- State: world joint positions ``P (T, 24, 3)`` (m) and global joint rotations ``G (T, 24, 3, 3)``
+  (``G[j] = G[parent] @ R_local[j]``, see trumans.skeleton). A CCD step at joint ``j`` is a world
+  rotation ``dR`` about ``P[j]`` applied rigidly to j's whole subtree, so bone lengths never change.
+- Each effector ``e`` has a chain: its proper ancestors from the parent up to spine1 / hip (the
+  pelvis' rotation is never changed: it would swing the planted legs and the whole body).
+- Seat / bed contacts (pelvis, hips, spine, neck, head, collars, shoulders: ``ROOT_GROUP``) use the
+  root translation as a degree of freedom: each iteration translates the body by the mean residual
+  of the active root-group effectors, clamped so planted legs can still reach their feet.
+- Per iteration, every CCD joint's local rotation first relaxes toward the original by a fraction
+  ``reg`` (regularisation; annealed to 0 over the first ``reg_iters`` iterations so the final
+  iterations are pure CCD and converge), then each chain joint takes its CCD step clipped to
+  ``limit_deg[j]``. Middle joints of two-bone limbs (knees, elbows) take a law-of-cosines step
+  instead of the aiming step (plain CCD crawls on an almost straight limb).
+- A target is *unreachable* when its error after ``iterations`` exceeds ``unreachable_tol``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
+
+__all__ = ["IKConfig", "IKResult", "ROOT_GROUP", "CHAINS", "DEPTH", "solve_ik", "rodrigues", "rotvec"]
+
+_J = JOINT_INDEX
+
+
+def _depth(j: int) -> int:
+    d = 0
+    while PARENTS[j] >= 0:
+        j, d = int(PARENTS[j]), d + 1
+    return d
+
+
+DEPTH: np.ndarray = np.array([_depth(j) for j in range(NUM_JOINTS)])  # pelvis 0 ... index1 8
+
+# Joints moved by translating the root (seat / bed contacts).
+ROOT_GROUP: tuple[int, ...] = tuple(_J[n] for n in (
+    "pelvis", "left_hip", "right_hip", "spine1", "spine2", "spine3", "neck", "head",
+    "left_collar", "right_collar", "left_shoulder", "right_shoulder"))
+
+
+# middle joints of the two-bone limbs -> flexion axis in their own frame (see trumans.synth.limb_ik)
+HINGES: dict[int, np.ndarray] = {_J["left_knee"]: np.array([0.0, 1.0, 0.0]), _J["right_knee"]: np.array([0.0, 1.0, 0.0]),
+                                 _J["left_elbow"]: np.array([0.0, 0.0, -1.0]), _J["right_elbow"]: np.array([0.0, 0.0, 1.0])}
+SPINE: frozenset[int] = frozenset(_J[n] for n in ("spine1", "spine2", "spine3"))
+# root-group joints above spine1: contacts that bending the spine would tear off
+_UPPER: list[int] = [_J[n] for n in ("spine2", "spine3", "neck", "head", "left_collar", "right_collar",
+                                      "left_shoulder", "right_shoulder")]
+
+
+def _chain(e: int) -> tuple[int, ...]:
+    out = []
+    j = int(PARENTS[e])
+    while j > 0:  # stop before the pelvis
+        out.append(j)
+        j = int(PARENTS[j])
+    return tuple(out)
+
+
+# Effector -> chain of joints whose rotation CCD adjusts, distal first.
+CHAINS: dict[int, tuple[int, ...]] = {e: _chain(e) for e in range(NUM_JOINTS)}
+_ROTATED: list[int] = sorted({j for c in CHAINS.values() for j in c})
+
+
+def _descendants(j: int) -> np.ndarray:
+    out, todo = [j], [j]
+    while todo:
+        k = todo.pop()
+        kids = [int(c) for c in np.flatnonzero(PARENTS == k)]
+        out += kids
+        todo += kids
+    return np.array(sorted(out))
+
+
+SUBTREE: list[np.ndarray] = [_descendants(j) for j in range(NUM_JOINTS)]
+
+
+@dataclass
+class IKConfig:
+    """CCD settings. Angles in degrees, distances in metres."""
+
+    iterations: int = 25
+    tol: float = 2e-4  # a frame is done when every active effector is within tol
+    unreachable_tol: float = 5e-3  # error above which a target is reported unreachable
+    limit_base_deg: float = 3.0  # per-iteration rotation clip = base + per_depth * depth(j)
+    limit_per_depth_deg: float = 2.0
+    reg: float = 0.25  # fraction of the deviation from the original local rotation removed per iteration
+    reg_iters: int = 4  # regularisation anneals linearly to 0 over these iterations
+    leg_reach: float = 0.97  # planted legs may stretch to this fraction of their length
+
+    def __post_init__(self) -> None:
+        if self.iterations < 1:
+            raise ValueError(f"iterations must be >= 1, got {self.iterations}")
+        if not (0 <= self.reg < 1):
+            raise ValueError(f"reg must be in [0, 1), got {self.reg}")
+        if self.tol <= 0 or self.unreachable_tol < self.tol:
+            raise ValueError(f"need 0 < tol <= unreachable_tol, got {self.tol}, {self.unreachable_tol}")
+
+    def limits(self) -> np.ndarray:
+        """(24,) per-joint per-iteration rotation clip in radians, larger further from the root."""
+        return np.deg2rad(self.limit_base_deg + self.limit_per_depth_deg * DEPTH)
+
+
+@dataclass
+class IKResult:
+    """joints (T, 24, 3) m; global_rot (T, 24, 3, 3); local_rot (T, 24, 3, 3); error (T, 24) m
+    distance of each active effector to its target (0 where inactive); unreachable (T, 24) bool."""
+
+    joints: np.ndarray
+    global_rot: np.ndarray
+    local_rot: np.ndarray
+    error: np.ndarray
+    unreachable: np.ndarray
+
+
+def rodrigues(axis_angle: np.ndarray) -> np.ndarray:
+    """(..., 3) rotation vectors (rad) -> (..., 3, 3) matrices: c I + s [k]x + (1 - c) k k^T."""
+    v = np.asarray(axis_angle, dtype=np.float64)
+    ang = _norm(v)
+    k = v / np.maximum(ang, 1e-12)[..., None]
+    s, c = np.sin(ang), np.cos(ang)
+    R = (1 - c)[..., None, None] * (k[..., :, None] * k[..., None, :])
+    R[..., 0, 0] += c
+    R[..., 1, 1] += c
+    R[..., 2, 2] += c
+    sk = s[..., None] * k
+    R[..., 0, 1] -= sk[..., 2]
+    R[..., 0, 2] += sk[..., 1]
+    R[..., 1, 0] += sk[..., 2]
+    R[..., 1, 2] -= sk[..., 0]
+    R[..., 2, 0] -= sk[..., 1]
+    R[..., 2, 1] += sk[..., 0]
+    return R
+
+
+def rotvec(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices -> (..., 3) rotation vectors (rad); exact away from angle pi."""
+    tr = np.trace(R, axis1=-2, axis2=-1)
+    ang = np.arccos(np.clip((tr - 1) / 2, -1.0, 1.0))
+    w = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    s = np.sin(ang)
+    scale = np.where(s > 1e-9, ang / np.maximum(2 * s, 1e-12), 0.5)
+    return w * scale[..., None]
+
+
+_RING: dict[tuple[int, int], np.ndarray] = {}
+
+
+def _ring(j: int, inner: int) -> np.ndarray:
+    """Joints of subtree(j) not in subtree(inner) (inner = -1: the whole subtree), cached."""
+    key = (j, inner)
+    if key not in _RING:
+        _RING[key] = SUBTREE[j] if inner < 0 else np.setdiff1d(SUBTREE[j], SUBTREE[inner], assume_unique=True)
+    return _RING[key]
+
+
+_LEAVES = frozenset(j for j in range(NUM_JOINTS) if not (PARENTS == j).any())
+_RING_INNER: dict[tuple[int, int], np.ndarray] = {}
+
+
+def _ring_inner(j: int, inner: int) -> np.ndarray:
+    """``_ring`` without leaf joints: a leaf's rotation is never read while solving (its local
+    rotation never changes), so it is rebuilt from its parent once at the end."""
+    key = (j, inner)
+    if key not in _RING_INNER:
+        _RING_INNER[key] = np.array([k for k in _ring(j, inner) if k not in _LEAVES], dtype=np.int64)
+    return _RING_INNER[key]
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    return np.sqrt((v * v).sum(-1))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
+
+
+def _aim(a: np.ndarray, b: np.ndarray, limit: float) -> np.ndarray:
+    """Rotation vectors (n, 3) turning direction a toward b, angle clipped to ``limit`` rad."""
+    cross = _cross(a, b)
+    sn = _norm(cross)
+    ang = np.arctan2(sn, (a * b).sum(-1))
+    ang = np.minimum(ang, limit)
+    ok = (sn > 1e-12) & (_norm(a) > 1e-6) & (_norm(b) > 1e-6)
+    return np.where(ok[:, None], cross / np.maximum(sn, 1e-12)[:, None] * ang[:, None], 0.0)
+
+
+def _bend(pu: np.ndarray, pm: np.ndarray, pe: np.ndarray, target: np.ndarray, hinge: np.ndarray,
+          limit: float) -> np.ndarray:
+    """Rotation vectors (n, 3) at a middle joint (knee / elbow) that set the upper-joint-to-effector
+    distance to the upper-joint-to-target distance (law of cosines), about the bend-plane normal
+    (the hinge axis ``hinge`` (n, 3) world when the limb is straight), clipped to ``limit`` rad.
+    Plain CCD crawls when a two-bone limb is almost straight; this step does not."""
+    a, b = pu - pm, pe - pm
+    la, lb = _norm(a), _norm(b)
+    D = np.clip(_norm(target - pu), np.abs(la - lb) + 1e-9, la + lb - 1e-9)
+    phi = np.arccos(np.clip((a * b).sum(-1) / np.maximum(la * lb, 1e-12), -1.0, 1.0))
+    phi2 = np.arccos(np.clip((la**2 + lb**2 - D**2) / np.maximum(2 * la * lb, 1e-12), -1.0, 1.0))
+    n = _cross(a, b)
+    nn = _norm(n)
+    hinge_u = hinge / np.maximum(_norm(hinge), 1e-12)[:, None]
+    # straight limb: bend so the effector moves the way the hinge flexes (sign of a x b along the hinge)
+    axis = np.where((nn > 1e-6)[:, None], n / np.maximum(nn, 1e-12)[:, None], -hinge_u)
+    return axis * np.clip(phi2 - phi, -limit, limit)[:, None]
+
+
+def _sweep(P, G, target, e, chain, limits, gain, spine_gain) -> None:
+    """One CCD pass (distal -> proximal) for effector e on frames of P/G (modified in place).
+
+    Ops at distal joints never move proximal ones, so every op uses the sweep-start pivots and
+    rotations; the ops are then composed once per joint (each joint transformed once)."""
+    n = P.shape[0]
+    pe = P[:, e].copy()
+    ops = []
+    for j in chain:
+        pj = P[:, j]
+        g = gain * spine_gain if j in SPINE else gain
+        if j in HINGES and len(ops) == 0 and len(chain) > 1:
+            rv = _bend(P[:, chain[1]], pj, pe, target, G[:, j] @ HINGES[j], limits[j])
+        else:
+            rv = _aim(pe - pj, target - pj, limits[j])
+        dA = rodrigues(g[:, None] * rv)
+        pe = np.einsum("nij,nj->ni", dA, pe - pj) + pj
+        ops.append((j, dA))
+    # compose from the proximal end: C_m = C_{m+1} o T_m; apply C_m to subtree(j_m) \ subtree(j_{m-1})
+    Rc = np.broadcast_to(np.eye(3), (n, 3, 3))
+    tc = np.zeros((n, 3))
+    for m in range(len(ops) - 1, -1, -1):
+        j, dR = ops[m]
+        pj = P[:, j]
+        tc = np.einsum("nij,nj->ni", Rc, pj - np.einsum("nij,nj->ni", dR, pj)) + tc
+        Rc = Rc @ dR
+        sub = _ring(j, ops[m - 1][0] if m > 0 else -1)
+        P[:, sub] = np.einsum("nij,nkj->nki", Rc, P[:, sub]) + tc[:, None]
+        gsub = _ring_inner(j, ops[m - 1][0] if m > 0 else -1)
+        if len(gsub):
+            G[:, gsub] = Rc[:, None] @ G[:, gsub]
+
+
+_LEGS = ((_J["left_hip"], _J["left_knee"], _J["left_ankle"]), (_J["right_hip"], _J["right_knee"], _J["right_ankle"]))
+
+
+def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
+    """Rigid body step from the active root-group effectors (in place): a weighted fit of a yaw
+    rotation (clipped to ``yaw_limit`` rad) and a translation, the translation clamped so an
+    active ankle target stays within ``reach * leg length`` of its hip."""
+    rg = list(ROOT_GROUP)
+    w = wt[:, rg].copy()
+    w[:, 0] *= 2.0  # the pelvis (the seat) counts double
+    ws = w.sum(1)
+    has = ws > 0
+    if not has.any():
+        return
+    idx = np.flatnonzero(has)
+    w, ws = w[idx], ws[idx]
+    p, t = P[idx][:, rg], target[idx][:, rg]
+    cp = (p * w[..., None]).sum(1) / ws[:, None]
+    ct = (t * w[..., None]).sum(1) / ws[:, None]
+    a, b = p - cp[:, None], t - ct[:, None]
+    th = np.arctan2((w * (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])).sum(1),
+                    (w * (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1])).sum(1))
+    th = np.clip(th, -yaw_limit, yaw_limit)
+    Rz = yaw_rotation(th)
+    res = ct - cp
+    s = np.ones(len(idx))
+    for (h, _, an), L in zip(_LEGS, leg_len):
+        on = wt[idx, an] > 0
+        if not on.any():
+            continue
+        # largest s in [0, 1] with |hip + s d - ankle_target| <= reach L (a quadratic in s)
+        u = P[idx[on], h] - target[idx[on], an]
+        d = res[on]
+        A = (d * d).sum(-1)
+        B = 2 * (u * d).sum(-1)
+        C = (u * u).sum(-1) - (reach * L) ** 2
+        root = (-B + np.sqrt(np.maximum(B * B - 4 * A * C, 0.0))) / np.maximum(2 * A, 1e-12)
+        s_leg = np.where(A + B + C <= 0, 1.0, np.clip(root, 0.0, 1.0))
+        s_leg = np.where(C > 0, np.where(B < 0, 1.0, 0.0), s_leg)  # already out of reach: only approach
+        s[on] = np.minimum(s[on], s_leg)
+    c = cp[:, None]
+    P[idx] = np.einsum("nij,nkj->nki", Rz, P[idx] - c) + c + (s[:, None] * res)[:, None]
+    G[idx] = Rz[:, None] @ G[idx]
+
+
+def _regularise(P, G, R0, off, reg) -> None:
+    """Pull every CCD joint's local rotation toward the original by the fraction ``reg`` (geodesic),
+    then redo FK from the root (in place). off: (n, 24, 3) per-frame bone offsets."""
+    L = _local(G)
+    rv = rotvec(R0[:, _ROTATED] @ np.swapaxes(L[:, _ROTATED], -1, -2))
+    L[:, _ROTATED] = rodrigues(reg * rv) @ L[:, _ROTATED]
+    for j in range(1, NUM_JOINTS):
+        p = PARENTS[j]
+        G[:, j] = G[:, p] @ L[:, j]
+        P[:, j] = P[:, p] + np.einsum("nij,nj->ni", G[:, p], off[:, j])
+
+
+def yaw_rotation(theta: np.ndarray) -> np.ndarray:
+    """(n,) radians -> (n, 3, 3) rotations about world z."""
+    c, s = np.cos(theta), np.sin(theta)
+    R = np.zeros(theta.shape + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
+def solve_ik(
+    joints: np.ndarray,
+    global_rot: np.ndarray,
+    targets: np.ndarray,
+    active: np.ndarray,
+    rest_local: np.ndarray | None = None,
+    config: IKConfig | None = None,
+    local: bool = True,
+    init: tuple[np.ndarray, np.ndarray] | None = None,
+) -> IKResult:
+    """Move ``active`` joints to ``targets`` by CCD (see module doc).
+
+    joints: (T, 24, 3) m world; global_rot: (T, 24, 3, 3) global rotations consistent with joints;
+    targets: (T, 24, 3) m world (only entries where ``active``); active: (T, 24) bool effectors,
+    or float weights in [0, 1] (> 0 = effector; a lower weight is a lower priority: its CCD steps
+    and its share of the root fit are scaled by weight**2);
+    rest_local: (T, 24, 3, 3) local rotations to regularise toward (default: those of global_rot);
+    local: also return local rotations (``local_rot`` is None otherwise); init: (joints, global_rot)
+    of a previous solve to start from (a warm start; the regularisation still pulls toward the
+    original pose).
+    Returns IKResult; inactive frames are returned unchanged.
+    """
+    cfg = config or IKConfig()
+    P0 = np.asarray(joints, dtype=np.float64)
+    T = P0.shape[0]
+    if P0.shape != (T, NUM_JOINTS, 3):
+        raise ValueError(f"joints must be (T, 24, 3), got {P0.shape}")
+    G0 = np.asarray(global_rot, dtype=np.float64)
+    if G0.shape != (T, NUM_JOINTS, 3, 3):
+        raise ValueError(f"global_rot must be ({T}, 24, 3, 3), got {G0.shape}")
+    tgt = np.asarray(targets, dtype=np.float64)
+    wt = np.clip(np.asarray(active, dtype=np.float64), 0.0, 1.0) ** 2
+    act = wt > 0
+    if tgt.shape != P0.shape or wt.shape != (T, NUM_JOINTS):
+        raise ValueError(f"targets must be {P0.shape} and active ({T}, 24), got {tgt.shape}, {wt.shape}")
+    if not np.isfinite(tgt[act]).all():
+        raise ValueError("targets contain NaN/inf at active joints")
+    R0 = _local(G0) if rest_local is None else np.asarray(rest_local, dtype=np.float64)
+    off = np.zeros_like(P0)  # per-frame bone offsets in the parent's frame (exact for this input)
+    off[:, 1:] = np.einsum("tjik,tji->tjk", G0[:, PARENTS[1:]], P0[:, 1:] - P0[:, PARENTS[1:]])
+    limits = cfg.limits()
+    leg_len = [np.linalg.norm(P0[:, k] - P0[:, h], axis=-1).mean() + np.linalg.norm(P0[:, a] - P0[:, k], axis=-1).mean()
+               for h, k, a in _LEGS]
+
+    if init is None:
+        P, G = P0.copy(), G0.copy()
+    else:
+        P, G = (np.array(a, dtype=np.float64) for a in init)
+        if P.shape != P0.shape or G.shape != G0.shape:
+            raise ValueError(f"init must be (joints {P0.shape}, global_rot {G0.shape})")
+    err0 = np.where(act, np.linalg.norm(P - tgt, axis=-1), 0.0).max(1)
+    todo = np.flatnonzero(err0 > cfg.tol)  # frames already at their targets need no work
+    prev = err0.copy()
+    # the working set: frames still to solve, kept compact; frames leave it when done
+    Pt, Gt, tt, at, wtt, R0t, offt = P[todo], G[todo], tgt[todo], act[todo], wt[todo], R0[todo], off[todo]
+    prevt = prev[todo]
+    for it in range(cfg.iterations):
+        if len(todo) == 0:
+            break
+        reg = cfg.reg * max(0.0, 1.0 - it / max(cfg.reg_iters, 1))
+        if reg > 0 and it > 0:
+            _regularise(Pt, Gt, R0t, offt, reg)
+        _root_step(Pt, Gt, tt, wtt, leg_len, cfg.leg_reach, limits[0])
+        for e in np.flatnonzero(at.any(0)):
+            chain = CHAINS[int(e)]
+            if not chain:
+                continue
+            need = at[:, e] & (_norm(Pt[:, e] - tt[:, e]) > cfg.tol)
+            if not need.any():
+                continue
+            # an ancestor that is itself an effector on all these frames pins the chain there
+            # (rotating above it would pull it off its target): the foot joint turns only the
+            # ankle, an index finger only the wrist
+            for i, a in enumerate(chain):
+                if at[need, a].all():
+                    chain = chain[:i + 1]
+                    break
+            # limbs may bend the spine only as far as no bed/back contact holds the upper torso
+            sg = np.ones(len(Pt)) if e in ROOT_GROUP else 1.0 - wtt[:, _UPPER].max(1)
+            if need.all():
+                _sweep(Pt, Gt, tt[:, e], int(e), chain, limits, wtt[:, e], sg)
+            else:
+                fr = np.flatnonzero(need)
+                Pe, Ge = Pt[fr], Gt[fr]
+                _sweep(Pe, Ge, tt[fr, e], int(e), chain, limits, wtt[fr, e], sg[fr])
+                Pt[fr], Gt[fr] = Pe, Ge
+        err = np.where(at, _norm(Pt - tt), 0.0).max(1)
+        keep = (err > cfg.tol) & ((reg > 0) | (err < prevt - 1e-6))  # done: converged, or stalled after the regularised iterations
+        prevt = err
+        if not keep.all():
+            done = ~keep
+            P[todo[done]], G[todo[done]] = Pt[done], Gt[done]
+            todo = todo[keep]
+            Pt, Gt, tt, at, wtt, R0t, offt, prevt = (a[keep] for a in (Pt, Gt, tt, at, wtt, R0t, offt, prevt))
+    P[todo], G[todo] = Pt, Gt
+    for j in _LEAVES:  # leaves were skipped while solving; their local rotations are unchanged
+        p = PARENTS[j]
+        G[:, j] = G[:, p] @ (np.swapaxes(G0[:, p], -1, -2) @ G0[:, j])
+    err = np.where(act, np.linalg.norm(P - tgt, axis=-1), 0.0)
+    return IKResult(joints=P, global_rot=G, local_rot=_local(G) if local else None, error=err,
+                    unreachable=act & (err > cfg.unreachable_tol))
+
+
+def _local(G: np.ndarray) -> np.ndarray:
+    """(T, 24, 3, 3) global -> local rotations."""
+    L = G.copy()
+    L[:, 1:] = np.swapaxes(G[:, PARENTS[1:]], -1, -2) @ G[:, 1:]
+    return L

@@ -1,0 +1,119 @@
+"""Checkpoints: round trip, and clear errors for missing, corrupt, foreign, wrong-kind and inconsistent files."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from trumans.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint, save_checkpoint
+from trumans.diffusion import DiffusionConfig
+from trumans.episodes import Normalizer
+from trumans.nets import ActionEncoderConfig, Denoiser, DenoiserConfig
+
+torch.set_num_threads(1)
+
+
+def _ckpt(kind: str = "generator", d_model: int = 32) -> tuple[Checkpoint, Denoiser]:
+    torch.manual_seed(0)
+    cfg = DenoiserConfig(d_model=d_model, layers=1, heads=4, ff=64,
+                         action=ActionEncoderConfig(num_actions=3, d_model=16, layers=1, heads=2, ff=32))
+    model = Denoiser(cfg)
+    ck = Checkpoint(kind=kind, model_config=cfg, diffusion_config=DiffusionConfig(), model_state=model.state_dict(),
+                    normalizer=Normalizer(np.zeros(72), np.ones(72)), vocabulary=["walk", "sit", "reach"], fps=10.0,
+                    L_epi=16, k=2, grid={"n": 32, "extent": [1.2, 1.2, 1.2]}, data={"name": "tiny", "hash": "ab"},
+                    ema_state=model.state_dict(), train_state={"step": 3, "history": {"train": [0.5, 0.4]}})
+    return ck, model
+
+
+def test_round_trip(tmp_path: Path) -> None:
+    ck, model = _ckpt()
+    p = tmp_path / "c.pt"
+    save_checkpoint(p, ck)
+    back = load_checkpoint(p)
+    assert back.model_config == ck.model_config and back.vocabulary == ck.vocabulary and back.L_epi == 16
+    assert back.grid == ck.grid and back.data["hash"] == "ab" and back.train_state["step"] == 3
+    x, t = torch.randn(2, 16, 72), torch.tensor([4, 9])
+    a = torch.rand(2, 16, 3)
+    with torch.no_grad():
+        assert torch.equal(back.build_model()(x, t, actions=a), model.eval()(x, t, actions=a))
+    assert not any(f.name.endswith(".tmp") for f in tmp_path.iterdir())  # atomic write leaves no temp file
+
+
+def test_missing_and_corrupt_files(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_checkpoint(tmp_path / "nope.pt")
+    junk = tmp_path / "junk.pt"
+    for seed in range(20):
+        junk.write_bytes(np.random.default_rng(seed).bytes(2000))
+        with pytest.raises(ValueError, match="not a readable trumans checkpoint"):
+            load_checkpoint(junk)
+    ck, _ = _ckpt()
+    good = tmp_path / "good.pt"
+    save_checkpoint(good, ck)
+    trunc = tmp_path / "trunc.pt"
+    raw = good.read_bytes()
+    for frac in (0.1, 0.5, 0.9):
+        trunc.write_bytes(raw[: int(len(raw) * frac)])
+        with pytest.raises(ValueError, match="not a readable trumans checkpoint"):
+            load_checkpoint(trunc)
+    flipped = bytearray(raw)
+    flipped[len(raw) // 3: len(raw) // 3 + 64] = bytes(64)  # zeroed bytes inside the archive
+    trunc.write_bytes(bytes(flipped))
+    try:
+        load_checkpoint(trunc)  # zip may still parse if only tensor bytes were hit; then the load is clean
+    except ValueError as e:
+        assert "checkpoint" in str(e)
+
+
+def test_foreign_files_are_refused(tmp_path: Path) -> None:
+    p = tmp_path / "other.pt"
+    torch.save({"state_dict": {"w": torch.zeros(2)}}, p)
+    with pytest.raises(ValueError, match="not a trumans checkpoint"):
+        load_checkpoint(p)
+
+    class Evil:
+        def __reduce__(self):
+            return (os.system, ("echo pwned",))
+
+    evil = tmp_path / "evil.pt"
+    torch.save({"format": "trumans-checkpoint", "x": Evil()}, evil)
+    with pytest.raises(ValueError, match="not a readable"):  # weights_only refuses to build arbitrary objects
+        load_checkpoint(evil)
+
+
+def test_wrong_kind_version_and_inconsistent(tmp_path: Path) -> None:
+    ck, _ = _ckpt(kind="filter")
+    p = tmp_path / "f.pt"
+    save_checkpoint(p, ck)
+    with pytest.raises(ValueError, match="'filter' checkpoint"):
+        load_checkpoint(p)
+    assert load_checkpoint(p, kind=None).kind == "filter"
+
+    d = torch.load(p, weights_only=True)
+    d["format_version"] = FORMAT_VERSION + 1
+    torch.save(d, p)
+    with pytest.raises(ValueError, match="newer"):
+        load_checkpoint(p, kind=None)
+
+    ck, _ = _ckpt()
+    other, _ = _ckpt(d_model=64)
+    ck.model_state = other.model_state  # weights of another size
+    ck.ema_state = None
+    save_checkpoint(p, ck)
+    with pytest.raises(ValueError, match="do not match its model config"):
+        load_checkpoint(p).build_model()
+
+    ck, _ = _ckpt()
+    ck.vocabulary = ["walk"]
+    save_checkpoint(p, ck)
+    with pytest.raises(ValueError, match="vocabulary"):
+        load_checkpoint(p)
+
+    d = torch.load(p, weights_only=True)
+    del d["norm"]
+    torch.save(d, p)
+    with pytest.raises(ValueError, match="lacks"):
+        load_checkpoint(p)

@@ -1,0 +1,260 @@
+"""Training: a tiny dataset built here, data pipeline, overfitting, resume == uninterrupted, CLI, eval."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from scenes.occupancy import OccupancyGrid
+from trumans.actions import ActionInterval, labels_from_intervals
+from trumans.dataset import content_hash, write_index
+from trumans.rotations import axis_angle_to_matrix
+from trumans.sequence import Sequence, save_sequence
+from trumans.skeleton import forward_kinematics
+
+VOCAB = ["walk", "sit", "reach"]
+
+TINY_TOML = """
+name = "tiny"
+[model]
+d_model = 32
+layers = 2
+heads = 4
+ff = 64
+dropout = 0.1
+[scene]
+d_model = 16
+layers = 1
+heads = 2
+ff = 32
+[action]
+d_model = 16
+layers = 1
+heads = 2
+ff = 32
+[data]
+stride = 3
+max_val_episodes = 64
+[train]
+steps = 6
+batch_size = 8
+lr = 1e-3
+warmup_steps = 2
+checkpoint_every = 3
+val_every = 3
+val_batch_size = 32
+"""
+
+
+def make_tiny_dataset(root: Path, num_seqs: int = 6, frames: int = 150, seed: int = 0) -> Path:
+    """A dataset folder: random-walk-ish 30 fps motions from FK, a 3 m room with a box, index.json."""
+    rng = np.random.default_rng(seed)
+    root = Path(root)
+    scene_dir = root / "scenes" / "room0"
+    scene_dir.mkdir(parents=True, exist_ok=True)
+    grid = np.zeros((60, 60, 44), dtype=bool)
+    grid[40:50, 10:30, :10] = True  # a 0.5 x 1.0 x 0.5 m box
+    OccupancyGrid(grid, np.array([-1.5 + 0.025, -1.5 + 0.025, 0.025]), 0.05).save(scene_dir / "occupancy.npz")
+    paths = []
+    for s in range(num_seqs):
+        t = np.arange(frames) / 30.0
+        yaw = rng.uniform(-np.pi, np.pi) + 0.3 * np.sin(t * rng.uniform(0.5, 1.5))
+        speed = rng.uniform(0.3, 1.0)
+        root_xy = np.cumsum(np.stack([np.cos(yaw), np.sin(yaw)], -1) * speed / 30.0, 0) + rng.uniform(-0.5, 0.5, 2)
+        aa = np.zeros((frames, 24, 3))
+        aa[:, 0, 2] = yaw
+        phase = rng.uniform(0, 2 * np.pi, 24)
+        aa[:, 1:, 0] = 0.3 * np.sin(2 * np.pi * 1.2 * t[:, None] + phase[None, 1:])
+        aa[:, 1:, 1] = 0.15 * np.cos(2 * np.pi * 0.7 * t[:, None] + phase[None, 1:])
+        R = axis_angle_to_matrix(aa)
+        root_pos = np.concatenate([root_xy, np.full((frames, 1), 0.93)], -1)
+        joints, _ = forward_kinematics(R, root_pos)
+        cut = int(rng.integers(frames // 3, 2 * frames // 3))
+        acts = labels_from_intervals([ActionInterval("walk", 0, cut), ActionInterval("reach", cut - 10, frames - 1)],
+                                     VOCAB, frames)
+        rel = f"sequences/seq{s}.npz"
+        save_sequence(Sequence(joints=joints, fps=30.0, actions=acts, action_names=VOCAB, scene="room0"), root / rel)
+        paths.append(rel)
+    n_val = max(1, num_seqs // 3)
+    splits = {"train": paths[:-n_val], "val": paths[-n_val:], "test": []}
+    write_index(root, {"name": "tiny", "version": "1", "fps": 30, "vocabulary": VOCAB, "splits": splits,
+                       "scenes": {"room0": "scenes/room0"}, "hash": content_hash(root, paths)})
+    return root
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    torch.set_num_threads(1)
+    root = make_tiny_dataset(tmp_path_factory.mktemp("data"))
+    cfg_path = root / "tiny.toml"
+    cfg_path.write_text(TINY_TOML)
+    return root, cfg_path
+
+
+def test_config_loading_and_errors(tmp_path: Path) -> None:
+    from train.config import builtin_configs, load_config
+
+    assert {"cpu-small", "paper"} <= set(builtin_configs())
+    paper = load_config("paper")
+    assert (paper.model.d_model, paper.model.layers, paper.model.heads) == (512, 8, 16)
+    assert paper.diffusion.steps == 100 and paper.train.lr == 1e-4
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[model]\nd_modle = 3\n")
+    with pytest.raises(ValueError, match="unknown key"):
+        load_config(bad)
+    bad.write_text("[train]\nsteps = 'many'\n")
+    with pytest.raises(ValueError, match="train.steps must be a int"):
+        load_config(bad)
+    with pytest.raises(FileNotFoundError, match="built-in"):
+        load_config("no-such-config")
+
+
+def test_episodes_from_dataset(tiny) -> None:
+    from scenes.local_grid import local_grids
+    from train.config import load_config
+    from train.data import BatchStream, build_episodes, load_episodes
+    from trumans.dataset import Dataset
+    from trumans.episodes import Normalizer, canonical_frame
+    from trumans.resample import resample_sequence
+
+    root, cfg_path = tiny
+    cfg = load_config(cfg_path)
+    ds = Dataset(root)
+    eps = build_episodes(ds, "train", cfg.data, VOCAB)
+    # 150 frames at 30 fps -> 50 frames at 10 fps -> starts 0, 3, ..., 33 = 12 episodes per sequence
+    assert len(eps) == 4 * 12 and eps.features.shape == (48, 16, 72) and eps.actions.shape == (48, 16, 3)
+    assert np.allclose(eps.features[:, 0, :2], 0, atol=1e-5)  # canonical: first pelvis at the origin
+    seq = resample_sequence(ds.load(eps.files[1]), 10.0)
+    k = int(np.flatnonzero(eps.sequence == 1)[2])
+    win = seq.joints[eps.start[k]:eps.start[k] + 16]
+    origin, yaw = canonical_frame(win)
+    assert np.allclose(eps.origin[k], origin) and np.isclose(eps.yaw[k], yaw)
+    goal = np.array([[*win[-1, 0, :2], 0.0]])
+    ref = local_grids(ds.occupancy("room0"), goal, np.array([yaw]), n=32, extent=(1.2, 1.2, 1.2))
+    assert np.array_equal(eps.unpack_grids(np.array([k])), ref)
+    assert eps.actions.max() > 1.0  # progress indicator present
+    # ablations
+    nop = build_episodes(ds, "train", cfg.with_overrides(data={"progress_indicator": False}).data, VOCAB)
+    assert set(np.unique(nop.actions)) <= {0.0, 1.0} and np.array_equal(nop.actions > 0, eps.actions > 0)
+    ds.index["augmented"] = [ds.index["splits"]["train"][0]]
+    noaug = build_episodes(ds, "train", cfg.with_overrides(data={"augmented": False}).data, VOCAB)
+    assert len(noaug) == 3 * 12
+    # cache: the second load reads the file written by the first
+    cache = root / "cache-test"
+    a = load_episodes(Dataset(root), "val", cfg.data, VOCAB, cache)
+    files = list(cache.iterdir())
+    assert len(files) == 1
+    b = load_episodes(Dataset(root), "val", cfg.data, VOCAB, cache)
+    assert np.array_equal(a.grids, b.grids) and np.array_equal(a.features, b.features)
+    # batches: deterministic in (seed, step, rank); ranks disjoint; every episode once per epoch
+    s = BatchStream(eps, Normalizer.fit(eps.features), 8, seed=5)
+    assert np.array_equal(s.indices(3), BatchStream(eps, s.norm, 8, seed=5).indices(3))
+    r0, r1 = s.indices(2, 0, 2), s.indices(2, 1, 2)
+    assert len(r0) == 4 and not set(r0) & set(r1)
+    epoch = np.concatenate([s.indices(i) for i in range(6)])
+    assert sorted(epoch.tolist()) == list(range(48))
+    b = s.batch(0)
+    assert b.x.shape == (8, 16, 72) and b.scene.shape == (8, 32, 32, 32) and b.scene.dtype == torch.bool
+
+
+def test_resume_equals_uninterrupted_run(tiny, tmp_path: Path) -> None:
+    from train.config import load_config
+    from train.loop import train
+    from trumans.checkpoint import load_checkpoint
+
+    root, cfg_path = tiny
+    cfg = load_config(cfg_path)
+    full = train(cfg, root, tmp_path / "full", steps=6, seed=1, progress=False)
+    part = train(cfg, root, tmp_path / "part", steps=3, seed=1, progress=False)
+    assert part.steps == 3
+    with pytest.raises(ValueError, match="--resume"):
+        train(cfg, root, tmp_path / "part", steps=6, seed=1, progress=False)
+    with pytest.raises(ValueError, match="seed"):
+        train(cfg, root, tmp_path / "part", steps=6, seed=2, resume=True, progress=False)
+    resumed = train(cfg, root, tmp_path / "part", steps=6, seed=1, resume=True, progress=False)
+    assert resumed.steps == 6 and resumed.weights_sha256 == full.weights_sha256
+    a, b = load_checkpoint(full.checkpoint), load_checkpoint(resumed.checkpoint)
+    for k in a.model_state:
+        assert torch.equal(a.model_state[k], b.model_state[k]), k
+        assert torch.equal(a.ema_state[k], b.ema_state[k]), k
+    assert a.train_state["history"]["train"] == b.train_state["history"]["train"]
+    assert np.isclose(full.val_loss, resumed.val_loss)
+    other = train(cfg, root, tmp_path / "other", steps=6, seed=2, progress=False)
+    assert other.weights_sha256 != full.weights_sha256  # the seed matters
+    assert (tmp_path / "full" / "loss.png").stat().st_size > 1000
+
+
+def test_cli_train_json_and_eval(tiny, tmp_path: Path, capsys) -> None:
+    from trumans.checkpoint import load_checkpoint
+    from trumans.cli import main
+
+    root, cfg_path = tiny
+    out = tmp_path / "run"
+    rc = main(["train", "--config", str(cfg_path), "--data", str(root), "--out", str(out), "--steps", "3",
+               "--ablate", "scene", "--ablate", "progress", "--no-progress", "--json"])
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    for key in ("steps", "samples_per_s", "train_loss", "val_loss", "val_loss_zero_baseline"):
+        assert key in res
+    assert res["steps"] == 3 and res["samples_per_s"] > 0 and res["val_loss_zero_baseline"] > 0
+    ck = load_checkpoint(out / "checkpoint.pt")
+    assert ck.model_config.scene is None and ck.model_config.action is not None
+    rc = main(["eval", "train", str(out / "checkpoint.pt"), "--json"])
+    assert rc == 0
+    ev = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert np.isclose(ev["val_loss"], res["val_loss"], rtol=1e-5) and ev["data_hash_match"] is True
+    assert main(["eval", "train", str(tmp_path / "missing.pt")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["train", "--config", "nope", "--data", str(root), "--out", str(out)]) == 2
+
+
+def test_scene_grids_place_dynamic_objects_at_episode_start() -> None:
+    import trimesh
+
+    from scenes.local_grid import local_grids
+    from scenes.occupancy import scene_occupancy
+    from scenes.scene import Scene, SceneObject
+    from train.scene_grids import SceneGrids
+
+    wall = trimesh.creation.box((0.2, 3.0, 2.0), trimesh.transformations.translation_matrix([1.5, 0, 1.0]))
+    pose = trimesh.transformations.translation_matrix([0.3, 0.0, 0.25])
+    box = SceneObject("box_0", "box", trimesh.creation.box((0.3, 0.3, 0.5)), pose=pose, dof="free", dynamic=True)
+    scene = Scene("s", static={"wall": wall}, objects={"box_0": box})
+    occ = scene_occupancy(scene, None, voxel=0.04)
+    sg = SceneGrids(occ, scene)
+    c, yaw = np.array([[0.0, 0.0, 0.0]]), np.array([0.3])
+    at_scene_pose = sg.query(c, yaw, n=16)
+    ref = local_grids(occ, c, yaw, n=16)
+    assert (at_scene_pose == ref).mean() > 0.97 and at_scene_pose.sum() > 0.8 * ref.sum()
+    empty = local_grids(sg.static, c, yaw, n=16)
+    assert empty.sum() < ref.sum()  # the static grid lacks the box
+    away = sg.query(c, yaw, {"box_0": trimesh.transformations.translation_matrix([5.0, 5.0, 0.25])[None]}, n=16)
+    assert np.array_equal(away, empty)
+    moved = trimesh.transformations.translation_matrix([-0.3, 0.2, 0.25])[None]
+    g = sg.query(c, np.array([0.0]), {"box_0": moved}, n=16)
+    # with yaw 0 the cell (i, j, k) centre is (-0.6 + (i + .5) 0.075, -0.6 + (j + .5) 0.075, (k + .5) 0.075)
+    assert g[0, 4, 10, 3] and not g[0, 12, 10, 3]  # box centre (-0.3, 0.2) occupied; (0.3, 0.2) free
+    with pytest.raises(ValueError, match="no dynamic object"):
+        sg.query(c, yaw, {"chair_9": moved})
+
+
+def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: Path) -> None:
+    from train.config import load_config
+    from train.loop import train
+    from trumans.checkpoint import load_checkpoint
+
+    root, cfg_path = tiny
+    aug = make_tiny_dataset(tmp_path / "aug", num_seqs=3, seed=7)  # train split: 2 sequences x 12 episodes
+    cfg = load_config(cfg_path)
+    with_aug = train(cfg, root, tmp_path / "a", steps=1, progress=False, augmented_dirs=[aug])
+    assert with_aug.train_episodes == 48 + 24 and with_aug.val_episodes == 24
+    rec = load_checkpoint(with_aug.checkpoint).data
+    assert rec["augmented"][0]["hash"] and rec["hash"]
+    no_aug = train(cfg.with_overrides(data={"augmented": False}), root, tmp_path / "b", steps=1, progress=False,
+                   augmented_dirs=[aug])
+    assert no_aug.train_episodes == 48
+    with pytest.raises(ValueError, match="other data"):
+        train(cfg, root, tmp_path / "a", steps=2, resume=True, progress=False)  # resumed without --augmented

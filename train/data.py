@@ -1,0 +1,227 @@
+"""Training data: episodes cut from a dataset folder, canonicalised, with action labels and local grids.
+
+Every sequence of a split is resampled to ``DataSection.fps`` (10 Hz), cut into windows of
+``episode_frames`` frames every ``stride`` frames, and each window is put in its canonical frame
+(``trumans.episodes``). Its scene condition is the local occupancy grid (``scenes.local_grid``)
+around the episode subgoal - the pelvis floor point at the last frame - turned to the heading of
+the first frame, with the scene's dynamic objects where they are at the episode's first frame
+(``train.scene_grids``; TRUMANS §4.3). Grids are computed once per split and cached bit-packed in
+``cache_dir`` (keyed by the dataset's index, the data config and the vocabulary), so batches are
+array slices and the loader is never the bottleneck.
+
+The batch stream is a pure function of (seed, step, rank): sample position ``p`` of the
+infinite stream is element ``p mod N`` of the epoch ``p div N`` permutation, so a resumed run
+sees exactly the batches an uninterrupted run would, and DDP ranks take disjoint slices.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from trumans.actions import remap_labels
+from trumans.dataset import Dataset
+from trumans.episodes import PELVIS, FeatureLayout, Normalizer, canonical_frame, canonicalize, episode_starts
+from trumans.resample import resample_sequence
+from trumans.sequence import atomic_write
+
+from .config import DataSection
+from .scene_grids import SceneGrids
+
+__all__ = ["EpisodeSet", "build_episodes", "load_episodes", "BatchStream", "Batch"]
+
+_CACHE_VERSION = "episodes-v2"
+
+
+@dataclass
+class EpisodeSet:
+    """features: (N, L, F) float32 canonical (unnormalised); actions: (N, L, N_A) float32;
+    grids: (N, n^3 / 8) uint8 bit-packed local grids (axes forward, left, up; True = occupied);
+    origin: (N, 3) world m; yaw: (N,) rad; sequence: (N,) int index into ``files``; start: (N,) frame."""
+
+    features: np.ndarray
+    actions: np.ndarray
+    grids: np.ndarray
+    origin: np.ndarray
+    yaw: np.ndarray
+    sequence: np.ndarray
+    start: np.ndarray
+    grid_n: int
+    files: list[str]
+
+    def __len__(self) -> int:
+        return int(self.features.shape[0])
+
+    @classmethod
+    def concat(cls, sets: list["EpisodeSet"]) -> "EpisodeSet":
+        """One set holding the episodes of ``sets`` in order (``sequence`` re-indexed into the joint ``files``)."""
+        if len({s.grid_n for s in sets}) != 1 or len({s.features.shape[1:] for s in sets}) != 1 \
+                or len({s.actions.shape[1:] for s in sets}) != 1:
+            raise ValueError("episode sets differ in grid size, feature layout or vocabulary; they cannot be joined")
+        offsets = np.cumsum([0] + [len(s.files) for s in sets[:-1]])
+        cat = lambda name: np.concatenate([getattr(s, name) for s in sets])  # noqa: E731
+        return cls(cat("features"), cat("actions"), cat("grids"), cat("origin"), cat("yaw"),
+                   np.concatenate([s.sequence + o for s, o in zip(sets, offsets)]), cat("start"), sets[0].grid_n,
+                   [f for s in sets for f in s.files])
+
+    def unpack_grids(self, idx: np.ndarray) -> np.ndarray:
+        """(B,) indices -> (B, n, n, n) bool grids."""
+        n = self.grid_n
+        return np.unpackbits(self.grids[idx], axis=1, count=n ** 3).astype(bool).reshape(len(idx), n, n, n)
+
+
+def _cut(seq, cfg: DataSection, layout: FeatureLayout, vocab: list[str]):
+    L = cfg.episode_frames
+    starts = episode_starts(seq.num_frames, L, cfg.stride)
+    if len(starts) == 0:
+        return None
+    win = starts[:, None] + np.arange(L)[None]  # (N, L)
+    joints = seq.joints[win]  # (N, L, 24, 3)
+    origin, yaw = canonical_frame(joints)
+    if layout.rotations:
+        if seq.rotations is None:
+            raise ValueError("the feature layout has rotations but a sequence has none; set data.rotations = false")
+        cj, cr = canonicalize(joints, origin, yaw, rotations=seq.rotations[win])
+        feats = layout.pack(cj, cr)
+    else:
+        feats = layout.pack(canonicalize(joints, origin, yaw))
+    if seq.actions is not None and len(seq.action_names):
+        labels = remap_labels(np.asarray(seq.actions, np.float32), seq.action_names, vocab)
+    else:
+        labels = np.zeros((seq.num_frames, len(vocab)), np.float32)
+    acts = labels[win]
+    if not cfg.progress_indicator:  # ablation: plain multi-hot labels
+        acts = (acts > 0).astype(np.float32)
+    goal = joints[:, -1, PELVIS].astype(np.float64).copy()  # subgoal: pelvis floor point at the last frame
+    goal[:, 2] = 0.0
+    return feats, acts, origin, yaw, goal, starts
+
+
+def _scene_grids(ds: Dataset, scene_id: str, dynamic: bool) -> SceneGrids:
+    occ = ds.occupancy(scene_id)
+    if not dynamic or not (ds.scene_dir(scene_id) / "scene.json").is_file():
+        return SceneGrids(occ)
+    return SceneGrids(occ, ds.scene(scene_id))
+
+
+def _cache_key(ds: Dataset, split: str, cfg: DataSection, layout: FeatureLayout, vocab: list[str], files: list[str]) -> str:
+    h = hashlib.sha256(_CACHE_VERSION.encode())
+    h.update(json.dumps([ds.hash or ds.name, split, asdict(cfg), asdict(layout), vocab, files], sort_keys=True).encode())
+    if not ds.hash:  # no content hash: key on the sequence files' sizes and times
+        for f in files:
+            st = (ds.root / f).stat()
+            h.update(f"{f}:{st.st_size}:{st.st_mtime_ns}".encode())
+    return h.hexdigest()[:16]
+
+
+def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
+                   progress: bool = False) -> EpisodeSet:
+    """Cut every sequence of ``split`` into episodes (see module doc). Raises ValueError if none fit."""
+    from tqdm import tqdm
+
+    layout = FeatureLayout(rotations=cfg.rotations)
+    augmented = set(ds.index.get("augmented", []))
+    files = [p for p in ds.index["splits"].get(split, []) if cfg.augmented or p not in augmented]
+    parts: list = []
+    occ_cache: dict = {}
+    n = cfg.grid
+    for si, rel in enumerate(tqdm(files, desc=f"episodes[{split}]", disable=not progress, leave=False)):
+        seq = resample_sequence(ds.load(rel), cfg.fps)
+        cut = _cut(seq, cfg, layout, vocab)
+        if cut is None:
+            continue
+        feats, acts, origin, yaw, goal, starts = cut
+        if seq.scene:
+            if seq.scene not in occ_cache:
+                occ_cache[seq.scene] = _scene_grids(ds, seq.scene, cfg.dynamic_objects)
+            poses = {k: o.pose[starts] for k, o in seq.objects.items()} if cfg.dynamic_objects else None
+            grids = occ_cache[seq.scene].query(goal, yaw, poses, n=n, extent=cfg.extent)
+        else:  # no scene recorded: open floor (nothing occupied above z = 0)
+            grids = np.zeros((len(feats), n, n, n), dtype=bool)
+        packed = np.packbits(grids.reshape(len(grids), -1), axis=1)
+        parts.append((feats, acts, packed, origin, yaw, np.full(len(feats), si), starts))
+    if not parts:
+        raise ValueError(f"split {split!r} of {ds.root} has no sequence with >= {cfg.episode_frames} frames at "
+                         f"{cfg.fps} fps; use a larger dataset or shorter episodes")
+    cols = [np.concatenate([p[i] for p in parts]) for i in range(7)]
+    return EpisodeSet(cols[0].astype(np.float32), cols[1].astype(np.float32), cols[2], cols[3], cols[4],
+                      cols[5].astype(np.int64), cols[6].astype(np.int64), n, files)
+
+
+def load_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str], cache_dir: str | Path | None,
+                  progress: bool = False, write_cache: bool = True) -> EpisodeSet:
+    """``build_episodes`` with an on-disk cache ``cache_dir/episodes-<split>-<key>.npz``."""
+    layout = FeatureLayout(rotations=cfg.rotations)
+    files = list(ds.index["splits"].get(split, []))
+    path = None
+    if cache_dir is not None:
+        path = Path(cache_dir) / f"episodes-{split}-{_cache_key(ds, split, cfg, layout, vocab, files)}.npz"
+        if path.is_file():
+            try:
+                with np.load(path, allow_pickle=False) as z:
+                    return EpisodeSet(z["features"], z["actions"], z["grids"], z["origin"], z["yaw"],
+                                      z["sequence"], z["start"], int(z["grid_n"]), [str(f) for f in z["files"]])
+            except (OSError, ValueError, KeyError):
+                pass  # corrupt cache: rebuild below
+    eps = build_episodes(ds, split, cfg, vocab, progress)
+    if path is not None and write_cache:
+        arrays = dict(features=eps.features, actions=eps.actions, grids=eps.grids, origin=eps.origin, yaw=eps.yaw,
+                      sequence=eps.sequence, start=eps.start, grid_n=np.asarray(eps.grid_n),
+                      files=np.asarray(eps.files, dtype=np.str_))
+
+        def write(tmp: str) -> None:
+            with open(tmp, "wb") as f:
+                np.savez(f, **arrays)
+
+        atomic_write(path, write)
+    return eps
+
+
+@dataclass
+class Batch:
+    """x: (B, L, F) normalised features; actions: (B, L, N_A); scene: (B, n, n, n) bool; index: (B,)."""
+
+    x: torch.Tensor
+    actions: torch.Tensor
+    scene: torch.Tensor
+    index: np.ndarray
+
+
+class BatchStream:
+    """Deterministic batches: ``batch(step, rank, world)`` is a pure function of the seed and its args."""
+
+    def __init__(self, episodes: EpisodeSet, normalizer: Normalizer, global_batch: int, seed: int) -> None:
+        if global_batch < 1:
+            raise ValueError(f"batch size must be >= 1, got {global_batch}")
+        self.eps, self.norm, self.global_batch, self.seed = episodes, normalizer, global_batch, seed
+        self.x = torch.from_numpy(normalizer.normalize(episodes.features).astype(np.float32))
+        self.actions = torch.from_numpy(episodes.actions)
+        self._perms: dict[int, np.ndarray] = {}
+
+    def _perm(self, epoch: int) -> np.ndarray:
+        if epoch not in self._perms:
+            if len(self._perms) > 4:
+                self._perms.pop(min(self._perms))
+            g = torch.Generator().manual_seed(self.seed * 1_000_003 + epoch)
+            self._perms[epoch] = torch.randperm(len(self.eps), generator=g).numpy()
+        return self._perms[epoch]
+
+    def indices(self, step: int, rank: int = 0, world: int = 1) -> np.ndarray:
+        if self.global_batch % world:
+            raise ValueError(f"batch size {self.global_batch} must be divisible by the number of processes {world}")
+        b = self.global_batch // world
+        pos = step * self.global_batch + rank * b + np.arange(b)
+        N = len(self.eps)
+        epochs, within = pos // N, pos % N
+        return np.array([self._perm(int(e))[i] for e, i in zip(epochs, within)], dtype=np.int64)
+
+    def get(self, idx: np.ndarray) -> Batch:
+        t = torch.from_numpy
+        return Batch(self.x[t(idx)], self.actions[t(idx)], t(self.eps.unpack_grids(idx)), idx)
+
+    def batch(self, step: int, rank: int = 0, world: int = 1) -> Batch:
+        return self.get(self.indices(step, rank, world))

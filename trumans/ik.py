@@ -7,8 +7,9 @@ frames:
   all children onto the observed child bones (weighted Kabsch / SVD);
 - joints with one child: the *swing* that turns the rest bone onto the observed bone, taking the
   parent's frame as the twist reference ("follow the parent"); at the hips and shoulders the twist
-  is instead set from the plane of the limb (thigh + shin, upper arm + forearm), blended in as the
-  knee / elbow bends, so that knees and elbows come out as hinges;
+  is instead chosen so that the knee / elbow below is a pure hinge about its anatomical axis
+  (of the two such twists, the one that bends the limb the anatomical way), blended in as the
+  knee / elbow bends, since a straight limb does not show its twist;
 - leaf joints (head, feet, index1) keep their parent's orientation (their twist is unobservable).
 
 Then a few Adam steps on 6D rotations (``trumans.rotations``) reduce the joint position error
@@ -29,14 +30,16 @@ __all__ = ["fit_rotations", "offsets_from_joints", "fit_error", "kabsch", "rotat
 log = logging.getLogger(__name__)
 
 _CHILDREN = [children(j) for j in range(NUM_JOINTS)]
-# Limb-plane twist hints, in the joint's rest frame (= world rest frame: facing +x, z up): the
-# direction in which the grandchild bone bends away from the child bone. Knees bend the shin
-# backwards (-x); in the T-pose rest the elbows bend the forearm forwards (+x).
-_TWIST_HINTS: dict[int, np.ndarray] = {
-    JOINT_INDEX["left_hip"]: np.array([-1.0, 0.0, 0.0]),
-    JOINT_INDEX["right_hip"]: np.array([-1.0, 0.0, 0.0]),
-    JOINT_INDEX["left_shoulder"]: np.array([1.0, 0.0, 0.0]),
-    JOINT_INDEX["right_shoulder"]: np.array([1.0, 0.0, 0.0]),
+# Hinge axes of the knees and elbows, in the rest frame of the joint above them (hip / shoulder;
+# = world rest frame: facing +x, left +y, z up), keyed by that joint. A positive turn about the axis
+# bends the limb the anatomical way: knees flex about +y (shin backwards, -x); in the T-pose rest
+# the elbows flex about -z (left) / +z (right), bringing the forearm forwards (+x). The rest-frame
+# bend direction of the limb is axis x (rest child bone).
+_HINGE_AXES: dict[int, np.ndarray] = {
+    JOINT_INDEX["left_hip"]: np.array([0.0, 1.0, 0.0]),
+    JOINT_INDEX["right_hip"]: np.array([0.0, 1.0, 0.0]),
+    JOINT_INDEX["left_shoulder"]: np.array([0.0, 0.0, -1.0]),
+    JOINT_INDEX["right_shoulder"]: np.array([0.0, 0.0, 1.0]),
 }
 _BEND_LO, _BEND_HI = 0.05, 0.25  # sin(bend angle) below which the limb plane is ignored / fully trusted
 
@@ -129,8 +132,8 @@ def _analytic(P: np.ndarray, off: np.ndarray) -> np.ndarray:
             b1 = P[:, c] - P[:, j]
             Gj = rotation_between(Gp @ off[c], b1) @ Gp
             gk = _CHILDREN[c]
-            if j in _TWIST_HINTS and len(gk) == 1 and np.linalg.norm(off[c]) > 1e-9:
-                Gj = _limb_plane_twist(Gj, off[c], _TWIST_HINTS[j], b1, P[:, gk[0]] - P[:, c])
+            if j in _HINGE_AXES and len(gk) == 1 and np.linalg.norm(off[c]) > 1e-9:
+                Gj = _hinge_twist(Gj, off[c], off[gk[0]], _HINGE_AXES[j], b1, P[:, gk[0]] - P[:, c])
         else:
             Gj = Gp
         G[:, j] = Gj
@@ -138,21 +141,50 @@ def _analytic(P: np.ndarray, off: np.ndarray) -> np.ndarray:
     return R
 
 
-def _limb_plane_twist(Gs: np.ndarray, a1: np.ndarray, hint: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
-    """Turn the swing solution Gs (T, 3, 3) about the observed bone b1 (T, 3) so that the hint
-    direction (rest frame, perpendicular part to a1) points where the next bone b2 bends; the turn is
-    faded out as the limb straightens (the plane is then undefined)."""
-    a1 = _unit(a1)
-    h = _unit(hint - (hint @ a1) * a1)
-    nb1 = _unit(b1)
-    b2n = np.linalg.norm(b2, axis=-1)
-    perp = b2 - (b2 * nb1).sum(-1, keepdims=True) * nb1
-    s = np.linalg.norm(perp, axis=-1) / np.maximum(b2n, 1e-12)  # sin of the bend angle
-    u = Gs @ h
+def _hinge_twist(Gs: np.ndarray, a1: np.ndarray, a2: np.ndarray, axis: np.ndarray, b1: np.ndarray,
+                      b2: np.ndarray) -> np.ndarray:
+    """Turn the swing solution Gs (T, 3, 3) of a hip / shoulder about its observed bone b1 (T, 3)
+    so that the child joint (knee / elbow) is a pure hinge about ``axis`` for the observed next
+    bone b2 (T, 3).
+
+    a1, a2: rest offsets (3,) of the child and grandchild; axis: the hinge axis (3,) in the joint's
+    rest frame. Of the two twists that make a hinge, the one nearer to putting the rest bend
+    direction (axis x a1) into the observed limb plane is kept, so the limb bends the anatomical
+    way. The turn is faded out as the limb straightens (the hinge is then unobservable)."""
+    h = _unit(np.asarray(axis, np.float64))
+    c0 = h @ _unit(a2)  # h . unit(a2): what a hinge about h keeps constant
+    k = _unit(b1)
+    nb2 = _unit(b2)
+    # A pure hinge about h at the child joint keeps (G h) . unit(b2) = h . unit(a2) (= c0), where G is
+    # this joint's global frame (the child turns about h, which it leaves fixed) and
+    # G = Rot(k, theta) @ Gs. With n = Gs h and Rodrigues' formula this reads
+    #   A cos(theta) + B sin(theta) + D = c0,
+    #   A = n.b2 - (k.n)(k.b2),  B = (k x n).b2,  D = (k.n)(k.b2),
+    # i.e. R cos(theta - phi) = c0 - D with R = hypot(A, B), phi = atan2(B, A): two solutions
+    # phi +- arccos((c0 - D) / R) (clipped when no exact one exists).
+    n = Gs @ h
+    kn = (k * n).sum(-1)
+    kb = (k * nb2).sum(-1)
+    A = (n * nb2).sum(-1) - kn * kb
+    B = (np.cross(k, n) * nb2).sum(-1)
+    D = kn * kb
+    Rab = np.hypot(A, B)
+    phi = np.arctan2(B, A)
+    delta = np.arccos(np.clip((c0 - D) / np.maximum(Rab, 1e-12), -1.0, 1.0))
+    # limb-plane angle: turns the rest bend direction onto the observed bend direction of b2
+    hp = _unit(np.cross(h, a1))
+    perp = b2 - (b2 * k).sum(-1, keepdims=True) * k
+    s = np.linalg.norm(perp, axis=-1) / np.maximum(np.linalg.norm(b2, axis=-1), 1e-12)  # sin of the bend angle
+    u = Gs @ hp
     v = _unit(perp)
-    theta = np.arctan2((nb1 * np.cross(u, v)).sum(-1), (u * v).sum(-1))
+    plane = np.arctan2((k * np.cross(u, v)).sum(-1), (u * v).sum(-1))
+    cand = np.stack([phi + delta, phi - delta], -1)
+    dist = np.abs(np.angle(np.exp(1j * (cand - plane[:, None]))))
+    theta = np.take_along_axis(cand, dist.argmin(-1)[:, None], -1)[:, 0]
+    theta = np.angle(np.exp(1j * theta))  # wrap to (-pi, pi] so the fade goes the short way
+    theta = np.where(Rab > 1e-9, theta, plane)
     wgt = np.clip((s - _BEND_LO) / (_BEND_HI - _BEND_LO), 0.0, 1.0)
-    return axis_angle_to_matrix(nb1 * (wgt * theta)[:, None]) @ Gs
+    return axis_angle_to_matrix(k * (wgt * theta)[:, None]) @ Gs
 
 
 def fit_error(joints: np.ndarray, rot: np.ndarray, root: np.ndarray, offsets: np.ndarray) -> dict[str, float]:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import logging
 import re
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -88,9 +89,10 @@ class BvhData:
                 else:
                     rot_axes.append(axis)
                     rot_cols.append(col + k)
-            if rot_axes:
-                # intrinsic rotations in channel order: R = R_a1 @ R_a2 @ R_a3 (scipy upper-case)
-                R[:, j] = Rotation.from_euler("".join(rot_axes), self.motion[:, rot_cols], degrees=True).as_matrix()
+            for axis, c in zip(rot_axes, rot_cols):
+                # rotations in channel order: R = R_a1 @ R_a2 @ R_a3 (composed one channel at a time,
+                # so any order, even one that repeats an axis, is read)
+                R[:, j] = R[:, j] @ Rotation.from_euler(axis.lower(), self.motion[:, c, None], degrees=True).as_matrix()
             col += len(chans)
         return R, t
 
@@ -119,11 +121,13 @@ _CHANNEL_RE = re.compile(r"^[XYZxyz](position|rotation)$", re.IGNORECASE)
 def read_bvh(path: str | Path) -> BvhData:
     """Parse any BVH file (hierarchy, offsets, 3- or 6-channel joints, any rotation order, frames).
 
-    Raises FileNotFoundError if ``path`` is missing and ValueError (with the line) if it is malformed
-    or truncated."""
+    Raises FileNotFoundError if ``path`` is missing, IsADirectoryError if it is a folder and
+    ValueError (naming the file and what is wrong) if it is malformed or truncated."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(f"BVH file {path} does not exist")
+    if not path.is_file():
+        raise IsADirectoryError(f"{path} is a directory, not a BVH file; pass the path of a .bvh file")
     text = path.read_text(errors="replace")
     m = re.search(r"^\s*MOTION\s*$", text, flags=re.MULTILINE)
     if not text.lstrip().upper().startswith("HIERARCHY"):
@@ -209,11 +213,12 @@ def _parse_hierarchy(head: str, path: Path):
             if not n.isdigit():
                 raise ValueError(f"{path}: CHANNELS must be followed by a count, got {n!r}")
             chans = need(2 + int(n), "CHANNELS")[2:]
-            bad = [c for c in chans if not _CHANNEL_RE.match(c)]
-            if bad:
-                raise ValueError(f"{path}: unknown channel(s) {bad}; expected [XYZ]position / [XYZ]rotation")
             if not stack or stack[-1] < 0:
                 raise ValueError(f"{path}: CHANNELS outside a joint")
+            bad = [c for c in chans if not _CHANNEL_RE.match(c)]
+            if bad:
+                raise ValueError(f"{path}: joint {names[stack[-1]]!r} declares CHANNELS {n} but {bad} are not channel "
+                                 "names (expected [XYZ]position / [XYZ]rotation); the count must match the names listed")
             channels[stack[-1]] = chans
             i += 2 + int(n)
         else:
@@ -375,6 +380,9 @@ def map_joints(names: list[str], joint_map: dict[str, str] | None = None) -> dic
     """Our joint name -> index of the BVH joint it comes from (None = to be synthesised).
 
     ``joint_map`` ({our_name: bvh_name}) overrides the defaults; unknown names on either side raise."""
+    if joint_map is not None and not isinstance(joint_map, Mapping):
+        raise TypeError(f"joint_map must be a dict {{our_joint_name: bvh_joint_name}}, got {type(joint_map).__name__} "
+                        f"{joint_map!r}")
     user = dict(joint_map or {})
     bad_ours = [k for k in user if k not in JOINT_INDEX]
     if bad_ours:

@@ -16,7 +16,7 @@ from scenes.scene import Scene, SceneObject
 from trumans.contacts import FLOOR_NAME, ContactScene, joint_contacts
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
-from trumans.skeleton import NUM_JOINTS, PARENTS, forward_kinematics
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics
 
 from .ccd import ROOT_GROUP, IKConfig
 from .offsets import ContactInterval, runs
@@ -158,6 +158,30 @@ def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, c
             iv.frame_offset[use] = rig[fr[use], iv.joint] - closest[fr[use], iv.joint]
 
 
+_HANDS = ((JOINT_INDEX["left_wrist"], JOINT_INDEX["left_index1"]), (JOINT_INDEX["right_wrist"], JOINT_INDEX["right_index1"]))
+
+
+def _rigid_hand_offsets(intervals: list[ContactInterval], changed: set[str], T: int) -> None:
+    """A hand gripping a changed object moves as one piece: on frames where the wrist and its
+    index1 both touch the object, both get the mean of their two mapped offsets (scaling maps them
+    to points a few mm apart in different directions, which the rigid hand cannot reach at once).
+    Edits ``frame_offset`` in place."""
+    for obj in changed:
+        for wrist, finger in _HANDS:
+            ivs = [iv for iv in intervals if iv.obj == obj and iv.joint in (wrist, finger) and iv.frame_offset is not None]
+            if not any(iv.joint == wrist for iv in ivs) or not any(iv.joint == finger for iv in ivs):
+                continue
+            off = np.full((2, T, 3), np.nan)
+            for iv in ivs:
+                off[int(iv.joint == finger), iv.start:iv.end] = iv.frame_offset
+            both = ~np.isnan(off[..., 0]).any(0)
+            mean = off.mean(0)
+            for iv in ivs:
+                fr = np.arange(iv.start, iv.end)
+                use = both[fr]
+                iv.frame_offset[use] = mean[fr[use]]
+
+
 @dataclass
 class SequenceContacts:
     """A sequence's pose and contacts, computed once and shared by all its variations."""
@@ -248,6 +272,7 @@ def _prepare(sc: SequenceContacts, variations: list[Variation], replacements: di
             tr = poses.get(iv.obj)
             iv.frame_offset = map_contact_points(old, new_objs[iv.obj], vm, None if tr is None else tr[iv.start:iv.end]) - vm
     _rigid_body_offsets(intervals, closest, set(new_objs), len(sc.joints))
+    _rigid_hand_offsets(intervals, set(new_objs), len(sc.joints))
     for iv in intervals:
         if iv.frame_offset is not None:
             iv.offset = iv.frame_offset.mean(0)  # A2: the interval's offset (per-frame ones kept)

@@ -114,3 +114,22 @@ def test_find_intervals_groups_seat_contacts(sit):
     floor = [iv for iv in ivs if iv.obj == "floor_plane"]
     assert {iv.joint for iv in floor} >= {J["left_foot"], J["right_foot"]}
     assert closest.shape == P.shape
+
+
+def test_rigid_hand_offsets_average_wrist_and_finger_on_shared_frames():
+    from augment.core import _rigid_hand_offsets
+    from augment.offsets import ContactInterval
+    from trumans.skeleton import JOINT_INDEX
+    w, f = JOINT_INDEX["right_wrist"], JOINT_INDEX["right_index1"]
+    iw = ContactInterval(w, "drawer", 2, 8)
+    iw.frame_offset = np.tile([0.10, 0.0, 0.0], (6, 1))
+    jf = ContactInterval(f, "drawer", 5, 10)
+    jf.frame_offset = np.tile([0.0, 0.02, 0.0], (5, 1))
+    other = ContactInterval(JOINT_INDEX["left_wrist"], "drawer", 0, 4)
+    other.frame_offset = np.tile([0.3, 0.0, 0.0], (4, 1))
+    _rigid_hand_offsets([iw, jf, other], {"drawer"}, 12)
+    np.testing.assert_allclose(iw.frame_offset[:3], [[0.10, 0, 0]] * 3)  # frames 2-4: wrist alone
+    np.testing.assert_allclose(iw.frame_offset[3:], [[0.05, 0.01, 0]] * 3)  # frames 5-7: shared
+    np.testing.assert_allclose(jf.frame_offset[:3], [[0.05, 0.01, 0]] * 3)
+    np.testing.assert_allclose(jf.frame_offset[3:], [[0.0, 0.02, 0]] * 2)  # frames 8-9: finger alone
+    np.testing.assert_allclose(other.frame_offset, [[0.3, 0, 0]] * 4)  # the other hand is untouched

@@ -46,3 +46,29 @@ def test_view_bad_inputs(tmp_path):
     path = _dataset(tmp_path)
     with pytest.raises(FileNotFoundError, match="scene folder"):
         cli_main(["view", str(path), "--scene", str(tmp_path / "nope")])
+
+
+def test_still_draws_each_sequence_in_its_own_scene(tmp_path):
+    """Original and augmented side by side: each panel shows its own scene (a box here, nothing
+    there), at its own frame."""
+    import trimesh
+
+    from trumans.viz import SceneView, render_still
+
+    path = _dataset(tmp_path)
+    from trumans.sequence import load_sequence
+
+    seq = load_sequence(path)
+    box = SceneView(static=[trimesh.creation.box((2.0, 2.0, 1.0))], dynamic={})
+    out = render_still([seq, seq], tmp_path / "s.png", [0, 19], [box, None], size_px=200)
+    img = imageio.imread(out)[..., :3].astype(float)
+    assert img.shape[:2] == (200, 400)
+    left, right = img[:, :200], img[:, 200:]
+    assert np.abs(left - right).mean() > 1.0  # the box is only in the left panel
+    with pytest.raises(ValueError, match="one scene per sequence"):
+        render_still([seq, seq], tmp_path / "t.png", 0, [box])
+    with pytest.raises(ValueError, match="frame must be"):
+        render_still([seq], tmp_path / "t.png", 20)
+    with pytest.raises(ValueError, match=".png"):
+        render_still([seq], tmp_path / "t.gif", 0)
+    assert not (tmp_path / "t.png").exists()

@@ -67,13 +67,15 @@ def run(args: argparse.Namespace) -> int:
     seqs = [load_sequence(p) for p in paths]
     if args.max_frames < 1:
         raise SystemExit("--max-frames must be >= 1")
-    scene = load_scene_view(find_scene_dir(paths[0], seqs[0].scene, args.scene))
+    # each sequence in its own scene (an augmented sequence lives in its changed scene)
+    scenes = [load_scene_view(find_scene_dir(p, s.scene, args.scene)) for p, s in zip(paths, seqs)]
+    scene = scenes[0]
     prefix = Path(args.out) if args.out else paths[0].with_suffix("")
     written = {"topdown": str(render_topdown(seqs[0], prefix.with_name(prefix.name + "_top.png"), scene))}
     if not args.no_animation:
         stride = max(args.stride, int(np.ceil(min(s.num_frames for s in seqs) / args.max_frames)))
         anim = prefix.with_name(prefix.name + "." + args.format)
-        render_animation(seqs, anim, scene, camera=args.camera, stride=stride, titles=[p.stem for p in paths])
+        render_animation(seqs, anim, scenes, camera=args.camera, stride=stride, titles=[p.stem for p in paths])
         written["animation"] = str(anim)
     for k, v in written.items():
         print(f"{k}: {v}", file=sys.stderr)

@@ -20,7 +20,7 @@ from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noq
 from ..sequence import Sequence, atomic_write  # noqa: E402
 from ..skeleton import JOINT_NAMES, PARENTS  # noqa: E402
 
-__all__ = ["SceneView", "render_animation", "render_topdown"]
+__all__ = ["SceneView", "render_animation", "render_still", "render_topdown"]
 
 _BONES = np.array([(PARENTS[j], j) for j in range(1, len(PARENTS))])
 _LEFT = np.array([n.startswith("left_") for n in JOINT_NAMES])
@@ -55,10 +55,84 @@ def _frame_bounds(joints: list[np.ndarray], margin: float = 0.5) -> np.ndarray:
     return np.stack([c - r, c + r])
 
 
+Scenes = SceneView | list[SceneView | None] | None
+
+
+def _per_sequence(scene: Scenes, n: int) -> list[SceneView | None]:
+    if isinstance(scene, list):
+        if len(scene) != n:
+            raise ValueError(f"got {len(scene)} scenes for {n} sequences; pass one scene per sequence (or one for all)")
+        return scene
+    return [scene] * n
+
+
+class _Panels:
+    """A row of 3D panels, one per sequence, each with its own scene; ``draw(t)`` poses frame t."""
+
+    def __init__(self, seqs: list[Sequence], scenes: list[SceneView | None], camera: str, size_px: int,
+                 titles: list[str] | None) -> None:
+        n = len(seqs)
+        self.seqs, self.camera = seqs, camera
+        self.fig = plt.figure(figsize=(size_px / 100 * n, size_px / 100), dpi=100)
+        self.axes, self.bones, self.objs = [], [], []
+        self.fixed = _frame_bounds([s.joints for s in seqs])
+        for k, (s, scene) in enumerate(zip(seqs, scenes)):
+            ax = self.fig.add_subplot(1, n, k + 1, projection="3d")
+            ax.set_box_aspect((1, 1, 1))
+            ax.view_init(elev=25, azim=-60)
+            ax.set_xlabel("x"), ax.set_ylabel("y"), ax.set_zlabel("z")
+            if titles:
+                ax.set_title(titles[k], fontsize=9)
+            cols = {}
+            if scene is not None:
+                for m in scene.static:
+                    ax.add_collection3d(Poly3DCollection(_decimate(m), facecolor="#bbbbbb", edgecolor="none", alpha=0.25))
+                for name, m in scene.dynamic.items():
+                    if name in s.objects:
+                        pc = Poly3DCollection(_decimate(m, 800), facecolor="#e6a23c", edgecolor="none", alpha=0.6)
+                        ax.add_collection3d(pc)
+                        cols[name] = (pc, _decimate(m, 800))
+            j0 = s.joints[0]
+            lc = Line3DCollection(np.stack([j0[_BONES[:, 0]], j0[_BONES[:, 1]]], axis=1), linewidths=2.5)
+            ax.add_collection3d(lc, autolim=False)
+            self.axes.append(ax), self.bones.append(lc), self.objs.append(cols)
+
+    def draw(self, t: int | list[int]) -> np.ndarray:
+        """Pose every panel at frame t (or panel k at t[k]); returns the RGB image (H, W, 3) uint8."""
+        ts = t if isinstance(t, list) else [t] * len(self.seqs)
+        for k, (s, t) in enumerate(zip(self.seqs, ts)):
+            j = s.joints[t]
+            self.bones[k].set_segments(np.stack([j[_BONES[:, 0]], j[_BONES[:, 1]]], axis=1))
+            contact = s.contacts[t] if s.contacts is not None else np.zeros(len(j), bool)
+            colors = np.where(contact[_BONES[:, 1]], "#ff7f0e", np.where(_LEFT[_BONES[:, 1]], _COLORS[0], _COLORS[1]))
+            self.bones[k].set_color(list(colors))
+            for name, (pc, tri) in self.objs[k].items():
+                P = s.objects[name].pose[t]
+                pc.set_verts(tri @ P[:3, :3].T + P[:3, 3])
+            b = self.fixed
+            if self.camera == "follow":
+                c = j[0]
+                b = np.stack([c - 1.5, c + 1.5])
+                b[:, 2] = [0.0, 3.0]
+            ax = self.axes[k]
+            ax.set_xlim(b[0, 0], b[1, 0]), ax.set_ylim(b[0, 1], b[1, 1]), ax.set_zlim(b[0, 2], b[1, 2])
+        self.fig.canvas.draw()
+        return np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
+
+    def close(self) -> None:
+        plt.close(self.fig)
+
+
+def _check_seqs(seqs: list[Sequence]) -> int:
+    if not seqs:
+        raise ValueError("rendering needs at least one sequence")
+    return min(s.num_frames for s in seqs)
+
+
 def render_animation(
     seqs: list[Sequence],
     out: str | Path,
-    scene: SceneView | None = None,
+    scene: Scenes = None,
     camera: Literal["fixed", "follow"] = "fixed",
     stride: int = 1,
     fps: float | None = None,
@@ -67,67 +141,21 @@ def render_animation(
 ) -> Path:
     """Render one or more sequences side by side to ``out`` (.gif or .mp4). Returns the path.
 
-    seqs: sequences in the same world frame (e.g. original and augmented); stride: keep every
-    ``stride``-th frame; fps: output rate (default: the sequence rate / stride).
+    seqs: sequences in the same world frame (e.g. original and augmented); scene: one SceneView for
+    all panels or a list with one per sequence (an augmented sequence lives in its changed scene);
+    stride: keep every ``stride``-th frame; fps: output rate (default: the sequence rate / stride).
     """
     import imageio.v2 as imageio
 
     out = Path(out)
     if out.suffix not in (".gif", ".mp4"):
         raise ValueError(f"animation output must end in .gif or .mp4, got {out.name}")
-    if not seqs:
-        raise ValueError("render_animation needs at least one sequence")
+    T = _check_seqs(seqs)
     if stride < 1:
         raise ValueError(f"stride must be >= 1, got {stride}")
-    T = min(s.num_frames for s in seqs)
-    frames_idx = np.arange(0, T, stride)
-    n = len(seqs)
-    fig = plt.figure(figsize=(size_px / 100 * n, size_px / 100), dpi=100)
-    axes, bone_cols, obj_cols = [], [], []
-    fixed = _frame_bounds([s.joints for s in seqs])
-    for k, s in enumerate(seqs):
-        ax = fig.add_subplot(1, n, k + 1, projection="3d")
-        ax.set_box_aspect((1, 1, 1))
-        ax.view_init(elev=25, azim=-60)
-        ax.set_xlabel("x"), ax.set_ylabel("y"), ax.set_zlabel("z")
-        if titles:
-            ax.set_title(titles[k], fontsize=9)
-        if scene is not None:
-            for m in scene.static:
-                ax.add_collection3d(Poly3DCollection(_decimate(m), facecolor="#bbbbbb", edgecolor="none", alpha=0.25))
-        cols = {}
-        if scene is not None:
-            for name, m in scene.dynamic.items():
-                if name in s.objects:
-                    pc = Poly3DCollection(_decimate(m, 800), facecolor="#e6a23c", edgecolor="none", alpha=0.6)
-                    ax.add_collection3d(pc)
-                    cols[name] = (pc, m.triangles if len(m.triangles) <= 800 else _decimate(m, 800))
-        j0 = s.joints[0]
-        lc = Line3DCollection(np.stack([j0[_BONES[:, 0]], j0[_BONES[:, 1]]], axis=1), linewidths=2.5)
-        ax.add_collection3d(lc, autolim=False)
-        axes.append(ax), bone_cols.append(lc), obj_cols.append(cols)
-
-    images = []
-    for t in frames_idx:
-        for k, s in enumerate(seqs):
-            j = s.joints[t]
-            segs = np.stack([j[_BONES[:, 0]], j[_BONES[:, 1]]], axis=1)
-            bone_cols[k].set_segments(segs)
-            contact = s.contacts[t] if s.contacts is not None else np.zeros(len(j), bool)
-            colors = np.where(contact[_BONES[:, 1]], "#ff7f0e", np.where(_LEFT[_BONES[:, 1]], _COLORS[0], _COLORS[1]))
-            bone_cols[k].set_color(list(colors))
-            for name, (pc, tri) in obj_cols[k].items():
-                P = s.objects[name].pose[t]
-                pc.set_verts(tri @ P[:3, :3].T + P[:3, 3])
-            b = fixed
-            if camera == "follow":
-                c = j[0]
-                b = np.stack([c - 1.5, c + 1.5])
-                b[:, 2] = [0.0, 3.0]
-            axes[k].set_xlim(b[0, 0], b[1, 0]), axes[k].set_ylim(b[0, 1], b[1, 1]), axes[k].set_zlim(b[0, 2], b[1, 2])
-        fig.canvas.draw()
-        images.append(np.asarray(fig.canvas.buffer_rgba())[..., :3].copy())
-    plt.close(fig)
+    panels = _Panels(seqs, _per_sequence(scene, len(seqs)), camera, size_px, titles)
+    images = [panels.draw(t) for t in range(0, T, stride)]
+    panels.close()
     rate = fps or seqs[0].fps / stride
 
     def _write(tmp: str) -> None:
@@ -137,6 +165,29 @@ def render_animation(
             imageio.mimsave(tmp, images, format="FFMPEG", fps=rate, codec="libx264", macro_block_size=1)
 
     atomic_write(out, _write)
+    return out
+
+
+def render_still(seqs: list[Sequence], out: str | Path, frame: int | list[int], scene: Scenes = None,
+                 size_px: int = 480, titles: list[str] | None = None) -> Path:
+    """Frame ``frame`` (or one frame per sequence) of one or more sequences side by side, as a
+    PNG (same panels as ``render_animation``). Returns the path."""
+    import imageio.v2 as imageio
+
+    out = Path(out)
+    if out.suffix != ".png":
+        raise ValueError(f"still output must end in .png, got {out.name}")
+    _check_seqs(seqs)
+    frames = frame if isinstance(frame, list) else [frame] * len(seqs)
+    if len(frames) != len(seqs):
+        raise ValueError(f"got {len(frames)} frames for {len(seqs)} sequences")
+    for s, f in zip(seqs, frames):
+        if not 0 <= f < s.num_frames:
+            raise ValueError(f"frame must be in [0, {s.num_frames}), got {f}")
+    panels = _Panels(seqs, _per_sequence(scene, len(seqs)), "fixed", size_px, titles)
+    image = panels.draw(frames)
+    panels.close()
+    atomic_write(out, lambda tmp: imageio.imwrite(tmp, image, format="PNG"))
     return out
 
 

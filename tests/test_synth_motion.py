@@ -192,6 +192,28 @@ def test_walk_plants_feet_and_follows_path(scale, seed):
     assert joints[:, 0, 2].min() > off[0, 2] - 0.12
 
 
+@pytest.mark.parametrize("scale,seed", [(0.9, 0), (1.1, 2)])
+def test_feet_do_not_slide_while_touching_the_floor(scale, seed):
+    """Toe-off rolls over the planted toe, heel strike over the planted heel, and the foot travels
+    only once the toe is clear of the floor: the foot joint does not slide while it is within the
+    contact band (the builder's floor contact), in walks and in turns in place."""
+    from trumans.contacts import CONTACT_THRESHOLD, JOINT_RADIUS
+    from trumans.synth.metrics import foot_slides
+
+    rng = np.random.default_rng(seed)
+    off = rest_offsets(scale)
+    for m in (walk(np.array([[0.0, 0.0], [3.0, 0.5], [4.0, 2.5]]), off, rng, speed=1.4, start_yaw=np.pi / 2,
+                   end_yaw=-np.pi),
+              turn(off, np.zeros(2), 0.0, 2.5, rng), turn(off, np.zeros(2), 0.3, -1.2, rng)):
+        feet = _check_motion(m)[:, FEET]
+        band = feet[..., 2] < JOINT_RADIUS[FEET[0]] + CONTACT_THRESHOLD
+        step = np.linalg.norm(np.diff(feet[..., :2], axis=0), axis=-1)
+        assert step[band[1:] & band[:-1]].max() < 0.01
+        slides = foot_slides(feet, band)
+        assert slides.mean() < 0.003 and slides.max() < 0.012
+        assert feet[..., 2].min() > JOINT_RADIUS[FEET[0]] - 0.005  # the toe never digs into the floor
+
+
 def test_walk_determinism_and_variation():
     off = rest_offsets()
     path = np.array([[0.0, 0.0], [2.0, 0.0]])

@@ -306,6 +306,81 @@ def _stance_plan(tl: _Timeline, offsets: np.ndarray, style: _Style, rng: np.rand
     return stances
 
 
+# Swing phases (fractions of the swing time): the foot rolls over the planted toe until SWING_PIVOT
+# (heel off, toe fixed), flies until SWING_LAND (the toe first rises clear of the floor, then moves),
+# and rolls down over the planted heel until the swing ends (flat foot).
+SWING_PIVOT = 0.20
+SWING_LAND = 0.88
+_TOE_OFF_PITCH = 0.45  # rad, foot pitch (toe down) when the toe leaves the floor
+_HEEL_ON_PITCH = 0.20  # rad, foot pitch (toe up) when the heel touches down
+_MIN_TOE_LIFT = 0.04  # m, least toe clearance of a swing (clears the 2 cm contact band early)
+_TOE_RISE = 0.08  # fraction of the flight during which the toe rises before it moves horizontally
+_GLIDE_RAMP = 0.35  # fraction of the toe's travel time spent speeding up (and slowing down)
+
+
+def _glide(x: np.ndarray, ramp: float = _GLIDE_RAMP) -> np.ndarray:
+    """Progress (0 -> 1) at x in [0, 1] of a travel whose speed rises smoothly (quintic ease) over
+    the first ``ramp`` of the time, stays constant, and falls over the last ``ramp``: zero speed and
+    acceleration at both ends, peak speed ~1 / (1 - ramp) of the mean (1.875 for ``ease``)."""
+    g = np.linspace(0.0, 1.0, 401)
+    v = ease(g / ramp) * ease((1.0 - g) / ramp)
+    c = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]))])
+    return np.interp(np.clip(x, 0.0, 1.0), g, c / c[-1])
+
+
+def _swing(s: np.ndarray, place0: np.ndarray, yaw0: float, place1: np.ndarray, yaw1: float, z0: float,
+           foot_off: np.ndarray, heel_off: np.ndarray, lift: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ankle targets (n, 3) and foot rotations (n, 3, 3) of one swing at phases s (n,) in (0, 1), from
+    the flat stance at ankle xy ``place0`` / foot yaw ``yaw0`` to the one at ``place1`` / ``yaw1``.
+
+    Toe-off: the foot pitches toe-down about the toe joint, which stays where it was (no slide);
+    flight: the toe rises ``lift`` m (at least _MIN_TOE_LIFT) before the foot travels (its middle
+    moves, the foot turns about it) to where the heel lands with the toe up; heel strike: the foot pitches flat about the heel point
+    (``heel_off``, foot frame, on the floor). z0: ankle height of the flat foot; foot_off: the
+    ankle -> toe (foot joint) offset in the foot frame."""
+    def R(yaw, pitch):
+        z = np.zeros_like(pitch)
+        return yaw_matrix(yaw) @ euler_to_matrix(np.stack([z, pitch, z], -1), "ZYX")
+
+    a0 = np.array([place0[0], place0[1], z0])
+    a1 = np.array([place1[0], place1[1], z0])
+    toe0 = a0 + yaw_matrix(yaw0) @ foot_off  # planted toe of the stance that ends
+    heel1 = a1 + yaw_matrix(yaw1) @ heel_off  # where the heel lands (on the floor)
+    dyaw = float(wrap_angle(yaw1 - yaw0))
+    # In flight the foot moves its middle (half way from the ankle to the toe) and turns about it.
+    mid = 0.5 * foot_off
+    mid0 = toe0 + R(np.array(yaw0), np.array(_TOE_OFF_PITCH)) @ (mid - foot_off)
+    mid_land = heel1 + R(np.array(yaw1), np.array(-_HEEL_ON_PITCH)) @ (mid - heel_off)
+    toe_land = heel1 + R(np.array(yaw1), np.array(-_HEEL_ON_PITCH)) @ (foot_off - heel_off)
+    ank = np.empty((len(s), 3))
+    frot = np.empty((len(s), 3, 3))
+    # toe-off: roll over the toe
+    m = s < SWING_PIVOT
+    if m.any():
+        p = _TOE_OFF_PITCH * ease(s[m] / SWING_PIVOT)
+        frot[m] = R(np.full(m.sum(), yaw0), p)
+        ank[m] = toe0 - frot[m] @ foot_off
+    # flight: the toe rises, then travels (slow start, so it barely moves while low), turns on the way
+    m = (s >= SWING_PIVOT) & (s < SWING_LAND)
+    if m.any():
+        u = (s[m] - SWING_PIVOT) / (SWING_LAND - SWING_PIVOT)
+        w = _glide((u - _TOE_RISE) / (1.0 - _TOE_RISE))
+        e = ease(u)
+        c = mid0 + w[:, None] * (mid_land - mid0)
+        # The toe rises by about the lift (its height change from the pitch is added back).
+        toe_z = toe0[2] + e * (toe_land[2] - toe0[2]) + max(lift, _MIN_TOE_LIFT) * np.sin(np.pi * u)
+        frot[m] = R(yaw0 + e * dyaw, _TOE_OFF_PITCH + e * (-_HEEL_ON_PITCH - _TOE_OFF_PITCH))
+        c[:, 2] = toe_z - (frot[m] @ (foot_off - mid))[:, 2]
+        ank[m] = c - frot[m] @ mid
+    # heel strike: roll down over the heel
+    m = s >= SWING_LAND
+    if m.any():
+        v = (s[m] - SWING_LAND) / (1.0 - SWING_LAND)
+        frot[m] = R(np.full(m.sum(), yaw1), -_HEEL_ON_PITCH * (1.0 - ease(v)))
+        ank[m] = heel1 - frot[m] @ heel_off
+    return ank, frot
+
+
 def _foot_tracks(stances, offsets: np.ndarray, T: int, fps: float, style: _Style):
     """Ankle targets (T, 2, 3), foot rotations (T, 2, 3, 3), flat contact (T, 2) bool."""
     t = np.arange(T) / fps
@@ -315,6 +390,8 @@ def _foot_tracks(stances, offsets: np.ndarray, T: int, fps: float, style: _Style
     rel = _rest_ankle_rel(offsets)
     z0 = offsets[0, 2] + rel[0, 2]  # ankle height with the foot flat
     foot_off = offsets[JOINT_INDEX["left_foot"]]
+    # Heel point in the foot frame: on the floor, a little behind the ankle.
+    heel_off = np.array([-0.3 * foot_off[0], 0.0, -z0])
     for f in range(2):
         st = stances[f]
         for k, (on, off, place, fy) in enumerate(st):
@@ -329,19 +406,9 @@ def _foot_tracks(stances, offsets: np.ndarray, T: int, fps: float, style: _Style
                 if not sel.any():
                     continue
                 s = (t[sel] - off) / (on2 - off)
-                w = ease(np.clip((s - 0.1) / 0.85, 0, 1))
-                ank[sel, f, :2] = place + w[:, None] * (place2 - place)
-                # Foot pitch: heel-off (toe down) early in the swing, toe up before heel strike.
-                pitch = 0.5 * np.sin(np.pi * np.clip(s / 0.55, 0, 1)) ** 2 \
-                    - 0.22 * np.sin(np.pi * np.clip((s - 0.55) / 0.45, 0, 1)) ** 2
                 dist = np.linalg.norm(place2 - place)
-                lift = min(style.lift, 0.02 + 0.15 * dist) * np.sin(np.pi * s) ** 1.5
-                toe = np.maximum(0.0, foot_off[0] * np.sin(pitch) - foot_off[2] * (np.cos(pitch) - 1.0))
-                heel = np.maximum(0.0, 0.05 * np.sin(-pitch))
-                ank[sel, f, 2] = z0 + lift + toe + heel
-                fyaw = fy + w * wrap_angle(fy2 - fy)
-                zp = np.zeros_like(pitch)
-                frot[sel, f] = yaw_matrix(fyaw) @ euler_to_matrix(np.stack([zp, pitch, zp], -1), "ZYX")
+                lift = min(style.lift, 0.02 + 0.15 * dist)
+                ank[sel, f], frot[sel, f] = _swing(s, place, fy, place2, fy2, z0, foot_off, heel_off, lift)
     return ank, frot, contact
 
 
@@ -433,6 +500,7 @@ def walk(
     end_yaw: float | None = None,
     base_pose: str = "stand",
     turn_threshold: float = np.radians(35),
+    step_length: float | None = None,
 ) -> Motion:
     """Walk along world xy waypoints ``path`` (K, 2) m at cruise ``speed`` m/s, starting and stopping
     at rest in the canonical standing state (pelvis xy on the first/last waypoint).
@@ -441,7 +509,9 @@ def walk(
     than ``turn_threshold`` the walk begins/ends with a stepping turn in place (label 'turn'),
     smaller differences are blended into the walk. Labels: 'turn', 'walk'. ``foot_contact`` marks
     flat-foot stance frames, during which the ankle and foot joints are fixed in the world.
-    ``base_pose`` names the upper-body pose (arms swing only for 'stand').
+    ``base_pose`` names the upper-body pose (arms swing only for 'stand'). ``step_length`` (m):
+    the cruise step length (default: from the leg length and the speed), e.g. short steps when
+    handling something.
     """
     offsets = _check_common(offsets, fps)
     _check_pose(base_pose)
@@ -459,6 +529,10 @@ def walk(
     y1 = y_path1 if end_yaw is None else float(end_yaw)
     leg = limb_reach(offsets, "left_leg")[1]
     step_len = leg * (0.38 + 0.25 * min(speed, 1.8)) * rng.uniform(0.95, 1.05)
+    if step_length is not None:
+        if not 0.1 <= step_length <= 1.2:
+            raise ValueError(f"step_length must be in [0.1, 1.2] m, got {step_length}")
+        step_len = float(step_length)
 
     tl = _Timeline(fps)
     if abs(wrap_angle(y_path0 - y0)) > turn_threshold:

@@ -221,12 +221,13 @@ def stool(rng: np.random.Generator, name: str) -> SceneObject:
 
 
 def sofa(rng: np.random.Generator, name: str) -> SceneObject:
-    """Sofa: arms at +-y, backrest at -x, seat height 0.38-0.45 m; static. Meta: seat_height,
-    seat_center (middle place), seat_centers (every place), sit_yaw = 0, lie_center, lie_yaw =
+    """Sofa 1.8-2.4 m wide (1.44-2.16 m between the arms): arms at +-y, backrest at -x, seat height
+    0.38-0.45 m; static. Meta: seat_height, seat_center (middle place, 0.24 m behind the front
+    edge), seat_centers (every place), sit_yaw = 0, lie_center (middle of the cushion), lie_yaw =
     +pi/2 (head towards +y), lie_length (between the arms)."""
-    w, d = _u(rng, 1.6, 2.2), _u(rng, 0.80, 0.95)
+    w, d = _u(rng, 1.8, 2.4), _u(rng, 0.80, 0.95)  # long enough to lie on (knees up if need be)
     h = _u(rng, *SEAT_HEIGHT_RANGES["sofa"])
-    a, tb = _u(rng, 0.14, 0.20), _u(rng, 0.18, 0.24)
+    a, tb = _u(rng, 0.12, 0.18), _u(rng, 0.18, 0.24)
     ha, hb = h + _u(rng, 0.15, 0.22), h + _u(rng, 0.38, 0.48)
     yi = w / 2 - a - GAP
     parts = [
@@ -236,7 +237,8 @@ def sofa(rng: np.random.Generator, name: str) -> SceneObject:
         _box((-d / 2 + tb + GAP, -yi, 0.0), (d / 2, yi, h)),
     ]
     mesh = _assemble(parts)
-    sx = 0.5 * ((-d / 2 + tb) + d / 2)
+    sx = 0.5 * ((-d / 2 + tb) + d / 2)  # middle of the cushion (lying)
+    st = d / 2 - 0.24  # sitting upright: near the front, so the thighs end at the front edge
     inner = 2 * yi
     n_places = max(2, int(inner // 0.6))
     ys = (np.arange(n_places) + 0.5) / n_places * inner - yi
@@ -245,8 +247,8 @@ def sofa(rng: np.random.Generator, name: str) -> SceneObject:
         "approach": _f([d / 2 + 0.20, 0.0]),
         "approach_yaw": 0.0,
         "seat_height": _f(h),
-        "seat_center": _f([sx, 0.0, h]),
-        "seat_centers": _f([[sx, y, h] for y in ys]),
+        "seat_center": _f([st, 0.0, h]),
+        "seat_centers": _f([[st, y, h] for y in ys]),
         "sit_yaw": 0.0,
         "lie_center": _f([sx, 0.0, h]),
         "lie_yaw": _f(np.pi / 2),

@@ -297,6 +297,28 @@ def test_lie_down_ends_horizontal_on_the_surface():
     assert [a.name for a in g.actions] == ["get_up"]
 
 
+@pytest.mark.parametrize("scale", [0.9, 1.1])
+def test_lie_down_lifts_the_legs_over_the_edge(scale):
+    """The feet leave the floor and rise above the surface before swinging onto it: no leg joint
+    passes below the bed top (x > 1.8 m here: the seat is 0.2 m in from the edge) on its way; with
+    the knees up (leg_reach) the feet end flat on the surface."""
+    from trumans.contacts import JOINT_RADIUS
+
+    off = rest_offsets(scale)
+    legs = [J[f"{s}_{n}"] for s in ("left", "right") for n in ("knee", "ankle", "foot")]
+    for reach in (None, 0.5 * scale):
+        m = lie_down(off, LIE, LIE_YAW, SEAT, np.random.default_rng(1), sit_yaw=SIT_YAW, stand_pos=STAND_POS,
+                     leg_reach=reach)
+        P = _check_motion(m)[:, legs]
+        over = (P[..., 0] > 1.8) & (P[..., 1] > -0.3) & (P[..., 1] < 1.9)
+        assert over[-1].all() and not over[0].any()
+        assert (P[..., 2] - JOINT_RADIUS[legs] - LIE[2])[over].min() > -0.005
+        assert m.foot_contact[0].all() and not m.foot_contact[-1].any()
+        np.testing.assert_allclose(m.rot[-1], lying_state(off, LIE, LIE_YAW, reach)[0], atol=1e-9)
+        np.testing.assert_allclose(m.rot[0], seated_state(off, SEAT, SIT_YAW, STAND_POS)[0], atol=1e-9)
+        assert np.linalg.norm(np.diff(_check_motion(m), axis=0), axis=2).max() < 0.05  # smooth
+
+
 def test_concatenated_day_is_continuous_and_deterministic():
     def day(seed: int) -> Motion:
         rng = np.random.default_rng(seed)

@@ -11,16 +11,22 @@ Heights: the pelvis joint sits inside the body, ``seat_clearance(offsets)`` (~0.
 actor, scaled by leg length) above the surface it rests on, so the buttocks/back skin touches the
 seat or bed instead of sinking into it. ``seat_center``/``lie_center`` are world points ON the
 surface (z = surface height).
+
+Lying comes in two leg postures: straight (pose 'lie') and, where the surface is too short for
+the actor (a sofa between its arms), knees up with the feet flat on the surface ``leg_reach`` m
+from the pelvis along the body axis. ``fit_lying`` chooses the posture and where along the
+surface the pelvis goes; ``lying_extent`` gives the body's extent along the axis.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..actions import ActionInterval
+from ..contacts import JOINT_RADIUS
 from ..rotations import euler_to_matrix, yaw_matrix
-from ..skeleton import JOINT_INDEX
+from ..skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
 from .limb_ik import limb_reach
-from .locomotion import foot_places, pelvis_height_limit, solve_legs, standing_state
+from .locomotion import _rest_ankle_rel, foot_places, pelvis_height_limit, solve_legs, standing_state
 from .motion import Motion
 from .poses import POSES, ease, pose, slerp_poses, slerp_rot
 
@@ -28,6 +34,8 @@ __all__ = [
     "seat_clearance",
     "seated_state",
     "lying_state",
+    "lying_extent",
+    "fit_lying",
     "sit_down",
     "sit",
     "stand_up",
@@ -88,9 +96,26 @@ def seated_state(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, s
     return rot[0], root[0]
 
 
-def lying_state(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float) -> tuple[np.ndarray, np.ndarray]:
-    """Supine state: (rot (24, 3, 3), root (3,)). Pelvis above ``lie_center`` (3,) by ``seat_clearance``,
-    the spine-to-head direction horizontal along ``lie_yaw`` (rad), face up, pose 'lie'."""
+_LEGS = [JOINT_INDEX[f"{side}_{n}"] for side in ("left", "right") for n in ("hip", "knee", "ankle", "foot")]
+_ANKLES = [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]
+_HIPS = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
+_KNEES = [JOINT_INDEX["left_knee"], JOINT_INDEX["right_knee"]]
+_UPPER = [j for j in range(NUM_JOINTS) if j not in _LEGS]
+HEAD_TOP = 0.12  # m, head joint to the top of the skull (further than its contact radius)
+
+
+def min_leg_reach(offsets: np.ndarray) -> float:
+    """Shortest ``leg_reach`` (m) of a knees-up lying posture (knees bent about 120 deg)."""
+    return 0.45 * _leg_scale(_offsets(offsets))
+
+
+def lying_state(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float,
+                leg_reach: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Supine state: (rot (24, 3, 3), root (3,)). Pelvis above ``lie_center`` (3,) by ``seat_clearance``
+    (raised further if an upper-body joint's surface would be below the surface), the spine-to-head
+    direction horizontal along ``lie_yaw`` (rad), face up, pose 'lie'. ``leg_reach`` (m): None for
+    straight legs, else knees up with the ankles on the surface that far from the pelvis towards
+    the feet, feet flat (at least ``min_leg_reach``)."""
     offsets = _offsets(offsets)
     lie_center = _vec3(lie_center, "lie_center")
     rot = pose("lie", offsets).copy()
@@ -101,7 +126,67 @@ def lying_state(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float) -> 
     back = np.arctan2(-neck[0], neck[2])
     rot[0] = yaw_matrix(lie_yaw + np.pi) @ euler_to_matrix(np.array([0.0, back - np.pi / 2, 0.0]), "ZYX")
     root = lie_center + np.array([0.0, 0.0, seat_clearance(offsets)])
+    P, _ = forward_kinematics(rot[None], root[None], offsets)
+    gap = P[0, _UPPER, 2] - lie_center[2] - JOINT_RADIUS[_UPPER]
+    root[2] += max(0.0, -float(gap.min()))
+    if leg_reach is not None:
+        if not leg_reach >= min_leg_reach(offsets) - 1e-9:
+            raise ValueError(f"leg_reach must be >= {min_leg_reach(offsets):.3f} m for this actor "
+                             f"(min_leg_reach), got {leg_reach}")
+        axis = np.array([np.cos(lie_yaw), np.sin(lie_yaw), 0.0])
+        P, _ = forward_kinematics(rot[None], root[None], offsets)
+        z0 = offsets[0, 2] + _rest_ankle_rel(offsets)[0, 2]  # ankle height of a flat foot
+        feet = np.empty((1, 2, 3))
+        for k, h in enumerate(_HIPS):
+            lateral = P[0, h] - root - ((P[0, h] - root) @ axis) * axis
+            feet[0, k] = root - leg_reach * axis + lateral
+            feet[0, k, 2] = lie_center[2] + z0
+        frot = np.broadcast_to(yaw_matrix(lie_yaw + np.pi), (1, 2, 3, 3))
+        rot, reached = solve_legs(rot[None], root[None], offsets, feet, foot_rot=frot,
+                                  pole_dir=np.array([[0.0, 0.0, 1.0]]))
+        if not reached.all():
+            raise ValueError(f"leg_reach {leg_reach} m is out of the legs' reach; use fit_lying")
+        rot = rot[0]
     return rot, root
+
+
+def lying_extent(offsets: np.ndarray, leg_reach: float | None = None) -> tuple[float, float]:
+    """(head, feet) extent (m) of the lying body along its axis from the pelvis: the furthest body
+    surface towards the head (the skull top, ``HEAD_TOP`` beyond the head joint) and towards the
+    feet (joint contact radii included)."""
+    rot, root = lying_state(offsets, np.zeros(3), 0.0, leg_reach)
+    P, _ = forward_kinematics(rot[None], root[None], _offsets(offsets))
+    r = JOINT_RADIUS.copy()
+    r[JOINT_INDEX["head"]] = HEAD_TOP
+    x = P[0, :, 0]
+    return float((x + r).max()), float((r - x).max())
+
+
+def fit_lying(offsets: np.ndarray, length: float, head_margin: float = 0.03,
+              foot_margin: float = 0.03) -> tuple[float, float | None]:
+    """Where and how the actor lies on a surface ``length`` m long (along the lying axis, centred on
+    its ``lie_center``): (shift (m) of the pelvis from the centre towards the head end, leg_reach).
+    Straight legs (leg_reach None) when the body fits with the margins, centred if possible, else
+    knees up with the head ``head_margin`` from the head end. Raises ValueError when even the
+    shortest knees-up posture does not fit."""
+    offsets = _offsets(offsets)
+    half = 0.5 * float(length)
+    head, feet = lying_extent(offsets)
+    lo, hi = feet + foot_margin - half, half - head_margin - head  # pelvis shift range
+    if lo <= hi:
+        return float(np.clip(0.0, lo, hi)), None
+    r_min = min_leg_reach(offsets)
+    head, feet_min = lying_extent(offsets, r_min)
+    shift = half - head_margin - head
+    room = half + shift - foot_margin  # pelvis to the foot end
+    if room < feet_min:
+        raise ValueError(f"a {length:.2f} m surface is too short for this actor to lie on, even with the "
+                         f"knees up (needs {head + head_margin + feet_min + foot_margin:.2f} m)")
+    reach = r_min + (room - feet_min)  # the feet extent grows one for one with the reach
+    rot, root = lying_state(offsets, np.zeros(3), 0.0)
+    P, _ = forward_kinematics(rot[None], root[None], offsets)
+    straight = -float(P[0, _ANKLES, 0].mean())  # pelvis to ankles of the straight legs
+    return float(shift), float(min(reach, 0.85 * straight))
 
 
 def _breathing(rot: np.ndarray, rng: np.random.Generator, fps: float, amp: float, env: np.ndarray) -> np.ndarray:
@@ -188,53 +273,86 @@ def stand_up(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand
     return _reverse(sit_down(offsets, seat_center, sit_yaw, stand_pos, rng, fps), "stand_up")
 
 
+def _knee_dirs(P: np.ndarray) -> np.ndarray:
+    """(T, 3) mean unit direction in which the knees stick out of the hip-ankle lines (T, 24, 3)."""
+    out = np.zeros(P.shape[:1] + (3,))
+    for h, k, a in zip(_HIPS, _KNEES, _ANKLES):
+        line = P[:, a] - P[:, h]
+        line /= np.linalg.norm(line, axis=-1, keepdims=True)
+        v = P[:, k] - P[:, h]
+        out += v - (v * line).sum(-1, keepdims=True) * line
+    return out / np.maximum(np.linalg.norm(out, axis=-1, keepdims=True), 1e-9)
+
+
 def lie_down(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_center: np.ndarray,
-             rng: np.random.Generator, *, sit_yaw: float, stand_pos: np.ndarray, fps: float = 30.0) -> Motion:
-    """Lie down from sitting on the bed's edge (``seated_state(offsets, seat_center, sit_yaw, stand_pos)``)
-    to ``lying_state(offsets, lie_center, lie_yaw)``: the trunk reclines and turns while the pelvis
-    slides to ``lie_center`` at constant clearance over the surface, the legs swing up (the knees
-    straighten a little ahead of the hips). Label 'lie_down'; about 2.4-3.2 s."""
+             rng: np.random.Generator, *, sit_yaw: float, stand_pos: np.ndarray, fps: float = 30.0,
+             leg_reach: float | None = None) -> Motion:
+    """Lie down from sitting on the edge (``seated_state(offsets, seat_center, sit_yaw, stand_pos)``)
+    to ``lying_state(offsets, lie_center, lie_yaw, leg_reach)``: the trunk reclines and turns, the
+    pelvis slides to ``lie_center`` at constant clearance over the surface; the feet stay planted a
+    moment, then lift (knees up) above the surface height before they swing over the edge onto it
+    (ankle paths by leg IK). Label 'lie_down'; about 2.6-3.4 s."""
     offsets = _offsets(offsets)
+    lie_center = _vec3(lie_center, "lie_center")
     rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
-    rot1, root1 = lying_state(offsets, lie_center, lie_yaw)
-    T = int(round(rng.uniform(2.4, 3.2) * fps)) + 1
+    rot1, root1 = lying_state(offsets, lie_center, lie_yaw, leg_reach)
+    T = int(round(rng.uniform(2.6, 3.4) * fps)) + 1
     s = np.linspace(0.0, 1.0, T)
-    w_body = ease(s)
-    w_leg = np.empty((T, 24))
-    w_leg[:] = w_body[:, None]
-    w_hip = ease((s - 0.2) / 0.8)
-    w_knee = ease((s - 0.1) / 0.8)
-    for n in ("left_hip", "right_hip"):
-        w_leg[:, JOINT_INDEX[n]] = w_hip
-    for n in ("left_knee", "right_knee", "left_ankle", "right_ankle", "left_foot", "right_foot"):
-        w_leg[:, JOINT_INDEX[n]] = w_knee
-    rot = slerp_poses(rot0, rot1, w_leg)
-    rot[:, 0] = slerp_rot(rot0[0][None], rot1[0][None], w_body[:, None])[:, 0]
-    root = root0 + w_body[:, None] * (root1 - root0)
+    w_trunk = ease(s / 0.8)
+    w_pelvis = ease((s - 0.1) / 0.85)
+    rot = slerp_poses(rot0, rot1, w_trunk)
+    rot[:, 0] = slerp_rot(rot0[0][None], rot1[0][None], w_trunk[:, None])[:, 0]
+    root = root0 + w_pelvis[:, None] * (root1 - root0)
+    # Legs: ankle paths that rise above the surface before crossing its edge.
+    P0, G0 = forward_kinematics(rot0[None], root0[None], offsets)
+    P1, G1 = forward_kinematics(rot1[None], root1[None], offsets)
+    a0, a1 = P0[0, _ANKLES], P1[0, _ANKLES]  # (2, 3)
+    z_clear = lie_center[2] + JOINT_RADIUS[_ANKLES[0]] + 0.07
+    rise, fall = ease((s - 0.1) / 0.4), ease((s - 0.72) / 0.28)
+    across = ease((s - 0.3) / 0.6)
+    ank = a0[None] + across[:, None, None] * (a1 - a0)[None]
+    ank[..., 2] = a0[None, :, 2] + rise[:, None] * (z_clear - a0[None, :, 2]) \
+        + fall[:, None] * (a1[None, :, 2] - z_clear)
+    w_foot = ease((s - 0.2) / 0.7)
+    frot = np.stack([slerp_rot(G0[0, a][None], G1[0, a][None], w_foot[:, None])[:, 0] for a in _ANKLES], 1)
+    k0, k1 = _knee_dirs(P0)[0], _knee_dirs(P1)[0]
+    w_knee = ease((s - 0.1) / 0.6)[:, None]
+    pole = (1 - w_knee) * k0 + w_knee * (k1 if k1 @ k1 > 0.5 else np.array([0.0, 0.0, 1.0]))
+    rot, _ = solve_legs(rot, root, offsets, ank, foot_rot=frot, pole_dir=pole)
+    # Ease exactly into the shared states at both ends (the IK's hip twist may differ slightly).
+    w_end = np.zeros((T, NUM_JOINTS))
+    w_end[:, _LEGS] = ease((s - 0.9) / 0.1)[:, None]
+    rot = slerp_rot(rot, np.broadcast_to(rot1, rot.shape), w_end)
+    w_start = np.zeros((T, NUM_JOINTS))
+    w_start[:, _LEGS] = 1.0 - ease(s / 0.1)[:, None]
+    rot = slerp_rot(rot, np.broadcast_to(rot0, rot.shape), w_start)
     contact = np.zeros((T, 2), dtype=bool)
-    contact[s < 0.08] = True  # the feet leave the floor as the legs start to swing
+    contact[s < 0.1] = True  # the feet leave the floor as the legs start to lift
+    rot[0], root[0] = rot0, root0
     rot[-1], root[-1] = rot1, root1
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=contact,
                   actions=[ActionInterval("lie_down", 0, T - 1)])
 
 
 def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int, rng: np.random.Generator,
-        fps: float = 30.0) -> Motion:
+        fps: float = 30.0, leg_reach: float | None = None) -> Motion:
     """Lying idle (supine, breathing, small head turns) for ``frames`` frames, starting and ending
-    exactly in ``lying_state(offsets, lie_center, lie_yaw)``. Label 'lie'."""
+    exactly in ``lying_state(offsets, lie_center, lie_yaw, leg_reach)``. Label 'lie'. With the knees
+    up (``leg_reach``) the feet stay planted on the surface (``foot_contact`` set)."""
     offsets = _offsets(offsets)
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
-    rot0, root0 = lying_state(offsets, lie_center, lie_yaw)
+    rot0, root0 = lying_state(offsets, lie_center, lie_yaw, leg_reach)
     T = int(frames)
     rot = _breathing(np.repeat(rot0[None], T, axis=0), rng, fps, 0.012, _envelope(T, fps))
     return Motion(rot=rot, root=np.repeat(root0[None], T, axis=0), offsets=offsets, fps=fps,
-                  foot_contact=np.zeros((T, 2), dtype=bool), actions=[ActionInterval("lie", 0, T - 1)])
+                  foot_contact=np.full((T, 2), leg_reach is not None), actions=[ActionInterval("lie", 0, T - 1)])
 
 
 def get_up(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_center: np.ndarray,
-           rng: np.random.Generator, *, sit_yaw: float, stand_pos: np.ndarray, fps: float = 30.0) -> Motion:
+           rng: np.random.Generator, *, sit_yaw: float, stand_pos: np.ndarray, fps: float = 30.0,
+           leg_reach: float | None = None) -> Motion:
     """From ``lying_state`` back to sitting on the edge (``seated_state``): a lie-down played backwards
     with its own timing from ``rng``. Label 'get_up'."""
     return _reverse(lie_down(offsets, lie_center, lie_yaw, seat_center, rng, sit_yaw=sit_yaw,
-                             stand_pos=stand_pos, fps=fps), "get_up")
+                             stand_pos=stand_pos, fps=fps, leg_reach=leg_reach), "get_up")

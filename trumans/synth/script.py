@@ -252,14 +252,17 @@ def _rest_lift(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, surface_z
 
 
 _SEAT_JOINTS = [JOINT_INDEX[n] for n in ("pelvis", "left_hip", "right_hip")]
-_LIE_JOINTS = [j for j in range(NUM_JOINTS) if JOINT_NAMES[j] not in
-               ("left_knee", "right_knee", "left_ankle", "right_ankle", "left_foot", "right_foot")]
 
 
-def _seat(obj, pose: np.ndarray, offsets: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float, np.ndarray]:
-    """World (seat point raised so the seated body rests on the surface, sit yaw, stand point)."""
-    centers = obj.meta.get("seat_centers") or [obj.meta["seat_center"]]
-    c = _world(pose, centers[rng.integers(len(centers))])
+def _seat(obj, pose: np.ndarray, offsets: np.ndarray, rng: np.random.Generator,
+          near: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+    """World (seat point raised so the seated body rests on the surface, sit yaw, stand point): a
+    random place of the seat, or the one nearest world xy ``near``."""
+    centers = [_world(pose, c) for c in (obj.meta.get("seat_centers") or [obj.meta["seat_center"]])]
+    if near is None:
+        c = centers[rng.integers(len(centers))]
+    else:
+        c = min(centers, key=lambda p: float(np.linalg.norm(p[:2] - np.asarray(near)[:2])))
     yaw = _yaw_of(pose) + float(obj.meta["sit_yaw"])
     stand = c[:2] + (_world(pose, obj.meta["approach"]) - _world(pose, obj.meta["seat_center"]))[:2]
     try:
@@ -272,10 +275,11 @@ def _seat(obj, pose: np.ndarray, offsets: np.ndarray, rng: np.random.Generator) 
 
 
 def _sit_on(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str,
-            seated: Callable[[np.ndarray, float, np.ndarray], None] | None = None) -> None:
+            seated: Callable[[np.ndarray, float, np.ndarray], None] | None = None,
+            near: np.ndarray | None = None) -> None:
     obj = ctx.scene.objects[name]
     pose = st.poses.get(name, obj.pose)
-    seat, yaw, stand = _seat(obj, pose, st.offsets, rng)
+    seat, yaw, stand = _seat(obj, pose, st.offsets, rng, near)
     m = walk_to(ctx, st, rng, stand, yaw)
     if m is not None:
         st.append(m)
@@ -296,22 +300,28 @@ def _sit(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str) -> N
 
 @activity("lie", ("bed", "sofa"))
 def _lie(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str) -> None:
-    """Walk to a bed or sofa, sit on its edge, lie down, lie a while, get up, stand up."""
+    """Walk to a bed or sofa, sit on its edge, lie down, lie a while, get up, stand up. The body
+    lies along the surface (``lie_center``, ``lie_yaw``, ``lie_length`` meta) where
+    ``posture.fit_lying`` puts it: straight, or knees up on a short sofa; the seat place nearest
+    the lying pelvis is used."""
     obj = ctx.scene.objects[name]
     pose = st.poses.get(name, obj.pose)
+    ly = _yaw_of(pose) + float(obj.meta["lie_yaw"])
+    try:
+        shift, reach = posture.fit_lying(st.offsets, float(obj.meta["lie_length"]))
+    except ValueError as e:
+        raise Skip(f"{name}: {e}") from e
+    lc = _world(pose, obj.meta["lie_center"]) + shift * np.array([np.cos(ly), np.sin(ly), 0.0])
 
     def lying(seat: np.ndarray, yaw: float, stand: np.ndarray) -> None:
-        lc = _world(pose, obj.meta["lie_center"])
-        ly = _yaw_of(pose) + float(obj.meta["lie_yaw"])
-        rot, root = posture.lying_state(st.offsets, lc, ly)
-        lc = lc + [0.0, 0.0, _rest_lift(rot, root, st.offsets, float(lc[2]), _LIE_JOINTS)]
-        kw = dict(sit_yaw=yaw, stand_pos=stand, fps=ctx.fps)
+        kw = dict(sit_yaw=yaw, stand_pos=stand, fps=ctx.fps, leg_reach=reach)
         st.append(_check_clean(ctx, st, posture.lie_down(st.offsets, lc, ly, seat, rng, **kw), "lie_down"))
         n = int(rng.uniform(3.0, 10.0) * ctx.fps)
-        st.append(_check_clean(ctx, st, posture.lie(st.offsets, lc, ly, n, rng, fps=ctx.fps), "lie"))
-        st.append(posture.get_up(st.offsets, lc, ly, seat, rng, **kw))
+        st.append(_check_clean(ctx, st, posture.lie(st.offsets, lc, ly, n, rng, fps=ctx.fps, leg_reach=reach),
+                               "lie"))
+        st.append(posture.get_up(st.offsets, lc, ly, seat, rng, **kw))  # lie_down's path, played back
 
-    _sit_on(ctx, st, rng, name, seated=lying)
+    _sit_on(ctx, st, rng, name, seated=lying, near=lc)
 
 
 _SMALL = ("bottle", "cup", "phone", "book", "pen", "vase")

@@ -404,12 +404,14 @@ def cabinet(rng: np.random.Generator, name: str) -> Assembly:
 
 
 def door(rng: np.random.Generator, name: str, wall_thickness: float) -> SceneObject:
-    """Door leaf (thin box in the local y-z plane) with a handle on its +x (push) face.
+    """Door leaf (thin box in the local y-z plane) with a lever handle on its +x (room) face; the
+    door opens INTO the room (+x), pulled open by the handle and pushed closed.
 
-    Hinge: vertical axis [0, 0, 1] through hinge_point = (-th/2, hinge_side * w/2, 0) on the back
+    Hinge: vertical axis [0, 0, 1] through hinge_point = (th/2, hinge_side * w/2, 0) on the +x
     face. Opening angle = open_sign * a, a in [0, max_angle]; positive a swings the free edge
-    towards -x (away from the push side), so a person on the +x side pushes it open. Meta: handle,
-    max_angle, open_sign, width, height, thickness; approach on the push side facing the door."""
+    towards +x, through the clear zone the room keeps in front of the door (``scenes.procedural``).
+    Meta: handle, max_angle, open_sign, width, height, thickness; approach on the +x side facing
+    the door."""
     w, hgt, th = _u(rng, 0.80, 0.92), _u(rng, 2.00, 2.10), 0.04
     hinge_side = float(rng.choice([-1.0, 1.0]))
     y_handle = -hinge_side * (w / 2 - 0.08)
@@ -425,12 +427,12 @@ def door(rng: np.random.Generator, name: str, wall_thickness: float) -> SceneObj
         "approach_yaw": _f(np.pi),
         "handle": _f([th / 2 + 0.045, y_handle, 1.0]),
         "max_angle": 1.4,
-        "open_sign": -hinge_side,
+        "open_sign": hinge_side,
         "width": _f(w),
         "height": _f(hgt),
         "thickness": th,
     }
-    return SceneObject(name, "door", mesh, dof="hinge", hinge_point=np.array([-th / 2, hinge_side * w / 2, 0.0]),
+    return SceneObject(name, "door", mesh, dof="hinge", hinge_point=np.array([th / 2, hinge_side * w / 2, 0.0]),
                        axis=np.array([0.0, 0.0, 1.0]), dynamic=True, meta=meta)
 
 

@@ -260,23 +260,29 @@ def test_meta_keys_dofs_and_axes(rooms):
                 assert abs(_down_hit_z(o.mesh, l[:2], 1.0) - l[2]) < 1e-3
 
 
-def test_door_swings_away_from_push_side():
-    sc = make_room(3)
-    door = sc.object(sc.meta["door"])
-    m = door.meta
-    handle = np.asarray(m["handle"])
-    assert handle[0] > door.meta["thickness"] / 2 - 1e-9  # handle on the +x (push) face
-    for a in (0.5, m["max_angle"]):
-        R = trimesh.transformations.rotation_matrix(m["open_sign"] * a, door.axis, door.hinge_point)
-        moved = R[:3, :3] @ handle + R[:3, 3]
-        assert moved[0] < handle[0] - 0.1  # free edge moves away from the person on +x
-        # the swung leaf stays out of the room interior (it opens outwards)
-        leaf = door.mesh.copy()
-        leaf.apply_transform(door.pose @ R)
+def test_door_swings_into_the_room_clear_of_furniture(rooms):
+    for sc in rooms[:12]:
+        door = sc.object(sc.meta["door"])
+        m = door.meta
+        handle = np.asarray(m["handle"])
+        assert handle[0] > m["thickness"] / 2 - 1e-9  # handle on the +x (room) face
         W, D = sc.meta["size"]
-        v = leaf.vertices[:, :2]
-        inside = (v[:, 0] > 0.01) & (v[:, 0] < W - 0.01) & (v[:, 1] > 0.01) & (v[:, 1] < D - 0.01)
-        assert not inside.any()
+        T = sc.meta["wall_thickness"]
+        fps = floor_footprints(sc)
+        lo, hi = door.mesh.bounds[0, :2], door.mesh.bounds[1, :2]
+        for a in np.linspace(0.1, m["max_angle"], 6):
+            R = trimesh.transformations.rotation_matrix(m["open_sign"] * a, door.axis, door.hinge_point)
+            moved = R[:3, :3] @ handle + R[:3, 3]
+            assert moved[0] > handle[0] + 0.05  # the handle comes towards the person on +x (pulled open)
+            world = door.pose @ R
+            corners = np.array([[x, y, 0.0, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])]) @ world.T
+            q = corners[[0, 1, 3, 2], :2]  # the swung leaf's footprint (convex quad)
+            # it stays within the room (the part near the hinge inside the wall opening) ...
+            assert (q[:, 0] > -T - 1e-6).all() and (q[:, 0] < W + T + 1e-6).all()
+            assert (q[:, 1] > -T - 1e-6).all() and (q[:, 1] < D + T + 1e-6).all()
+            # ... and never meets a piece of furniture: the room keeps the door's clear zone free
+            for name, fp in fps.items():
+                assert not _overlap(q, fp), (sc.name, name, a)
 
 
 def test_drawer_slides_out_of_its_cabinet():

@@ -45,9 +45,10 @@ def door() -> SceneObject:
     leaf = trimesh.creation.box(bounds=[[-th / 2, -w / 2, 0], [th / 2, w / 2, hgt]])
     yh = -(w / 2 - 0.08)
     lever = trimesh.creation.box(bounds=[[th / 2, yh - 0.06, 0.988], [th / 2 + 0.06, yh + 0.06, 1.012]])
-    meta = {"handle": [th / 2 + 0.045, yh, 1.0], "max_angle": 1.4, "open_sign": -1.0, "width": w}
+    # Opens into the person's side (+x), as scenes.furniture.door: hinge on the +x face at +y.
+    meta = {"handle": [th / 2 + 0.045, yh, 1.0], "max_angle": 1.4, "open_sign": 1.0, "width": w}
     return SceneObject("door_0", "door", trimesh.util.concatenate([leaf, lever]), dof="hinge",
-                       hinge_point=np.array([-th / 2, w / 2, 0.0]), axis=np.array([0.0, 0.0, 1.0]),
+                       hinge_point=np.array([th / 2, w / 2, 0.0]), axis=np.array([0.0, 0.0, 1.0]),
                        dynamic=True, meta=meta)
 
 
@@ -206,35 +207,56 @@ def test_reach_grasp_flat_object_and_phone_call():
     assert 0.07 < np.linalg.norm(rel) < 0.15 and rel[1] < -0.05  # beside the head, on the right
 
 
-def test_door_open_close_limits_and_hand_on_handle():
+def test_door_opens_wide_with_the_hand_on_the_handle():
     rng = np.random.default_rng(11)
     d = door()
     closed = pose_xyz_yaw(2.0, 1.0, 0.0, np.pi / 2)
     st = hf.door_stance(OFF, d, closed)
-    assert 0.1 <= st.reach <= d.meta["max_angle"]
+    assert 0.8 <= st.reach <= d.meta["max_angle"]  # a useful opening, not a crack
     angle = 0.9 * st.reach
-    frames = int(1.3 * hands.nominal_frames("open_door", rng))
-    m = hf.open_door(locomotion.stand(OFF, st.pos, st.yaw, frames, rng), d, closed, angle, rng, side=st.side)
-    m2 = hf.close_door(locomotion.stand(OFF, st.pos, st.yaw, frames, rng), d, closed, angle, rng, side=st.side)
+    m = hf.open_door(OFF, d, closed, angle, rng, st)
+    m2 = hf.close_door(OFF, d, closed, angle, rng, st)
+    hinge = (closed @ np.r_[d.hinge_point, 1.0])[:3]
     for mm, a0, a1 in ((m, 0.0, angle), (m2, angle, 0.0)):
-        J = check_motion(mm)
+        J = check_motion(mm, joints=UPPER)  # stepping feet swing faster than 5 cm / frame
         tr = mm.objects[d.name]
         rel = np.linalg.inv(closed) @ tr
         ang = np.arctan2(rel[:, 1, 0], rel[:, 0, 0]) * d.meta["open_sign"]
         assert ang.min() >= -1e-9 and ang.max() <= d.meta["max_angle"] + 1e-9
         assert abs(ang[0] - a0) < 1e-9 and abs(ang[-1] - a1) < 1e-9
-        # The hinge point does not move.
+        assert np.all(np.diff(ang) * np.sign(a1 - a0) >= -1e-9)  # monotonic swing
+        # The hinge point does not move; the leaf swings towards the person's side (+x of the door).
         hp = (tr @ np.r_[d.hinge_point, 1.0])[:, :3]
         assert np.abs(hp - hp[0]).max() < 1e-9
+        free = (tr @ np.r_[0.0, -d.meta["width"] / 2, 1.0, 1.0])[:, :3]
+        assert ((free - hinge) @ closed[:3, 0]).max() > 0.5
         g = mm.grasp[hands.WRIST[st.side]]
         handle = (tr @ np.r_[d.meta["handle"], 1.0])[:, :3]
         palm = hands.palm_points(J)[:, 0 if st.side == "left" else 1]
-        assert g.sum() > 10
-        assert np.linalg.norm(palm[g] - handle[g], axis=1).max() < 0.03
-        # Feet planted: ankles do not move.
+        assert g.sum() > 10 and g[np.argmax(np.abs(ang - a0) > 0.01)]  # holding it while it swings
+        assert np.linalg.norm(palm[g] - handle[g], axis=1).max() < 0.05
+        # Starts and ends in the canonical standing states of the path's two ends.
+        for f, pos in ((0, st.pos if a0 == 0 else st.at(angle)), (-1, st.pos if a1 == 0 else st.at(angle))):
+            r0, p0 = locomotion.standing_state(OFF, pos, st.yaw)
+            np.testing.assert_allclose(mm.root[f], p0, atol=1e-9)
+            np.testing.assert_allclose(mm.rot[f], r0, atol=1e-9)
+        # The body (arms aside) keeps clear of the leaf's box at every frame.
+        body = [j for j in range(24) if j not in hf._ARMS]
+        loc = np.einsum("tij,tkj->tki", np.linalg.inv(tr)[:, :3, :3], J[:, body]) + np.linalg.inv(tr)[:, None, :3, 3]
+        lo, hi = d.mesh.bounds
+        gap = np.linalg.norm(np.maximum(np.maximum(lo - loc, loc - hi), 0.0), axis=-1)
+        assert (gap > hf.JOINT_RADIUS[body] - 0.015).all()
+        # Feet planted while the hand is on the handle except for the short steps (flat contact).
         ank = J[:, [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]]
-        assert np.abs(ank - ank[0]).max() < 1e-6
+        for f in range(2):
+            c = mm.foot_contact[:, f]
+            d_ank = np.linalg.norm(np.diff(ank[:, f, :2], axis=0), axis=1)
+            assert d_ank[c[1:] & c[:-1]].max() < 1e-6
         assert mm.actions[0].name == ("open_door" if a1 > a0 else "close_door")
+    # The person steps back while pulling: the opened door stands where the person stood.
+    assert np.linalg.norm(st.open_pos - st.pos) > 0.2
+    with pytest.raises(ValueError, match="door angle"):
+        hf.open_door(OFF, d, closed, st.reach + 0.1, rng, st)
 
 
 @pytest.mark.parametrize("z", [0.3, 0.6])
@@ -353,8 +375,9 @@ def test_bad_inputs_and_determinism():
         hands.pick_up(base, bare, pose, "right", rng)
     with pytest.raises(ValueError, match="4, 4"):
         hands.pick_up(base, obj, np.eye(3), "right", rng)
-    with pytest.raises(ValueError, match="door angles"):
-        hf.open_door(base, door(), np.eye(4), 2.0, rng)
+    with pytest.raises(ValueError, match="door angle"):
+        st = hf.DoorStance(pos=np.array([0.5, 0.3]), yaw=np.pi, side="right", reach=1.0, open_pos=np.array([1.0, 0.3]))
+        hf.open_door(OFF, door(), np.eye(4), 2.0, rng, st)
     with pytest.raises(ValueError, match="unknown primitive"):
         hands.nominal_frames("juggle", rng)
     a, _ = hands.pick_up(base, obj, pose, "right", np.random.default_rng(1))

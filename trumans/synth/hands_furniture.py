@@ -2,10 +2,13 @@
 (pushed or pulled along the floor). Conventions (palm point, hand frame, grasp flags on the wrist
 joint) are those of ``trumans.synth.hands``.
 
-Doors and drawers are worked from a standing base (``locomotion.stand``) at the stance returned by
-``door_stance`` / ``drawer_stance`` (walk there first); the torso leans / the knees bend as needed
-with the feet planted. Push / pull build their own base: stand (hands go to the object), walk with
-it (``locomotion.walk``, forwards for push, backwards for pull), stand (hands let go).
+Drawers are worked from a standing base (``locomotion.stand``) at the stance returned by
+``drawer_stance`` (walk there first); the torso leans / the knees bend as needed with the feet
+planted. Doors open towards the person (``scenes.furniture.door``): ``door_stance`` plans where to
+take the handle and how far to step back; ``open_door`` / ``close_door`` build their own base
+(stand, step back / forwards with the hand on the handle, stand), like push / pull: stand (hands go
+to the object), walk with it (``locomotion.walk``, forwards for push, backwards for pull), stand
+(hands let go).
 """
 from __future__ import annotations
 
@@ -19,7 +22,8 @@ from scenes.scene import SceneObject
 
 from ..actions import ActionInterval
 from ..contacts import JOINT_RADIUS
-from ..skeleton import JOINT_INDEX, forward_kinematics
+from ..rotations import yaw_matrix
+from ..skeleton import JOINT_INDEX, JOINT_NAMES, forward_kinematics
 from . import locomotion
 from .hands import (
     HAND_SPEED,
@@ -59,6 +63,7 @@ __all__ = [
     "door_pose",
     "drawer_pose",
     "Stance",
+    "DoorStance",
     "door_stance",
     "drawer_stance",
     "open_door",
@@ -185,15 +190,17 @@ def _lean_table(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Si
         np.take_along_axis(np.broadcast_to(drop, (N, K)), first, 1)
 
 
-def _grid_stance(offsets: np.ndarray, yaw: float, side: Side, cands: np.ndarray,
-                 wrists: np.ndarray, limit: tuple[float, float], solids) -> tuple[int, int]:
-    """Best (stance index, opening index): cands (S, 2) pelvis xy; wrists (A, 3) wrist targets of
-    openings 0..A-1 (increasing); solids: ``_solid_boxes`` at those openings. Maximises the opening
-    up to which every opening is reachable with the body clear of the object (the torso may lean
-    differently at each opening), then minimises the total lean."""
+def _grid_stance(offsets: np.ndarray, yaw: float | np.ndarray, side: Side, cands: np.ndarray,
+                 wrists: np.ndarray, limit: tuple[float, float], solids) -> tuple[int, int, float]:
+    """Best (stance index, opening index, its cost): cands (S, 2) pelvis xy, facing ``yaw`` (rad,
+    one for all or (S,)); wrists (A, 3) wrist targets of openings 0..A-1 (increasing); solids:
+    ``_solid_boxes`` at those openings. Maximises the opening up to which every opening is
+    reachable with the body clear of the object (the torso may lean differently at each opening),
+    then minimises the total lean. Raises OutOfReach when no stance gets past the first opening."""
     S = len(cands)
-    rot0, root0 = locomotion.standing_state(offsets, np.zeros(2), yaw)
+    rot0, root0 = locomotion.standing_state(offsets, np.zeros(2), 0.0)
     rot = np.repeat(rot0[None], S, 0)
+    rot[:, 0] = yaw_matrix(np.broadcast_to(np.asarray(yaw, dtype=np.float64), (S,)))  # the stance is yaw-invariant
     root = np.repeat(root0[None], S, 0)
     root[:, :2] = cands
     ok, pitch, drop = _lean_table(rot, root, offsets, side, wrists, solids, limit)
@@ -204,15 +211,17 @@ def _grid_stance(offsets: np.ndarray, yaw: float, side: Side, cands: np.ndarray,
                          "clear of it, even leaning and squatting")
     cost = np.where(ok, pitch / np.radians(60.0) + 1.5 * drop / 0.4, 0.0).sum(-1) / np.maximum(ok.sum(-1), 1)
     s = int(np.argmax(best_a * 10.0 - cost))
-    return s, int(best_a[s])
+    return s, int(best_a[s]), float(cost[s])
 
 
 def _door_hand(door: SceneObject, poses: np.ndarray, side: Side) -> tuple[np.ndarray, np.ndarray]:
-    """Palm points (..., 3) on top of the lever handle and wrist rotations (..., 3, 3) (palm down,
-    fingers towards the leaf) for door poses (..., 4, 4)."""
+    """Palm points (..., 3) just in front of the lever handle's outer end and wrist rotations
+    (..., 3, 3) (palm facing the leaf, fingers down, hooked around the lever; the fingers keep clear
+    of the leaf) for door poses (..., 4, 4)."""
     h = np.asarray(door.meta["handle"], dtype=np.float64)
-    palm = _apply(poses, h) + (0.012 + PALM_GAP) * poses[..., :3, 2]
-    R = hand_frame(-poses[..., :3, 2], -poses[..., :3, 0], side)
+    fx = poses[..., :3, 0]
+    palm = _apply(poses, h) + (0.015 + PALM_GAP) * fx  # the lever ends 1.5 cm beyond the handle point
+    R = hand_frame(-fx, -poses[..., :3, 2], side)
     return palm, R
 
 
@@ -246,17 +255,112 @@ def _stance_for(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray, hand_fn
     xs = sc * np.linspace(0.20, 0.80, 6)
     ys = sc * np.linspace(-0.30, 0.30, 5)
     cands = np.array([h_world[:2] - x * fwd - sgn * y * left for x in xs for y in ys])
-    s, a = _grid_stance(offsets, yaw, side, cands, wr, limit, _solid_boxes(obj, poses, pose))
+    s, a, _ = _grid_stance(offsets, yaw, side, cands, wr, limit, _solid_boxes(obj, poses, pose))
     # One planning step below the largest feasible opening: the motion in between is interpolated.
     return Stance(pos=cands[s], yaw=yaw, side=side, reach=float(openings[max(a - 1, 1)]))
 
 
-def door_stance(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, side: Side | None = None) -> Stance:
-    """Stance on the door's push side (+x) facing it, from which the hand on the handle's side
-    (or ``side``) can push the door furthest open (``Stance.reach``, rad) with the feet planted."""
-    ang = np.linspace(0.0, float(door.meta["max_angle"]), 15)
-    return _stance_for(offsets, door, closed, _door_hand, lambda a: door_pose(door, closed, a), ang, side,
-                       _LEAN_LIMIT["door"])
+@dataclass
+class DoorStance:
+    """How a person works a door that opens towards them (``scenes.furniture.door``): standing at
+    pelvis xy ``pos`` (2,) facing ``yaw`` (rad), the ``side`` hand takes the closed door's handle
+    and the person steps straight back (keeping the heading) to ``open_pos`` (2,) while pulling the
+    door open by ``reach`` (rad); the opening grows in proportion to the distance walked back
+    (``at``). Closing is the same path walked forwards."""
+
+    pos: np.ndarray
+    yaw: float
+    side: Side
+    reach: float
+    open_pos: np.ndarray
+
+    def at(self, angle: float) -> np.ndarray:
+        """Pelvis xy (2,) where the person stands with the door opened by ``angle`` rad."""
+        return self.pos + (float(angle) / self.reach) * (self.open_pos - self.pos)
+
+
+_DOOR_REACHES = (1.4, 1.2, 1.0, 0.8, 0.6, 0.4)  # rad, openings tried, largest first
+DOOR_GAIT_CLEAR = 0.08  # m, extra clearance from the leaf planned for a body that steps
+_DOOR_FRACTIONS = np.linspace(0.0, 1.0, 6)  # points of the back-step path checked when planning
+
+
+def _door_plan(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, side: Side, pos: np.ndarray,
+               yaw: np.ndarray, back: np.ndarray, fractions: np.ndarray = _DOOR_FRACTIONS
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For candidate paths (pelvis xy ``pos`` (N, 2), heading ``yaw`` (N,), back step ``back`` (N,) m)
+    and each opening R of _DOOR_REACHES: is the door handle within the ``side`` hand's reach (leaning
+    as needed, the body clear of the leaf) at every checked point f of the path, the door opened by
+    f * R there? Returns (ok (N, R) bool, pitch (N, R, F), drop (N, R, F), cost (N, R))."""
+    N, F = len(pos), len(fractions)
+    reaches = np.asarray(_DOOR_REACHES)
+    rot0, root0 = locomotion.standing_state(offsets, np.zeros(2), 0.0)
+    fwd = np.stack([np.cos(yaw), np.sin(yaw)], -1)
+    ok = np.ones((N, len(reaches)), dtype=bool)
+    pitch = np.zeros((N, len(reaches), F))
+    drop = np.zeros((N, len(reaches), F))
+    for k, f in enumerate(fractions):
+        live = np.flatnonzero(ok.any(axis=1))  # paths still feasible for some opening
+        if len(live) == 0:
+            break
+        rot = np.repeat(rot0[None], len(live), 0)
+        rot[:, 0] = yaw_matrix(yaw[live])  # the standing state is yaw-invariant
+        root = np.repeat(root0[None], len(live), 0)
+        root[:, :2] = pos[live] - (f * back[live])[:, None] * fwd[live]
+        poses = door_pose(door, closed, f * reaches)
+        palm, R = _door_hand(door, poses, side)
+        frames, lo, hi = _solid_boxes(door, poses, closed)
+        grow = np.array([DOOR_GAIT_CLEAR, DOOR_GAIT_CLEAR, 0.0])  # room for the gait's swinging feet and sway
+        ok_k, p_k, d_k = _lean_table(rot, root, offsets, side, _wrist_targets(palm, R, offsets, side),
+                                     (frames, lo - grow, hi + grow), _LEAN_LIMIT["door"])
+        ok[live] &= ok_k
+        pitch[live, :, k], drop[live, :, k] = p_k, d_k
+    cost = (pitch / np.radians(60.0) + 1.5 * drop / 0.4).mean(-1)
+    return ok, pitch, drop, cost
+
+
+def door_stance(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, side: Side | None = None) -> DoorStance:
+    """Plan opening ``door`` (closed world pose (4, 4)) towards oneself: where to stand, which hand
+    (``side``, default: the better one), how far to step back and how far the door then opens
+    (``DoorStance.reach``, the largest of 1.4, 1.2, ... 0.4 rad that works, preferring a small lean).
+
+    Candidates: pelvis 0.35-0.65 m (x actor scale) in front of the closed handle and up to 0.45 m
+    aside, facing the door +-0.5 rad, stepping back 0.3-0.8 m. Raises OutOfReach when the door
+    cannot be opened even 0.4 rad."""
+    offsets = np.asarray(offsets, dtype=np.float64)
+    closed = _check_pose(closed, "closed")
+    if door.dof != "hinge":
+        raise ValueError(f"object {door.name!r} is not a hinge (dof {door.dof!r})")
+    h_local = np.asarray(door.meta["handle"], dtype=np.float64)
+    handle = _apply(closed, h_local)[:2]
+    n = closed[:2, 0] / np.linalg.norm(closed[:2, 0])  # the door's +x: into the room
+    free = closed[:2, :2] @ np.array([0.0, h_local[1] - door.hinge_point[1]])  # hinge -> handle
+    free /= np.linalg.norm(free)
+    sc = _actor_scale(offsets)
+    face = float(np.arctan2(-n[1], -n[0]))
+    turn = float(np.sign(free[0] * n[1] - free[1] * n[0]))  # a positive yaw offset turns towards the free edge
+    grid = np.array([(dn, dt, dy, L) for dn in (0.35, 0.5, 0.65) for dt in (-0.15, 0.0, 0.15, 0.3, 0.45)
+                     for dy in (-0.5, -0.25, 0.0, 0.25, 0.5) for L in (0.3, 0.55, 0.8)])
+    pos = handle + sc * (grid[:, :1] * n + grid[:, 1:2] * free)
+    yaw = face + turn * grid[:, 2]
+    back = sc * grid[:, 3]
+    best = None
+    for sd in ([side] if side else ["left", "right"]):
+        _check_side(sd)
+        ok, _, _, cost = _door_plan(offsets, door, closed, sd, pos, yaw, back)
+        for r, R in enumerate(_DOOR_REACHES):
+            if not ok[:, r].any():
+                continue
+            c = np.where(ok[:, r], cost[:, r] + 0.2 * back, np.inf)  # a shorter step back is nicer
+            i = int(np.argmin(c))
+            if best is None or (R, -c[i]) > (best[0], -best[1]):
+                best = (R, float(c[i]), DoorStance(pos=pos[i].copy(), yaw=float(yaw[i]), side=sd, reach=float(R),
+                                                   open_pos=pos[i] - back[i] * np.array([np.cos(yaw[i]),
+                                                                                         np.sin(yaw[i])])))
+            break
+    if best is None:
+        raise OutOfReach(f"no stance in front of {door.name} lets a hand pull it open 0.4 rad with the body "
+                         f"clear of the leaf")
+    return best[2]
 
 
 def drawer_stance(offsets: np.ndarray, drawer: SceneObject, closed: np.ndarray, side: Side | None = None) -> Stance:
@@ -353,30 +457,124 @@ def _articulate(base: Motion, obj: SceneObject, kin_fn, hand_fn, q0: float, q1: 
     return _finish(base, rot, root, [ActionInterval(label, 0, T - 1)], {obj.name: poses}, {WRIST[side]: hold})
 
 
-def open_door(base: Motion, door: SceneObject, closed: np.ndarray, angle: float, rng: np.random.Generator,
-              side: Side | None = None, start: float = 0.0) -> Motion:
-    """Push ``door`` (closed world pose (4, 4)) open from ``start`` to ``angle`` rad (within
-    [0, max_angle]; use at most ``door_stance(...).reach``) with one hand on the handle, the hand
-    following the handle along its arc. Label 'open_door'; the door's pose track is returned."""
-    closed = _check_pose(closed, "closed")
-    a_max = float(door.meta["max_angle"])
-    if not 0.0 <= start <= a_max or not 0.0 <= angle <= a_max:
-        raise ValueError(f"door angles must lie in [0, {a_max}] rad, got start={start}, angle={angle}")
-    side = side or ("right" if door.meta["handle"][1] > 0 else "left")
-    return _articulate(base, door, lambda a: door_pose(door, closed, a), _door_hand, start, angle, "open_door",
-                       side, rng)
+def _door_close_walk(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, angle: float,
+                     stance: DoorStance, rng: np.random.Generator, fps: float, label: str) -> Motion:
+    """Closing ``door`` from ``angle`` rad: stand at ``stance.at(angle)``, take the handle, walk
+    forwards to ``stance.pos`` pushing the door shut (its opening follows the walked distance),
+    let go. The hand follows the handle; the torso leans as planned along the path."""
+    offsets = np.asarray(offsets, dtype=np.float64)
+    side, yaw = stance.side, float(stance.yaw)
+    p_open, p_shut = stance.at(angle), np.asarray(stance.pos, dtype=np.float64)
+    rot_s, root_s = locomotion.standing_state(offsets, p_open, yaw)
+    P_s, _ = forward_kinematics(rot_s[None], root_s[None], offsets)
+    k = 0 if side == "left" else 1
+    palm_open, _ = _door_hand(door, door_pose(door, closed, angle), side)
+    palm_shut, _ = _door_hand(door, door_pose(door, closed, 0.0), side)
+    t_in = 0.25 + (np.linalg.norm(palm_open - palm_points(P_s)[0, k]) + 0.05) / HAND_SPEED
+    t_out = 0.25 + (np.linalg.norm(palm_shut - palm_points(P_s)[0, k]) + 0.05) / HAND_SPEED
+    n1 = int(max(rng.uniform(0.8, 1.1), t_in) * fps)
+    n3 = int(max(rng.uniform(0.7, 1.0), t_out) * fps)
+    parts = [locomotion.stand(offsets, p_open, yaw, n1, rng, fps=fps)]
+    if np.linalg.norm(p_shut - p_open) >= 0.06:
+        parts.append(locomotion.walk(np.stack([p_open, p_shut]), offsets, rng, speed=float(rng.uniform(0.4, 0.6)),
+                                     fps=fps, start_yaw=yaw, end_yaw=yaw,
+                                     step_length=_actor_scale(offsets) * float(rng.uniform(0.22, 0.3))))
+    else:
+        parts.append(locomotion.stand(offsets, p_open, yaw, int(rng.uniform(1.0, 1.4) * fps), rng, fps=fps))
+        p_shut = p_open
+    parts.append(locomotion.stand(offsets, p_shut, yaw, n3, rng, fps=fps))
+    base = concat_motions(parts)
+    T = base.num_frames
+    t = np.arange(T)
+    g0, g1 = n1 - 1, n1 + parts[1].num_frames
+    # Door opening: follows the pelvis' smoothed progress along the path (no gait sway).
+    u = p_shut - p_open
+    L = float(np.linalg.norm(u))
+    if L > 0:
+        prog = gaussian_filter1d((base.root[:, :2] - p_open) @ (u / L), 0.25 * fps, mode="nearest")
+        prog[:g0 + 1] = 0.0
+        prog = np.maximum.accumulate(np.clip(prog, 0.0, None))
+        prog = prog / max(prog[g1], 1e-9)
+    else:
+        prog = _ramp(T, g0, g1)
+    prog[g1:] = 1.0
+    q = angle * (1.0 - np.clip(prog, 0.0, 1.0))
+    poses = door_pose(door, closed, q)
+    palm, R = _door_hand(door, poses, side)
+    # Lean along the way: planned at a few points of the path, interpolated by progress.
+    rot, root, off = _base_arrays(base)
+    fr = _DOOR_FRACTIONS
+    idx = np.clip(np.searchsorted(prog, fr * (1 - 1e-9)), g0, g1)  # frames at those progress points
+    no_boxes = (np.zeros((len(idx), 0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3)))  # clearance: checked below
+    ok, pitch_f, drop_f = _lean_table(rot[idx], root[idx], off, side,
+                                      _wrist_targets(palm[idx], R[idx], off, side), no_boxes, _LEAN_LIMIT["door"])
+    diag = np.arange(len(idx))
+    if not ok[diag, diag].all():
+        raise OutOfReach(f"{label} {door.name}: the hand cannot follow the handle from this path; "
+                         f"use door_stance and an opening up to its reach")
+    env = _ramp(T, 0, g0) * (1 - _ramp(T, g1, T - 1))
+    pitch = env * np.interp(prog, prog[idx], pitch_f[diag, diag])
+    drop = env * np.interp(prog, prog[idx], drop_f[diag, diag])
+    rot, root = _lean_pose(rot, root, off, pitch, drop, False)
+    P, _ = forward_kinematics(rot, root, off)
+    pb = palm_points(P)[:, k]
+    hp = _apply(poses, np.asarray(door.meta["handle"], dtype=np.float64))
+    s_in = t / max(g0, 1)
+    s_out = (T - 1 - t) / max(T - 1 - g1, 1)
+    path = np.where((t <= g0)[:, None], _reach_path(pb, palm[g0], _unit(palm[g0] - hp[g0]), s_in),
+                    _reach_path(pb, palm[-1], _unit(palm[-1] - hp[-1]), s_out))
+    hold = (t >= g0) & (t <= g1)
+    path[hold] = palm[hold]
+    w = np.where(hold, 1.0, ease(np.clip(np.minimum(s_in, s_out) * 2.0, 0, 1)))
+    rot, reached = place_arm(rot, root, off, side, path, R, w)
+    _require(reached, hold, f"{label} {door.name}")
+    # Final check on every frame: the body (arms aside) keeps clear of the swinging leaf.
+    P, _ = forward_kinematics(rot, root, off)
+    fr_b, lo_b, hi_b = _solid_boxes(door, poses, closed)
+    inv = np.linalg.inv(fr_b)
+    loc = np.einsum("tbij,tkj->tbki", inv[..., :3, :3], P[:, _BODY]) + inv[:, :, None, :3, 3]
+    gap = np.linalg.norm(np.maximum(np.maximum(lo_b[None, :, None] - loc, loc - hi_b[None, :, None]), 0.0), axis=-1)
+    bad = (gap < JOINT_RADIUS[_BODY] - CLEAR_TOL).any(axis=(1, 2))
+    if bad.any():
+        depth = JOINT_RADIUS[_BODY] - gap  # (T, B, J)
+        j = _BODY[int(np.unravel_index(int(depth.argmax()), depth.shape)[2])]
+        raise OutOfReach(f"{label} {door.name}: the body would touch the door on {int(bad.sum())} frames "
+                         f"(first {int(np.flatnonzero(bad)[0])}, {100 * float(depth.max()):.1f} cm deep, "
+                         f"{JOINT_NAMES[j]}); use door_stance")
+    return _finish(base, rot, root, [ActionInterval(label, 0, T - 1)], {door.name: poses}, {WRIST[side]: hold})
 
 
-def close_door(base: Motion, door: SceneObject, closed: np.ndarray, angle: float, rng: np.random.Generator,
-               side: Side | None = None, end: float = 0.0) -> Motion:
-    """Pull ``door`` from ``angle`` rad back to ``end`` (default closed). Label 'close_door'."""
-    closed = _check_pose(closed, "closed")
+def _check_door_angle(door: SceneObject, angle: float, stance: DoorStance) -> None:
     a_max = float(door.meta["max_angle"])
-    if not 0.0 <= end <= a_max or not 0.0 <= angle <= a_max:
-        raise ValueError(f"door angles must lie in [0, {a_max}] rad, got angle={angle}, end={end}")
-    side = side or ("right" if door.meta["handle"][1] > 0 else "left")
-    return _articulate(base, door, lambda a: door_pose(door, closed, a), _door_hand, angle, end, "close_door",
-                       side, rng)
+    if not 0.0 < angle <= min(a_max, stance.reach) + 1e-9:
+        raise ValueError(f"door angle must lie in (0, min(max_angle {a_max}, stance.reach {stance.reach:.2f})] "
+                         f"rad, got {angle}")
+
+
+def open_door(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, angle: float, rng: np.random.Generator,
+              stance: DoorStance, fps: float = 30.0) -> Motion:
+    """Pull ``door`` (closed world pose (4, 4)) open by ``angle`` rad (at most ``stance.reach``,
+    from ``door_stance``) towards oneself: from the canonical standing state at ``stance.pos`` the
+    ``stance.side`` hand takes the handle, the person steps back to ``stance.at(angle)`` (the hand
+    following the handle along its arc), lets go and stands. A door closing played backwards
+    (``close_door`` with its own timing). Label 'open_door'; the door's pose track is returned."""
+    closed = _check_pose(closed, "closed")
+    _check_door_angle(door, angle, stance)
+    m = _door_close_walk(offsets, door, closed, angle, stance, rng, fps, "open_door")
+    return Motion(rot=m.rot[::-1].copy(), root=m.root[::-1].copy(), offsets=m.offsets, fps=m.fps,
+                  foot_contact=m.foot_contact[::-1].copy(), actions=[ActionInterval("open_door", 0, m.num_frames - 1)],
+                  objects={k: v[::-1].copy() for k, v in m.objects.items()},
+                  grasp={k: v[::-1].copy() for k, v in m.grasp.items()})
+
+
+def close_door(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, angle: float, rng: np.random.Generator,
+               stance: DoorStance, fps: float = 30.0) -> Motion:
+    """Push ``door`` from ``angle`` rad back to closed: from the standing state at ``stance.at(angle)``
+    the hand takes the handle, the person walks forwards to ``stance.pos`` and lets go. Label
+    'close_door'."""
+    closed = _check_pose(closed, "closed")
+    _check_door_angle(door, angle, stance)
+    return _door_close_walk(offsets, door, closed, angle, stance, rng, fps, "close_door")
 
 
 def open_drawer(base: Motion, drawer: SceneObject, closed: np.ndarray, travel: float, rng: np.random.Generator,

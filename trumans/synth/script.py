@@ -502,24 +502,27 @@ def _grasps(m: Motion, name: str) -> dict[int, str]:
     return {w: name for w, g in m.grasp.items() if np.any(g)}
 
 
+MIN_DOOR_ANGLE = 0.8  # rad, a door opened less than this is no use: skip the activity
+
+
 @activity("door", ("door",))
 def _door(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str) -> None:
-    """Walk to the door, push it open, wait, pull it closed."""
+    """Walk to the door, pull it open stepping back, wait, push it closed stepping forwards."""
     door = ctx.scene.objects[name]
     closed = st.poses[name].copy()
     try:
         stance = hands_furniture.door_stance(st.offsets, door, closed)
     except hands.OutOfReach as e:
         raise Skip(str(e)) from e
-    if stance.reach < 0.25:
+    if stance.reach < MIN_DOOR_ANGLE:
         raise Skip(f"{name} opens only {stance.reach:.2f} rad from its stance")
-    angle = float(min(stance.reach, rng.uniform(0.5, 1.0) * float(door.meta["max_angle"])))  # rad
+    angle = float(min(stance.reach, rng.uniform(0.6, 1.0) * float(door.meta["max_angle"])))  # rad
     _go(ctx, st, rng, stance.pos, stance.yaw)
     try:
-        m = hands_furniture.open_door(_stand_base(ctx, st, rng, "open_door"), door, closed, angle, rng, side=stance.side)
+        m = hands_furniture.open_door(st.offsets, door, closed, angle, rng, stance, fps=ctx.fps)
         st.append(_check_clean(ctx, st, m, f"open_door {name}"), _grasps(m, name))
         st.append(_idle(ctx, st, rng, 0.3, 1.5))
-        m = hands_furniture.close_door(_stand_base(ctx, st, rng, "close_door"), door, closed, angle, rng, side=stance.side)
+        m = hands_furniture.close_door(st.offsets, door, closed, angle, rng, stance, fps=ctx.fps)
     except hands.OutOfReach as e:
         raise Skip(str(e)) from e
     st.append(_check_clean(ctx, st, m, f"close_door {name}"), _grasps(m, name))

@@ -277,6 +277,19 @@ def test_sit_down_stand_up():
         seated_state(off, np.array([2.0, 0.0, 1.2]), SIT_YAW, STAND_POS)  # bar far too high
 
 
+def test_sitting_down_with_the_arms_held_back():
+    """arm_swing=0 (e.g. at a desk) keeps the hands from swinging forward while the trunk leans."""
+    off = rest_offsets()
+    fwd = np.array([np.cos(SIT_YAW), np.sin(SIT_YAW)])
+    reach = {}
+    for a in (1.0, 0.0):
+        m = stand_up(off, SEAT, SIT_YAW, STAND_POS, np.random.default_rng(3), arm_swing=a)
+        j = _check_motion(m)
+        reach[a] = float(((j[:, [J["left_index1"], J["right_index1"]], :2] - STAND_POS) @ fwd).max())
+        np.testing.assert_allclose(m.rot[-1], standing_state(off, STAND_POS, SIT_YAW)[0], atol=1e-9)
+    assert reach[0.0] < reach[1.0] - 0.1
+
+
 def test_lie_down_ends_horizontal_on_the_surface():
     off = rest_offsets()
     rng = np.random.default_rng(7)

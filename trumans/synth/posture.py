@@ -207,10 +207,11 @@ def _envelope(T: int, fps: float, ramp: float = 0.6) -> np.ndarray:
 
 
 def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-             rng: np.random.Generator, fps: float = 30.0) -> Motion:
+             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
     """Sit down from ``standing_state(offsets, stand_pos, sit_yaw)`` (standing in front of the seat,
     facing away from it) to ``seated_state(offsets, seat_center, sit_yaw, stand_pos)``: hips go back
-    and down with a forward trunk lean, feet stay planted (leg IK). Label 'sit_down'; about 1.5-2.1 s."""
+    and down with a forward trunk lean, the arms come forward for balance (``arm_swing`` scales
+    that, e.g. 0 at a desk), feet stay planted (leg IK). Label 'sit_down'; about 1.5-2.1 s."""
     offsets = _offsets(offsets)
     rot0, root0 = standing_state(offsets, _vec2(stand_pos, "stand_pos"), sit_yaw)
     rot1, root1 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
@@ -231,7 +232,7 @@ def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand
     rot[:, j] = euler_to_matrix(np.stack([z, 0.4 * lean, z], -1), "ZYX") @ rot[:, j]
     for side in ("left", "right"):  # arms come forward for balance
         j = JOINT_INDEX[f"{side}_shoulder"]
-        rot[:, j] = euler_to_matrix(np.stack([z, -1.2 * lean, z], -1), "ZYX") @ rot[:, j]
+        rot[:, j] = euler_to_matrix(np.stack([z, -1.2 * arm_swing * lean, z], -1), "ZYX") @ rot[:, j]
     feet = np.repeat(foot_places(offsets, stand_pos, sit_yaw)[None], T, axis=0)
     h_lim = pelvis_height_limit(rot, root[:, :2], offsets, feet)
     root[:, 2] = np.minimum(root[:, 2], h_lim - 0.001)
@@ -267,10 +268,10 @@ def _reverse(m: Motion, label: str) -> Motion:
 
 
 def stand_up(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-             rng: np.random.Generator, fps: float = 30.0) -> Motion:
+             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
     """Stand up from ``seated_state`` to ``standing_state(offsets, stand_pos, sit_yaw)`` (a sit-down
     played backwards, with its own timing from ``rng``); feet planted. Label 'stand_up'."""
-    return _reverse(sit_down(offsets, seat_center, sit_yaw, stand_pos, rng, fps), "stand_up")
+    return _reverse(sit_down(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing), "stand_up")
 
 
 def _knee_dirs(P: np.ndarray) -> np.ndarray:

@@ -274,6 +274,15 @@ def _seat(obj, pose: np.ndarray, offsets: np.ndarray, rng: np.random.Generator,
     return c, yaw, stand
 
 
+def _posture_change(ctx: RoomContext, st: _State, rng: np.random.Generator, fn, args: tuple, what: str) -> Motion:
+    """``fn(*args, rng, fps=..., arm_swing=...)`` (sit_down / stand_up) with the arms swinging forward
+    for balance, or held back where they would hit something in front (a desk); Skip if still unclean."""
+    m = fn(*args, rng, fps=ctx.fps)
+    if ctx.worst_penetration(m, st.poses)[0] <= MAX_PENETRATION:
+        return m
+    return _check_clean(ctx, st, fn(*args, rng, fps=ctx.fps, arm_swing=0.0), what)
+
+
 def _sit_on(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str,
             seated: Callable[[np.ndarray, float, np.ndarray], None] | None = None,
             near: np.ndarray | None = None) -> None:
@@ -283,13 +292,13 @@ def _sit_on(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str,
     m = walk_to(ctx, st, rng, stand, yaw)
     if m is not None:
         st.append(m)
-    st.append(_check_clean(ctx, st, posture.sit_down(st.offsets, seat, yaw, stand, rng, fps=ctx.fps), "sit_down"))
+    st.append(_posture_change(ctx, st, rng, posture.sit_down, (st.offsets, seat, yaw, stand), "sit_down"))
     if seated is None:
         n = int(rng.uniform(2.0, 8.0) * ctx.fps)
         st.append(_check_clean(ctx, st, posture.sit(st.offsets, seat, yaw, stand, n, rng, fps=ctx.fps), "sit"))
     else:
         seated(seat, yaw, stand)
-    st.append(posture.stand_up(st.offsets, seat, yaw, stand, rng, fps=ctx.fps))
+    st.append(_posture_change(ctx, st, rng, posture.stand_up, (st.offsets, seat, yaw, stand), "stand_up"))
 
 
 @activity("sit", ("chair", "stool", "sofa", "bed"))
@@ -319,7 +328,7 @@ def _lie(ctx: RoomContext, st: _State, rng: np.random.Generator, name: str) -> N
         n = int(rng.uniform(3.0, 10.0) * ctx.fps)
         st.append(_check_clean(ctx, st, posture.lie(st.offsets, lc, ly, n, rng, fps=ctx.fps, leg_reach=reach),
                                "lie"))
-        st.append(posture.get_up(st.offsets, lc, ly, seat, rng, **kw))  # lie_down's path, played back
+        st.append(_check_clean(ctx, st, posture.get_up(st.offsets, lc, ly, seat, rng, **kw), "get_up"))
 
     _sit_on(ctx, st, rng, name, seated=lying, near=lc)
 

@@ -59,6 +59,7 @@ def test_write_import_round_trip(tmp_path, fps):
     np.testing.assert_allclose(seq.root_pos, root, atol=1e-5)
     J2, _ = forward_kinematics(R2, seq.root_pos.astype(np.float64), off)
     assert np.abs(J2 - J).max() < 1e-3
+    np.testing.assert_allclose(seq.extra["offsets"][1:], off[1:], atol=1e-5)  # the file's bones, our axes
 
 
 def test_import_z_up_keeps_file_axes(tmp_path):
@@ -158,6 +159,9 @@ def test_cmu_rotations_reproduce_the_joints(cmu):
     J2, _ = forward_kinematics(R, cmu.root_pos.astype(np.float64), off)
     err = np.linalg.norm(J2 - J, axis=-1)
     assert err.mean() < 0.003 and err.max() < 0.02
+    # the stored offsets go with the rotations
+    J3, _ = forward_kinematics(R, cmu.root_pos.astype(np.float64), cmu.extra["offsets"].astype(np.float64))
+    np.testing.assert_allclose(np.linalg.norm(J3 - J, axis=-1).max(), err.max(), atol=2e-3)
     # the stored fit error agrees with this check
     assert float(cmu.extra["ik_error_mean"]) < 0.003 and float(cmu.extra["ik_error_max"]) < 0.02
     assert abs(err.mean() - float(cmu.extra["ik_error_mean"])) < 5e-4

@@ -466,7 +466,9 @@ def import_bvh(
     up axis ('y': ``(x, y, z)_ours = (Z, X, Y)_file``, the inverse of ``write_bvh``). fps: resample
     to this rate (None keeps the file's). Files whose skeleton is exactly ours (``write_bvh``)
     keep their rotations; others are fitted with ``trumans.ik.fit_rotations``, and the fit's
-    error (m) is stored in ``extra["ik_error_mean"]`` / ``extra["ik_error_max"]``."""
+    error (m) is stored in ``extra["ik_error_mean"]`` / ``extra["ik_error_max"]``. The rest offsets
+    (24, 3) m that the rotations go with are ``extra["offsets"]``:
+    ``forward_kinematics(rotations, root_pos, extra["offsets"])`` gives the joints."""
     if up not in ("y", "z"):
         raise ValueError(f"up must be 'y' or 'z', got {up!r}")
     if unit_scale is not None and not (np.isfinite(unit_scale) and unit_scale > 0):
@@ -509,14 +511,17 @@ def import_bvh(
         rot = C @ Gw[:, [src[n] for n in JOINT_NAMES]] @ C.T  # global, our axes
         rot[:, 1:] = np.swapaxes(rot[:, PARENTS[1:]], -1, -2) @ rot[:, 1:]  # global -> local
         rotations, root_pos = matrix_to_6d(rot).astype(np.float32), P[:, 0].astype(np.float32)
-    seq = Sequence(joints=P.astype(np.float32), fps=bvh.fps, rotations=rotations, root_pos=root_pos)
+        off = np.asarray(bvh.offsets, np.float64)[[src[n] for n in JOINT_NAMES]] @ C.T * unit_scale
+        extra["offsets"] = off.astype(np.float32)
+    seq = Sequence(joints=P.astype(np.float32), fps=bvh.fps, rotations=rotations, root_pos=root_pos, extra=extra)
     if fps is not None and abs(fps - bvh.fps) > 1e-6:
         from .resample import resample_sequence
         seq = resample_sequence(seq, fps)
     if seq.rotations is None:
         R, root, off = fit_rotations(seq.joints, refine_steps=refine_steps)
         err = fit_error(seq.joints, R, root, off)
-        extra = {"ik_error_mean": np.asarray(err["mean"]), "ik_error_max": np.asarray(err["max"])}
+        extra = {"ik_error_mean": np.asarray(err["mean"]), "ik_error_max": np.asarray(err["max"]),
+                 "offsets": off.astype(np.float32)}
         seq = Sequence(joints=seq.joints, fps=seq.fps, rotations=matrix_to_6d(R).astype(np.float32),
                        root_pos=root.astype(np.float32), extra=extra)
     return seq

@@ -14,6 +14,7 @@ import json
 import multiprocessing as mp
 import os
 import sys
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -202,6 +203,7 @@ def torch_threads() -> None:
 
 def augment_dataset(cfg: PipelineConfig, progress: bool = True) -> dict:
     """Run the pipeline (module doc); returns the summary written into manifest.json."""
+    t0 = time.perf_counter()
     ds = Dataset(cfg.data)
     jobs = []
     for split in cfg.splits:
@@ -235,14 +237,25 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True) -> dict:
              "counts": {s: len(v) for s, v in splits.items()}, "hash": content_hash(out, files),
              "source": {"name": ds.name, "hash": ds.hash}}
     write_index(out, index)
-    cerr = [o["contact_err_cm"] for o in outputs]
+    # contact error weighted by each output's contact frames (a per-output mean would let a
+    # handful of 3-frame contacts count as much as a 2000-frame sitting)
+    cframes = np.array([o["contact_frames"] for o in outputs], np.float64)
+    cerr = np.array([o["contact_err_cm"] for o in outputs], np.float64)
+    unreachable = int(sum(o["unreachable_frames"] for o in outputs))
+    frames_out = int(sum(int(o.get("frames", 0)) for o in outputs))
+    seconds = time.perf_counter() - t0
     summary = {
         "sources": len(recs), "outputs": len(outputs),
         "skipped": sum(1 for r in recs for o in r["outputs"] if "skipped" in o),
         "errors": [{"source": r["source"], "error": r["error"]} for r in recs if r["error"]],
-        "frames_out": int(sum(int(o.get("frames", 0)) for o in outputs)),
-        "contact_err_cm": float(np.mean(cerr)) if cerr else 0.0,
-        "unreachable_frames": int(sum(o["unreachable_frames"] for o in outputs)),
+        "frames_out": frames_out,
+        "contact_frames": int(cframes.sum()),
+        "contact_err_cm": float((cerr * cframes).sum() / cframes.sum()) if cframes.sum() else 0.0,
+        "unreachable_frames": unreachable,
+        "unreachable_frac": unreachable / cframes.sum() if cframes.sum() else 0.0,
+        "seconds": seconds,
+        "frames_per_s": frames_out / max(seconds, 1e-9),  # wall clock, this run (resumed sources count too)
+        "workers": workers,
         "config": asdict(cfg),
     }
     manifest = {"summary": summary, "outputs": outputs}

@@ -120,12 +120,16 @@ def merge_body_contacts(intervals: list[ContactInterval], T: int, max_gap: int =
     return keep
 
 
+_LEGS = [JOINT_INDEX[f"{side}_{part}"] for side in ("left", "right") for part in ("knee", "ankle", "foot")]
+
+
 def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, changed: set[str], T: int) -> None:
     """Lying / sitting: the body resting on one changed object cannot stretch with it, so the new
     contact points of its *resting group* -- the root-group joints touching the object, plus every
     touching joint whose parent is in the group (an arm or leg lying on the bed) -- are mapped
     together, by the yaw + translation that best fits their individually mapped points (per
-    frame). A hand on a chair's armrest (elbow free) still follows the armrest. Edits
+    frame); so are the knees, ankles and feet touching the object while the body rests on it. A
+    hand on a chair's armrest (elbow free) still follows the armrest. Edits
     ``frame_offset`` in place."""
     for obj in changed:
         mine = [iv for iv in intervals if iv.obj == obj and iv.frame_offset is not None]
@@ -140,6 +144,10 @@ def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, c
         on[:, list(ROOT_GROUP)] = touch[:, list(ROOT_GROUP)]
         for j in range(1, NUM_JOINTS):  # parents come before children in the joint order
             on[:, j] |= touch[:, j] & on[:, PARENTS[j]]
+        # a leg resting on the same surface (knees-up lying: feet on the mattress, knees in the
+        # air) rests with the body even when the joints between touch nothing
+        resting = on[:, list(ROOT_GROUP)].any(1)
+        on[:, _LEGS] |= touch[:, _LEGS] & resting[:, None]
         w = on.astype(np.float64)
         n = w.sum(1)
         ok = n >= 2

@@ -133,3 +133,31 @@ def test_rigid_hand_offsets_average_wrist_and_finger_on_shared_frames():
     np.testing.assert_allclose(jf.frame_offset[:3], [[0.05, 0.01, 0]] * 3)
     np.testing.assert_allclose(jf.frame_offset[3:], [[0.0, 0.02, 0]] * 2)  # frames 8-9: finger alone
     np.testing.assert_allclose(other.frame_offset, [[0.3, 0, 0]] * 4)  # the other hand is untouched
+
+
+def test_resting_legs_move_rigidly_with_the_lying_body():
+    """Knees-up lying: pelvis, hips and both ankles touch the mattress, the knees do not. A
+    footprint scale maps the ankles' points inwards; the resting body moves as one rigid piece,
+    so the pelvis-ankle distances are kept (the legs cannot stretch)."""
+    from augment.core import _rigid_body_offsets
+    from augment.offsets import ContactInterval
+    from trumans.skeleton import JOINT_INDEX
+    T = 5
+    names = ["pelvis", "left_hip", "right_hip", "left_ankle", "right_ankle"]
+    pts = {"pelvis": [0.0, 0.0, 0.5], "left_hip": [0.0, 0.1, 0.5], "right_hip": [0.0, -0.1, 0.5],
+           "left_ankle": [0.8, 0.1, 0.5], "right_ankle": [0.8, -0.1, 0.5]}
+    closest = np.zeros((T, 24, 3))
+    ivs = []
+    for n in names:
+        j = JOINT_INDEX[n]
+        closest[:, j] = pts[n]
+        iv = ContactInterval(j, "bed", 0, T)
+        p = np.asarray(pts[n])
+        iv.frame_offset = np.tile(p * np.array([0.9, 0.9, 1.0]) - p + [0, 0, -0.1], (T, 1))  # footprint x0.9, 10 cm lower
+        ivs.append(iv)
+    _rigid_body_offsets(ivs, closest, {"bed"}, T)
+    new = {n: closest[0, JOINT_INDEX[n]] + iv.frame_offset[0] for n, iv in zip(names, ivs)}
+    for a in ("left_ankle", "right_ankle"):
+        d0 = np.linalg.norm(np.subtract(pts[a], pts["pelvis"]))
+        assert np.linalg.norm(new[a] - new["pelvis"]) == pytest.approx(d0, abs=1e-9)
+    assert all(new[n][2] == pytest.approx(0.4) for n in names)  # the body still sinks with the bed

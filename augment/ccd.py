@@ -252,7 +252,8 @@ _LEGS = ((_J["left_hip"], _J["left_knee"], _J["left_ankle"]), (_J["right_hip"], 
 def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
     """Rigid body step from the active root-group effectors (in place): a weighted fit of a yaw
     rotation (clipped to ``yaw_limit`` rad) and a translation, the translation clamped so an
-    active ankle target stays within ``reach * leg length`` of its hip."""
+    active ankle target stays within ``reach * leg length`` of its hip (or within the leg's current
+    extension, if longer)."""
     rg = list(ROOT_GROUP)
     w = wt[:, rg].copy()
     w[:, 0] *= 2.0  # the pelvis (the seat) counts double
@@ -276,12 +277,15 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
         on = wt[idx, an] > 0
         if not on.any():
             continue
-        # largest s in [0, 1] with |hip + s d - ankle_target| <= reach L (a quadratic in s)
+        # largest s in [0, 1] with |hip + s d - ankle_target| <= R (a quadratic in s), where R is
+        # reach L or the leg's current hip-ankle extension if that is longer (a straight leg
+        # lying on a moved bed moves with the body; it must not block the root step)
         u = P[idx[on], h] - target[idx[on], an]
         d = res[on]
+        R = np.maximum(reach * L, np.linalg.norm(P[idx[on], h] - P[idx[on], an], axis=-1))
         A = (d * d).sum(-1)
         B = 2 * (u * d).sum(-1)
-        C = (u * u).sum(-1) - (reach * L) ** 2
+        C = (u * u).sum(-1) - R ** 2
         root = (-B + np.sqrt(np.maximum(B * B - 4 * A * C, 0.0))) / np.maximum(2 * A, 1e-12)
         s_leg = np.where(A + B + C <= 0, 1.0, np.clip(root, 0.0, 1.0))
         s_leg = np.where(C > 0, np.where(B < 0, 1.0, 0.0), s_leg)  # already out of reach: only approach

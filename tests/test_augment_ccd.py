@@ -71,6 +71,25 @@ def test_seat_raise_moves_root_and_keeps_feet_planted():
     assert np.abs(bone_lengths(r.joints) - bone_lengths(P)).max() < 1e-9
 
 
+def test_lying_straight_legs_move_with_the_body():
+    """Lying with straight legs on a bed moved 5 cm sideways: pelvis, hips and ankles all get the
+    same offset. The straight legs are already beyond the planted-leg reach limit, yet they move
+    with the body, so the root translation must not be blocked."""
+    T = 3
+    rot = np.repeat(np.eye(3)[None, None], 24, 1).repeat(T, 0)  # rest pose: straight legs
+    rot[:, 0] = [[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]  # lying face up, feet towards +x
+    P, G = forward_kinematics(rot, np.tile([0.0, 0.0, 0.6], (T, 1)), OFF)
+    d = np.array([-0.05, 0.02, 0.0])  # partly along the legs, towards the head
+    group = [0, J["left_hip"], J["right_hip"], J["spine1"], J["left_ankle"], J["right_ankle"]]
+    tgt = P.copy()
+    tgt[:, group] += d
+    act = np.zeros((T, 24), bool)
+    act[:, group] = True
+    r = solve_ik(P, G, tgt, act)
+    assert not r.unreachable.any() and r.error[act].max() < 1e-3
+    np.testing.assert_allclose(r.joints[:, 0] - P[:, 0], np.tile(d, (T, 1)), atol=1e-3)
+
+
 def test_low_priority_target_yields_to_contact():
     T = 3
     P, G = _sitting(T)

@@ -1,7 +1,7 @@
 """`python -m augment` = `trumans augment`."""
 import sys
 
-from trumans.cli import main
+from trumans.cli import console_main
 
 if __name__ == "__main__":
-    sys.exit(main(["augment", *sys.argv[1:]]))
+    sys.exit(console_main(["augment", *sys.argv[1:]]))

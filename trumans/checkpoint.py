@@ -94,6 +94,8 @@ def load_checkpoint(path: str | Path, kind: str | None = "generator") -> Checkpo
         d = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # corrupt bytes surface as many types (UnpicklingError, RuntimeError, IndexError, ...)
         msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        if "weights only load failed" in msg.lower():  # torch's text goes on to suggest unsafe loading: never
+            msg = "it holds objects other than tensors and plain data; refused, loading them could run code"
         raise ValueError(f"{path} is not a readable trumans checkpoint ({msg}); it is corrupt, truncated or "
                          f"not a checkpoint - use the RUN/checkpoint.pt written by `trumans train`") from e
     if not isinstance(d, dict) or d.get("format") != FORMAT:

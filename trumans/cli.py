@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 # (command path, module, one-line help, issue that builds it)
@@ -84,5 +85,18 @@ def main(argv: list[str] | None = None) -> int:
     return int(args._run(args) or 0)
 
 
+def console_main(argv: list[str] | None = None) -> int:
+    """The console script: ``main`` with bad-input errors (missing files, bad values) printed as
+    one line, ``trumans: error: <message>``, and exit status 2 instead of a traceback (set
+    TRUMANS_DEBUG=1 for the traceback). ``main`` itself lets them propagate (for callers and tests)."""
+    try:
+        return main(argv)
+    except (FileNotFoundError, NotADirectoryError, IsADirectoryError, ValueError) as e:
+        if os.environ.get("TRUMANS_DEBUG"):
+            raise
+        print(f"trumans: error: {e}", file=sys.stderr)
+        return 2
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(console_main())

@@ -140,7 +140,9 @@ def load_sequence(path: str | Path) -> Sequence:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as e:
-        raise ValueError(f"{path} is not a readable sequence .npz ({e}); re-create or re-export it") from e
+        # numpy's pickle message suggests unsafe loading: never; say what the file is not instead
+        why = "not an .npz archive; unpickling is refused" if "pickle" in str(e) else str(e)
+        raise ValueError(f"{path} is not a readable sequence .npz ({why}); re-create or re-export it") from e
     if "joints" not in data or "fps" not in data:
         raise ValueError(f"{path} lacks 'joints' and/or 'fps'; it is not a trumans sequence file")
     objects: dict[str, ObjectTrack] = {}

@@ -18,6 +18,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS), help="variation kinds to draw from")
     p.add_argument("--window", type=float, default=1.0, help="offset fade window W in seconds (default 1 s = 30 frames at 30 fps)")
     p.add_argument("--threshold", type=float, default=0.03, help="contact distance beyond the body surface, m")
+    p.add_argument("--max-unreachable", type=float, default=0.1,
+                   help="redraw a variation whose IK leaves more than this fraction of its contact frames "
+                        "unreachable; skip it after 4 draws (default 0.1; 1.0 keeps every draw)")
     p.add_argument("--occupancy", action="store_true", help="also cache each new scene's occupancy grid")
     p.add_argument("--workers", type=int, default=0, help="worker processes (default: CPU count)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same outputs)")
@@ -27,7 +30,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     cfg = PipelineConfig(data=args.data, out=args.out, variations=args.variations, seed=args.seed,
                          splits=tuple(args.splits), kinds=tuple(args.kinds), workers=args.workers,
-                         occupancy=args.occupancy, window_s=args.window, threshold=args.threshold)
+                         occupancy=args.occupancy, window_s=args.window, threshold=args.threshold,
+                         max_unreachable=args.max_unreachable)
     summary = augment_dataset(cfg, progress=not args.json)
     summary = {k: v for k, v in summary.items() if k != "config"}
     if args.json:

@@ -40,7 +40,8 @@ class PipelineConfig:
     uses 2); splits: source splits to augment; kinds: variation kinds to draw from; workers:
     processes (0 = CPU count); occupancy: also cache each new scene's occupancy grid;
     max_penetration: a variation whose new motion puts a joint deeper than this (m) inside the
-    changed object is redrawn (up to ``tries`` times) and otherwise skipped."""
+    changed object is redrawn (up to ``tries`` times) and otherwise skipped; so is one whose IK
+    leaves more than ``max_unreachable`` of its contact frames unreachable (1.0 = keep all)."""
 
     data: str
     out: str
@@ -53,6 +54,7 @@ class PipelineConfig:
     window_s: float = 1.0
     threshold: float = 0.03
     max_penetration: float = 0.03
+    max_unreachable: float = 0.1
     tries: int = 4
 
     def __post_init__(self) -> None:
@@ -63,6 +65,8 @@ class PipelineConfig:
             raise ValueError(f"kinds must be a non-empty subset of {KINDS}, got {self.kinds}")
         if self.workers < 0:
             raise ValueError(f"workers must be >= 0 (0 = all CPUs), got {self.workers}")
+        if not 0.0 <= self.max_unreachable <= 1.0:
+            raise ValueError(f"max_unreachable must be a fraction in [0, 1], got {self.max_unreachable}")
 
     def key(self, src: Path) -> str:
         """Resume key of one source sequence: settings + the source file's bytes."""
@@ -111,7 +115,8 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
     """All augmentations of one sequence: [(object, k, AugmentOutput or None if every draw failed)].
 
     Contacts are found once; all variations are solved in one IK batch, and draws that put a joint
-    deeper than max(original, ``cfg.max_penetration``) inside the changed object are redrawn."""
+    deeper than max(original, ``cfg.max_penetration``) inside the changed object, or leave more than
+    ``cfg.max_unreachable`` of their contact frames unreachable, are redrawn."""
     acfg = acfg or AugmentConfig(window_s=cfg.window_s, threshold=cfg.threshold)
     sc = sequence_contacts(seq, scene, acfg)
     objs = contacted_objects(sc.intervals, scene)
@@ -134,7 +139,8 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
         for slot, out in zip(todo, outs):
             pen = penetration_cm(out.sequence.joints, out.scene, [slot[0]])
             out.report["penetration_cm"] = pen
-            if pen <= max(pen0[slot[0]], cfg.max_penetration * 100):
+            unreach = out.report["unreachable_frames"] / max(out.report["contact_frames"], 1)
+            if pen <= max(pen0[slot[0]], cfg.max_penetration * 100) and unreach <= cfg.max_unreachable:
                 done[slot] = out
             else:
                 again.append(slot)

@@ -78,6 +78,8 @@ def test_pipeline_writes_a_dataset_with_manifest_and_resumes(data, tmp_path):
 def test_pipeline_bad_inputs(data, tmp_path):
     with pytest.raises(ValueError, match="variations"):
         PipelineConfig(data=str(data), out=str(tmp_path), variations=0)
+    with pytest.raises(ValueError, match="max_unreachable"):
+        PipelineConfig(data=str(data), out=str(tmp_path), max_unreachable=1.5)
     with pytest.raises(ValueError, match="kinds"):
         PipelineConfig(data=str(data), out=str(tmp_path), kinds=("squash",))
     with pytest.raises(FileNotFoundError):

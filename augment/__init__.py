@@ -1,10 +1,10 @@
 """Contact-preserving motion augmentation (TRUMANS §3.3, appendix B.5): contacts, offset
 blending (A1-A6), vectorised CCD IK, object variations and the dataset pipeline."""
-from .ccd import IKConfig, IKResult, solve_ik
+from trumans.ik.ccd import IKConfig, IKResult, solve_ik
 from .core import (AugmentConfig, AugmentOutput, SequenceContacts, augment_many, augment_sequence, find_intervals,
                    sequence_contacts, sequence_pose)
 from .offsets import ContactInterval, Tracks, blend_tracks, contact_tracks, fade, handover, smooth_ratio
-from .retarget import RetargetResult, retarget, retarget_many
+from .contact_ik import RetargetResult, retarget, retarget_many
 from .variations import Variation, apply_variation, map_contact_points, sample_variation
 
 __all__ = [

@@ -1,9 +1,9 @@
 """Augment one sequence for a set of object variations: contacts -> intervals -> offsets -> IK.
 
-Contacts are found with the TRUMANS joint rule (``trumans.contacts``; the floor counts, so
+Contacts are found with the TRUMANS joint rule (``trumans.contacts.rule``; the floor counts, so
 planted feet are contacts with an unchanged object and stay planted). Contacts with a changed
 object get the A2 offset ``v'_m - v_m`` (variations.map_contact_points); every other contact is
-held where it was (zero offset). See ``augment.retarget`` for the two IK passes.
+held where it was (zero offset). See ``augment.contact_ik`` for the two IK passes.
 """
 from __future__ import annotations
 
@@ -13,14 +13,14 @@ import numpy as np
 import trimesh
 
 from scenes.scene import Scene, SceneObject
-from trumans.contacts import FLOOR_NAME, ContactScene, joint_contacts
+from trumans.contacts.rule import FLOOR_NAME, ContactScene, joint_contacts
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics
 
-from .ccd import ROOT_GROUP, IKConfig
+from trumans.ik.ccd import ROOT_GROUP, IKConfig
 from .offsets import ContactInterval, runs
-from .retarget import RetargetResult, retarget_many
+from .contact_ik import RetargetResult, retarget_many
 from .variations import Variation, apply_variation, map_contact_points, move_matrix
 
 __all__ = ["AugmentConfig", "AugmentOutput", "SequenceContacts", "sequence_pose", "sequence_contacts", "find_intervals",
@@ -59,7 +59,7 @@ def sequence_pose(seq: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(joints (T, 24, 3), global_rot (T, 24, 3, 3), offsets (24, 3)) float64 of a sequence.
 
     Uses the stored 6D rotations + root_pos (offsets recovered from the joints); sequences with
-    joints only are fitted with ``trumans.ik.fit_rotations``."""
+    joints only are fitted with ``trumans.ik.fit.fit_rotations``."""
     P = np.asarray(seq.joints, dtype=np.float64)
     if seq.rotations is not None:
         rot = sixd_to_matrix(np.asarray(seq.rotations, dtype=np.float64))
@@ -74,9 +74,9 @@ def sequence_pose(seq: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                              "drop 'rotations' to refit them")
         return J, G, off
     try:
-        from trumans.ik import fit_rotations
+        from trumans.ik.fit import fit_rotations
     except ModuleNotFoundError as e:
-        raise ValueError("the sequence has joints only and trumans.ik (fit_rotations) is not available; "
+        raise ValueError("the sequence has joints only and trumans.ik.fit (fit_rotations) is not available; "
                          "store rotations + root_pos with the sequence") from e
     rot, root, off = fit_rotations(P)
     J, G = forward_kinematics(np.asarray(rot, np.float64), np.asarray(root, np.float64), np.asarray(off, np.float64))

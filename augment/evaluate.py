@@ -1,6 +1,6 @@
 """`trumans eval augment`: benchmark figures of contact-preserving augmentation (issue #3).
 
-By default on a held-out synthetic set built here (augment.toy: sitting, lying, one hand, two
+By default on a held-out synthetic set built here (trumans.synth.cases: sitting, lying, one hand, two
 hands, successive contacts; seeds disjoint from the tests'), or on ``--data DIR`` (a dataset's
 ``--split``). Every touched object gets ``--variations`` random variations. Figures (last line,
 JSON): contact_err_cm (mean A1 residual |p'_t - (l_t + v'_m - v_m)| over contact frames of changed
@@ -22,9 +22,9 @@ import time
 
 import numpy as np
 
-from trumans.contacts import FLOOR_NAME
+from trumans.contacts.rule import FLOOR_NAME
 from trumans.skeleton import JOINT_INDEX, bone_lengths
-from trumans.synth.metrics import foot_skate_cm
+from trumans.metrics import foot_skate_cm
 
 from .core import AugmentConfig, augment_many, sequence_contacts
 from .pipeline import contacted_objects, penetration_cm
@@ -160,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         pass
     rng = np.random.default_rng(args.seed)
     if args.data is None:
-        from .toy import make_cases, replacement_library
+        from trumans.synth.cases import make_cases, replacement_library
         cases = make_cases(10_000 + args.seed, per_kind=args.cases)  # tests use small seeds: held out
         libraries = {c: replacement_library(c, 20_000 + args.seed) for c in ("chair", "bed")}
         tall = next(sc for kind, _, sc in cases if "table" in sc.objects)  # counter-height tables

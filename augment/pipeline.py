@@ -24,7 +24,7 @@ import trimesh
 from scenes.distance import SceneDistance
 from scenes.io import save_scene
 from scenes.scene import Scene
-from trumans.contacts import FLOOR_NAME
+from trumans.contacts.rule import FLOOR_NAME
 from trumans.dataset import Dataset, content_hash, write_index
 from trumans.sequence import Sequence, atomic_write, save_sequence
 

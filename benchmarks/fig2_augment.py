@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from augment.core import augment_sequence
-from augment.toy import make_case
+from trumans.synth.cases import make_case
 from augment.variations import Variation
 from scenes.io import save_scene
 from trumans.sequence import save_sequence

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from augment.ccd import IKConfig, rodrigues, rotvec, solve_ik
+from trumans.ik.ccd import IKConfig, rodrigues, rotvec, solve_ik
 from trumans.skeleton import JOINT_INDEX as J, bone_lengths, forward_kinematics, rest_offsets
 from trumans.synth.poses import pose
 

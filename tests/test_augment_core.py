@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from augment.core import augment_sequence, find_intervals, sequence_pose, AugmentConfig
-from augment.toy import make_case
+from trumans.synth.cases import make_case
 from augment.variations import Variation, apply_variation, map_contact_points, normalized_coords
 from scenes.scene import Scene, SceneObject
 from trumans.skeleton import JOINT_INDEX as J, bone_lengths

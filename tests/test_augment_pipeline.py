@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from augment.pipeline import PipelineConfig, augment_dataset
-from augment.toy import make_case
+from trumans.synth.cases import make_case
 from scenes.io import save_scene
 from scenes.scene import Scene, SceneObject
 from trumans.dataset import Dataset, write_index

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint, save_checkpoint
-from trumans.diffusion import DiffusionConfig
-from trumans.episodes import Normalizer
-from trumans.nets import ActionEncoderConfig, Denoiser, DenoiserConfig
+from trumans.model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint, save_checkpoint
+from trumans.model.diffusion import DiffusionConfig
+from trumans.model.episodes import Normalizer
+from trumans.model.nets import ActionEncoderConfig, Denoiser, DenoiserConfig
 
 torch.set_num_threads(1)
 

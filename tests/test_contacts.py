@@ -1,4 +1,4 @@
-"""The TRUMANS contact rule on joints (trumans.contacts), on analytic cases."""
+"""The TRUMANS contact rule on joints (trumans.contacts.rule), on analytic cases."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from scenes.distance import SceneDistance
 from scenes.scene import Scene, SceneObject
-from trumans.contacts import FLOOR_NAME, JOINT_RADIUS, ContactScene, joint_contacts, outward_directions
+from trumans.contacts.rule import FLOOR_NAME, JOINT_RADIUS, ContactScene, joint_contacts, outward_directions
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS, forward_kinematics, rest_offsets
 
 LW = JOINT_INDEX["left_wrist"]

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from test_train import TINY_TOML, make_tiny_dataset
-from trumans.checkpoint import load_checkpoint
+from trumans.model.checkpoint import load_checkpoint
 
 
 def test_two_process_gloo_weights_identical(tmp_path: Path) -> None:

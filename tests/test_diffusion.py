@@ -6,7 +6,7 @@ import math
 import pytest
 import torch
 
-from trumans.diffusion import DiffusionConfig, GaussianDiffusion, respaced_timesteps
+from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion, respaced_timesteps
 
 torch.set_num_threads(1)
 

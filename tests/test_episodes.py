@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.episodes import FeatureLayout, Normalizer, canonical_frame, canonicalize, episode_starts, uncanonicalize
-from trumans.masks import HAND_JOINTS, MaskSampler, joint_goal_mask, pelvis_goal_mask, transition_mask
+from trumans.model.episodes import FeatureLayout, Normalizer, canonical_frame, canonicalize, episode_starts, uncanonicalize
+from trumans.model.masks import HAND_JOINTS, MaskSampler, joint_goal_mask, pelvis_goal_mask, transition_mask
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, yaw_matrix
 from trumans.skeleton import forward_kinematics, heading
 

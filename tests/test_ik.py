@@ -1,11 +1,11 @@
-"""trumans.ik (joint positions -> rotations) and trumans.retarget."""
+"""trumans.ik.fit (joint positions -> rotations) and trumans.ik.rescale."""
 import numpy as np
 import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from trumans.ik import fit_error, fit_rotations, kabsch, offsets_from_joints, rotation_between
-from trumans.retarget import leg_length, retarget, scale_offsets
+from trumans.ik.fit import fit_error, fit_rotations, kabsch, offsets_from_joints, rotation_between
+from trumans.ik.rescale import leg_length, retarget, scale_offsets
 from trumans.rotations import axis_angle_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, bone_lengths, forward_kinematics, rest_offsets
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from trumans.diffusion import GaussianDiffusion
-from trumans.nets import (ActionEncoder, ActionEncoderConfig, Denoiser, DenoiserConfig, GuidedDenoiser,
+from trumans.model.diffusion import GaussianDiffusion
+from trumans.model.nets import (ActionEncoder, ActionEncoderConfig, Denoiser, DenoiserConfig, GuidedDenoiser,
                           ScenePerceiver, ScenePerceiverConfig)
 
 torch.set_num_threads(1)

@@ -7,7 +7,7 @@ import pytest
 from trumans.rotations import euler_to_matrix
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import bone_lengths, forward_kinematics, heading, rest_offsets
-from trumans.synth.limb_ik import LIMBS, limb_reach, set_global_rotation, solve_limb
+from trumans.ik.limb import LIMBS, limb_reach, set_global_rotation, solve_limb
 from trumans.synth.locomotion import foot_places, stand, standing_state, turn, walk
 from trumans.synth.motion import Motion, concat_motions
 from trumans.synth.poses import POSES, blend_into, ease, keyframe_track, pose, slerp_rot
@@ -197,8 +197,8 @@ def test_feet_do_not_slide_while_touching_the_floor(scale, seed):
     """Toe-off rolls over the planted toe, heel strike over the planted heel, and the foot travels
     only once the toe is clear of the floor: the foot joint does not slide while it is within the
     contact band (the builder's floor contact), in walks and in turns in place."""
-    from trumans.contacts import CONTACT_THRESHOLD, JOINT_RADIUS
-    from trumans.synth.metrics import foot_slides
+    from trumans.contacts.rule import CONTACT_THRESHOLD, JOINT_RADIUS
+    from trumans.metrics import foot_slides
 
     rng = np.random.default_rng(seed)
     off = rest_offsets(scale)
@@ -315,7 +315,7 @@ def test_lie_down_lifts_the_legs_over_the_edge(scale):
     """The feet leave the floor and rise above the surface before swinging onto it: no leg joint
     passes below the bed top (x > 1.8 m here: the seat is 0.2 m in from the edge) on its way; with
     the knees up (leg_reach) the feet end flat on the surface."""
-    from trumans.contacts import JOINT_RADIUS
+    from trumans.contacts.rule import JOINT_RADIUS
 
     off = rest_offsets(scale)
     legs = [J[f"{s}_{n}"] for s in ("left", "right") for n in ("knee", "ankle", "foot")]

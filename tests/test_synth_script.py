@@ -7,10 +7,11 @@ import pytest
 from scenes.occupancy import scene_occupancy
 from scenes.procedural import make_room
 from scenes.io import save_scene
-from trumans.contacts import CONTACT_THRESHOLD, JOINT_RADIUS, contact_rule
+from trumans.contacts.rule import CONTACT_THRESHOLD, JOINT_RADIUS, contact_rule
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import forward_kinematics
-from trumans.synth import metrics, posture
+from trumans import metrics
+from trumans.synth import posture
 from trumans.synth.locomotion import foot_places
 from trumans.synth import script as S
 from trumans.synth.motion import concat_motions

@@ -117,7 +117,7 @@ def test_episodes_from_dataset(tiny) -> None:
     from train.config import load_config
     from train.data import BatchStream, build_episodes, load_episodes
     from trumans.dataset import Dataset
-    from trumans.episodes import Normalizer, canonical_frame
+    from trumans.model.episodes import Normalizer, canonical_frame
     from trumans.resample import resample_sequence
 
     root, cfg_path = tiny
@@ -163,7 +163,7 @@ def test_episodes_from_dataset(tiny) -> None:
 def test_resume_equals_uninterrupted_run(tiny, tmp_path: Path) -> None:
     from train.config import load_config
     from train.loop import train
-    from trumans.checkpoint import load_checkpoint
+    from trumans.model.checkpoint import load_checkpoint
 
     root, cfg_path = tiny
     cfg = load_config(cfg_path)
@@ -188,7 +188,7 @@ def test_resume_equals_uninterrupted_run(tiny, tmp_path: Path) -> None:
 
 
 def test_cli_train_json_and_eval(tiny, tmp_path: Path, capsys) -> None:
-    from trumans.checkpoint import load_checkpoint
+    from trumans.model.checkpoint import load_checkpoint
     from trumans.cli import main
 
     root, cfg_path = tiny
@@ -217,7 +217,7 @@ def test_scene_grids_place_dynamic_objects_at_episode_start() -> None:
     from scenes.local_grid import local_grids
     from scenes.occupancy import scene_occupancy
     from scenes.scene import Scene, SceneObject
-    from train.scene_grids import SceneGrids
+    from scenes.scene_grids import SceneGrids
 
     wall = trimesh.creation.box((0.2, 3.0, 2.0), trimesh.transformations.translation_matrix([1.5, 0, 1.0]))
     pose = trimesh.transformations.translation_matrix([0.3, 0.0, 0.25])
@@ -244,7 +244,7 @@ def test_scene_grids_place_dynamic_objects_at_episode_start() -> None:
 def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: Path) -> None:
     from train.config import load_config
     from train.loop import train
-    from trumans.checkpoint import load_checkpoint
+    from trumans.model.checkpoint import load_checkpoint
 
     root, cfg_path = tiny
     aug = make_tiny_dataset(tmp_path / "aug", num_seqs=3, seed=7)  # train split: 2 sequences x 12 episodes

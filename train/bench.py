@@ -16,9 +16,9 @@ def bench_steps(config: str, steps: int = 1, batch_size: int | None = None, num_
     """Run ``steps`` Adam steps of ``config`` on random data; returns timing and size figures."""
     import torch
 
-    from trumans.diffusion import GaussianDiffusion
-    from trumans.masks import MaskSampler
-    from trumans.nets import Denoiser
+    from trumans.model.diffusion import GaussianDiffusion
+    from trumans.model.masks import MaskSampler
+    from trumans.model.nets import Denoiser
 
     from .config import load_config
     from .loop import _cond, _mask_sampler, model_config

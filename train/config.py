@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from trumans.diffusion import DiffusionConfig
+from trumans.model.diffusion import DiffusionConfig
 
 __all__ = ["ModelSection", "EncoderSection", "DataSection", "TrainSection", "TrainConfig", "load_config",
            "CONFIG_DIR", "builtin_configs"]
@@ -52,7 +52,7 @@ class DataSection:
     frames between episode starts; grid: n; extent: local grid size (m); rotations: add 6D rotations
     to the features; progress_indicator = False drops it (labels become 0/1); augmented = False
     drops sequences the index lists under ``augmented``; dynamic_objects: place the scene's dynamic
-    objects at each episode's start (``train.scene_grids``; False = the cached occupancy as is);
+    objects at each episode's start (``scenes.scene_grids``; False = the cached occupancy as is);
     max_val_episodes caps the val set."""
 
     fps: float = 10.0

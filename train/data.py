@@ -2,10 +2,10 @@
 
 Every sequence of a split is resampled to ``DataSection.fps`` (10 Hz), cut into windows of
 ``episode_frames`` frames every ``stride`` frames, and each window is put in its canonical frame
-(``trumans.episodes``). Its scene condition is the local occupancy grid (``scenes.local_grid``)
+(``trumans.model.episodes``). Its scene condition is the local occupancy grid (``scenes.local_grid``)
 around the episode subgoal - the pelvis floor point at the last frame - turned to the heading of
 the first frame, with the scene's dynamic objects where they are at the episode's first frame
-(``train.scene_grids``; TRUMANS §4.3). Grids are computed once per split and cached bit-packed in
+(``scenes.scene_grids``; TRUMANS §4.3). Grids are computed once per split and cached bit-packed in
 ``cache_dir`` (keyed by the dataset's index, the data config and the vocabulary), so batches are
 array slices and the loader is never the bottleneck.
 
@@ -25,12 +25,12 @@ import torch
 
 from trumans.actions import remap_labels
 from trumans.dataset import Dataset
-from trumans.episodes import PELVIS, FeatureLayout, Normalizer, canonical_frame, canonicalize, episode_starts
+from trumans.model.episodes import PELVIS, FeatureLayout, Normalizer, canonical_frame, canonicalize, episode_starts
 from trumans.resample import resample_sequence
 from trumans.sequence import atomic_write
 
 from .config import DataSection
-from .scene_grids import SceneGrids
+from scenes.scene_grids import SceneGrids
 
 __all__ = ["EpisodeSet", "build_episodes", "load_episodes", "BatchStream", "Batch"]
 

@@ -12,7 +12,7 @@ def evaluate_checkpoint(path: str, data: str | None = None, ema: bool = True, se
     """{"val_loss", "val_loss_zero_baseline", "val_ratio", "val_episodes", "data_hash_match", ...}."""
     import torch
 
-    from trumans.checkpoint import load_checkpoint
+    from trumans.model.checkpoint import load_checkpoint
     from trumans.dataset import Dataset
 
     from .config import TrainConfig

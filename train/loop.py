@@ -20,12 +20,12 @@ import torch
 from torch.nn.parallel import DistributedDataParallel
 
 from trumans import __version__
-from trumans.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
+from trumans.model.checkpoint import Checkpoint, load_checkpoint, save_checkpoint
 from trumans.dataset import Dataset
-from trumans.diffusion import GaussianDiffusion
-from trumans.episodes import FeatureLayout, Normalizer
-from trumans.masks import MaskSampler
-from trumans.nets import ActionEncoderConfig, Denoiser, DenoiserConfig, ScenePerceiverConfig
+from trumans.model.diffusion import GaussianDiffusion
+from trumans.model.episodes import FeatureLayout, Normalizer
+from trumans.model.masks import MaskSampler
+from trumans.model.nets import ActionEncoderConfig, Denoiser, DenoiserConfig, ScenePerceiverConfig
 from trumans.sequence import atomic_write
 
 from . import ddp

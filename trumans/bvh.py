@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .ik import fit_error, fit_rotations
+from .ik.fit import fit_error, fit_rotations
 from .rotations import matrix_to_6d
 from .sequence import Sequence, atomic_write
 from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, REST_JOINTS, children
@@ -465,7 +465,7 @@ def import_bvh(
     (None: guessed from the skeleton's height among m / cm / mm / inch / CMU units). up: the file's
     up axis ('y': ``(x, y, z)_ours = (Z, X, Y)_file``, the inverse of ``write_bvh``). fps: resample
     to this rate (None keeps the file's). Files whose skeleton is exactly ours (``write_bvh``)
-    keep their rotations; others are fitted with ``trumans.ik.fit_rotations``, and the fit's
+    keep their rotations; others are fitted with ``trumans.ik.fit.fit_rotations``, and the fit's
     error (m) is stored in ``extra["ik_error_mean"]`` / ``extra["ik_error_max"]``. The rest offsets
     (24, 3) m that the rotations go with are ``extra["offsets"]``:
     ``forward_kinematics(rotations, root_pos, extra["offsets"])`` gives the joints."""

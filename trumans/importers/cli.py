@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sequence import Sequence, atomic_write, save_sequence
+from trumans.sequence import Sequence, atomic_write, save_sequence
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -51,7 +51,7 @@ def split_by_group(groups: list[str], seed: int, fracs: tuple[float, float] = (0
 
 def write_dataset(out: Path, sequences: list[tuple[str, Sequence]], scene_grids: dict, name: str, seed: int) -> dict:
     """Write sequences + occupancy-only scenes + index.json; returns the index."""
-    from ..sequence import atomic_write as _aw
+    from trumans.sequence import atomic_write as _aw
 
     out.mkdir(parents=True, exist_ok=True)
     scenes_index = {}
@@ -96,12 +96,12 @@ def run(args: argparse.Namespace) -> int:
         rel = read_release(args.src[0], action_names=_read_names(args.action_names))
         seqs = rel.sequences
         if args.fps:
-            from ..resample import resample_sequence
+            from trumans.resample import resample_sequence
             seqs = [resample_sequence(s, args.fps) for s in seqs]
         named = [(f"trumans_{i:05d}", s) for i, s in enumerate(seqs)]
         index = write_dataset(out, named, rel.scenes, name=f"trumans-import:{Path(args.src[0]).name}", seed=args.seed)
     else:
-        from ..bvh import import_bvh
+        from trumans.bvh import import_bvh
 
         joint_map = json.loads(Path(args.joint_map).read_text()) if args.joint_map else None
         named = []

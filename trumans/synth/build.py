@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset import SPLITS, content_hash, write_index
-from ..sequence import atomic_write, save_sequence
-from . import metrics
+from trumans.dataset import SPLITS, content_hash, write_index
+from trumans.sequence import atomic_write, save_sequence
+from trumans import metrics
 from .vocab import SYNTH_ACTIONS
 
 __all__ = ["SynthConfig", "build_dataset", "room_ids", "split_rooms", "DATASET_NAME", "DATASET_VERSION"]
@@ -190,7 +190,7 @@ def build_dataset(cfg: SynthConfig, progress: bool = True) -> dict:
 
     Summary: sequences, frames, hours, rooms, action_frames (per action), frames_per_s (frames
     generated in this run per wall-clock second), bone_length_dev_mm, foot_skate_cm,
-    penetration_max_cm, grasp_dist_cm (see ``trumans.synth.metrics``), splits, categories,
+    penetration_max_cm, grasp_dist_cm (see ``trumans.metrics``), splits, categories,
     activities (per scripted activity: performed / skipped as infeasible), hash."""
     from tqdm import tqdm
 

@@ -9,7 +9,7 @@ Conventions owned here:
   surface at its ``grasp_point``, along the outward surface direction (``-grasp_axis``).
 - **Hand frame**: the wrist's global rotation. In the rest pose (a T-pose, palms down) the palm
   normal is ``G_wrist @ -z`` and the finger axis ``G_wrist @ (+y)`` for the left hand,
-  ``G_wrist @ (-y)`` for the right hand (as in ``trumans.contacts``); ``hand_frame`` builds it.
+  ``G_wrist @ (-y)`` for the right hand (as in ``trumans.contacts.rule``); ``hand_frame`` builds it.
 - **Hand transform** ``H`` (4, 4) = [G_wrist | p_wrist]. A held object's world pose is
   ``H @ hold.offset`` where ``hold.offset`` = ``inv(H_grasp) @ object_pose_grasp`` is fixed at the
   grasp frame, so the object moves rigidly with the hand.
@@ -38,10 +38,10 @@ from scipy.spatial.transform import Rotation
 
 from scenes.scene import SceneObject
 
-from ..actions import ActionInterval
-from ..rotations import yaw_matrix
-from ..skeleton import JOINT_INDEX, forward_kinematics
-from .limb_ik import limb_reach, set_global_rotation, solve_limb
+from trumans.actions import ActionInterval
+from trumans.rotations import yaw_matrix
+from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.ik.limb import limb_reach, set_global_rotation, solve_limb
 from .locomotion import pelvis_height_limit, solve_legs
 from .motion import Motion
 from .poses import ease, slerp_rot

@@ -10,8 +10,8 @@ import numpy as np
 
 from scenes.scene import SceneObject
 
-from ..actions import ActionInterval
-from ..rotations import yaw_matrix
+from trumans.actions import ActionInterval
+from trumans.rotations import yaw_matrix
 from .hands import (
     WRIST,
     PALM_GAP,
@@ -40,7 +40,7 @@ from .hands import (
 )
 from .motion import Motion
 from .poses import ease
-from ..skeleton import forward_kinematics
+from trumans.skeleton import forward_kinematics
 
 __all__ = ["TYPE_HOVER", "type_keyboard", "use_mouse"]
 

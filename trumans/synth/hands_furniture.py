@@ -20,10 +20,10 @@ from scipy.ndimage import gaussian_filter1d
 
 from scenes.scene import SceneObject
 
-from ..actions import ActionInterval
-from ..contacts import JOINT_RADIUS
-from ..rotations import yaw_matrix
-from ..skeleton import JOINT_INDEX, JOINT_NAMES, forward_kinematics
+from trumans.actions import ActionInterval
+from trumans.contacts.rule import JOINT_RADIUS
+from trumans.rotations import yaw_matrix
+from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, forward_kinematics
 from . import locomotion
 from .hands import (
     HAND_SPEED,
@@ -55,7 +55,7 @@ from .hands import (
     palm_points,
     place_arm,
 )
-from .limb_ik import limb_reach
+from trumans.ik.limb import limb_reach
 from .motion import Motion, concat_motions
 from .poses import ease
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
-from ..actions import ActionInterval
-from ..rotations import euler_to_matrix, yaw_matrix
-from ..skeleton import JOINT_INDEX, forward_kinematics
-from .limb_ik import limb_reach, set_global_rotation, solve_limb
+from trumans.actions import ActionInterval
+from trumans.rotations import euler_to_matrix, yaw_matrix
+from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.ik.limb import limb_reach, set_global_rotation, solve_limb
 from .motion import Motion
 from .poses import POSES, ease, pose
 

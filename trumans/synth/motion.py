@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..actions import ActionInterval
-from ..rotations import matrix_to_6d
-from ..skeleton import NUM_JOINTS, forward_kinematics
+from trumans.actions import ActionInterval
+from trumans.rotations import matrix_to_6d
+from trumans.skeleton import NUM_JOINTS, forward_kinematics
 
 __all__ = ["Motion", "concat_motions"]
 

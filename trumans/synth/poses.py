@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotations import euler_to_matrix, matrix_to_quat, quat_to_matrix
-from ..skeleton import JOINT_INDEX, NUM_JOINTS
+from trumans.rotations import euler_to_matrix, matrix_to_quat, quat_to_matrix
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
 from .motion import Motion
 
 __all__ = [
@@ -102,8 +102,8 @@ def pose(name: str, offsets: np.ndarray | None = None) -> np.ndarray:
         raise ValueError(f"unknown pose {name!r}; choose one of {sorted(POSES)}")
     rot = pose_from_angles(POSES[name])
     if name in _HAND_TARGETS:
-        from ..skeleton import forward_kinematics, rest_offsets
-        from .limb_ik import LIMBS, solve_limb
+        from trumans.skeleton import forward_kinematics, rest_offsets
+        from trumans.ik.limb import LIMBS, solve_limb
 
         off = rest_offsets() if offsets is None else np.asarray(offsets, dtype=np.float64)
         limb, eff, rel, pole = _HAND_TARGETS[name]

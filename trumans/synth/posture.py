@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..actions import ActionInterval
-from ..contacts import JOINT_RADIUS
-from ..rotations import euler_to_matrix, yaw_matrix
-from ..skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
-from .limb_ik import limb_reach
+from trumans.actions import ActionInterval
+from trumans.contacts.rule import JOINT_RADIUS
+from trumans.rotations import euler_to_matrix, yaw_matrix
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
+from trumans.ik.limb import limb_reach
 from .locomotion import _rest_ankle_rel, foot_places, pelvis_height_limit, solve_legs, standing_state
 from .motion import Motion
 from .poses import POSES, ease, pose, slerp_poses, slerp_rot

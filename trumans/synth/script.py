@@ -4,7 +4,7 @@ A *take* is one continuous performance of one actor in one room: idle -> walk (p
 object's approach point) -> interact -> walk -> ... Every primitive starts and ends in the canonical
 standing state (``locomotion.standing_state``), so concatenation has no jumps. The take carries
 the pose of every dynamic object on every frame (held where it was left when not moved), action
-labels with progress (``trumans.actions``), contacts from geometry (``trumans.contacts``), and
+labels with progress (``trumans.actions``), contacts from geometry (``trumans.contacts.rule``), and
 joints by FK of the rotations (exact bone lengths). Each take draws a new actor: bone-length scale
 0.9-1.1 (plus +-2 % symmetric per-bone proportions), walking speed, timing and style noise.
 """
@@ -19,10 +19,10 @@ from scenes.occupancy import OccupancyGrid
 from scenes.scene import Scene
 from scenes.walkability import NoPathError, WalkMap, nearest_walkable, plan_path, walkable_map
 
-from ..actions import ActionInterval, labels_from_intervals
-from ..contacts import CONTACT_THRESHOLD, JOINT_RADIUS, ContactScene, contact_rule
-from ..sequence import ObjectTrack, Sequence
-from ..skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, forward_kinematics, heading, rest_offsets
+from trumans.actions import ActionInterval, labels_from_intervals
+from trumans.contacts.rule import CONTACT_THRESHOLD, JOINT_RADIUS, ContactScene, contact_rule
+from trumans.sequence import ObjectTrack, Sequence
+from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, forward_kinematics, heading, rest_offsets
 from . import hands, hands_desk, hands_furniture, locomotion, posture
 from .motion import Motion, concat_motions
 from .vocab import SYNTH_ACTIONS
@@ -71,7 +71,7 @@ class RoomContext:
     fps: float = 30.0
 
     def penetration(self, m: Motion, poses: dict[str, np.ndarray]) -> float:
-        """Deepest body penetration (m, see ``trumans.contacts.body_penetration``) of motion ``m``
+        """Deepest body penetration (m, see ``trumans.contacts.rule.body_penetration``) of motion ``m``
         with the dynamic objects at ``poses`` (or where ``m`` moves them)."""
         return self.worst_penetration(m, poses)[0]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sequence import load_sequence
+from trumans.sequence import load_sequence
 from .render import SceneView, render_animation, render_topdown
 
 

@@ -17,8 +17,8 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
 
-from ..sequence import Sequence, atomic_write  # noqa: E402
-from ..skeleton import JOINT_NAMES, PARENTS  # noqa: E402
+from trumans.sequence import Sequence, atomic_write  # noqa: E402
+from trumans.skeleton import JOINT_NAMES, PARENTS  # noqa: E402
 
 __all__ = ["SceneView", "render_animation", "render_still", "render_topdown"]
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from trumans.skeleton import NUM_JOINTS
 
-from .ccd import IKConfig, solve_ik
+from trumans.ik.ccd import IKConfig, solve_ik
 from .offsets import ContactInterval, Tracks, blend_tracks, contact_tracks, handover, smooth_ratio
 
 __all__ = ["RetargetResult", "retarget", "retarget_many"]

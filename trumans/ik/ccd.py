@@ -47,7 +47,7 @@ ROOT_GROUP: tuple[int, ...] = tuple(_J[n] for n in (
     "left_collar", "right_collar", "left_shoulder", "right_shoulder"))
 
 
-# middle joints of the two-bone limbs -> flexion axis in their own frame (see trumans.synth.limb_ik)
+# middle joints of the two-bone limbs -> flexion axis in their own frame (see trumans.ik.limb)
 HINGES: dict[int, np.ndarray] = {_J["left_knee"]: np.array([0.0, 1.0, 0.0]), _J["right_knee"]: np.array([0.0, 1.0, 0.0]),
                                  _J["left_elbow"]: np.array([0.0, 0.0, -1.0]), _J["right_elbow"]: np.array([0.0, 0.0, 1.0])}
 SPINE: frozenset[int] = frozenset(_J[n] for n in ("spine1", "spine2", "spine3"))

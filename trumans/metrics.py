@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contacts import body_penetration
-from ..skeleton import NUM_JOINTS, bone_lengths
+from .contacts.rule import body_penetration
+from .skeleton import NUM_JOINTS, bone_lengths
 
 __all__ = [
     "bone_length_dev_mm",
@@ -70,7 +70,7 @@ def foot_skate_cm(foot: np.ndarray, contact: np.ndarray) -> float:
 
 
 def penetration_depth(signed: np.ndarray, facing: np.ndarray | None = None) -> np.ndarray:
-    """Body penetration per joint, metres (T, 24): ``trumans.contacts.body_penetration``.
+    """Body penetration per joint, metres (T, 24): ``trumans.contacts.rule.body_penetration``.
 
     signed: (T, 24) signed distance of each joint centre to the nearest scene surface (m, negative
     inside; ``ContactResult.distance``); facing: (T, 24) bool ``ContactResult.facing``. The body

@@ -34,7 +34,7 @@ import trimesh
 from scenes.distance import DistanceResult, SceneDistance
 from scenes.scene import Scene
 
-from .skeleton import JOINT_INDEX, NUM_JOINTS
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
 
 __all__ = [
     "JOINT_RADIUS",

@@ -15,8 +15,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import torch
 
-from .rotations import matrix_to_6d, sixd_to_matrix, yaw_matrix
-from .skeleton import JOINT_INDEX, NUM_JOINTS, heading
+from trumans.rotations import matrix_to_6d, sixd_to_matrix, yaw_matrix
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, heading
 
 __all__ = [
     "FeatureLayout",

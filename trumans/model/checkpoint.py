@@ -17,11 +17,11 @@ from pathlib import Path
 
 import torch
 
-from . import __version__
+from trumans import __version__
 from .diffusion import DiffusionConfig, GaussianDiffusion
 from .episodes import Normalizer
 from .nets.denoiser import Denoiser, DenoiserConfig
-from .sequence import atomic_write
+from trumans.sequence import atomic_write
 
 __all__ = ["Checkpoint", "save_checkpoint", "load_checkpoint", "FORMAT", "FORMAT_VERSION"]
 

@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass, field, fields
 import torch
 from torch import nn
 
-from ..episodes import FeatureLayout
+from trumans.model.episodes import FeatureLayout
 from .action_encoder import ActionEncoder, ActionEncoderConfig
 from .blocks import encoder_stack, mlp, sinusoidal_embedding
 from .vit import ScenePerceiver, ScenePerceiverConfig

@@ -13,7 +13,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics
 
 __all__ = ["LIMBS", "Limb", "solve_limb", "set_global_rotation", "limb_reach"]
 

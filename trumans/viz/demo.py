@@ -13,11 +13,11 @@ import json
 import sys
 from pathlib import Path
 
-from .cli import main as cli_main
+from trumans.cli import main as cli_main
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m trumans.demo", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m trumans.viz.demo", description=__doc__)
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--hours", type=float, default=0.05, help="hours of synthetic motion (default 0.05)")
     p.add_argument("--rooms", type=int, default=4, help="number of procedural rooms (default 4)")

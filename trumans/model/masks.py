@@ -1,6 +1,6 @@
 """Inpainting masks over episode features (TRUMANS §4.1): ``M_trans`` and ``M_goal``.
 
-A mask is ``(L, F)`` or ``(B, L, F)`` bool over the episode's features (``trumans.episodes.FeatureLayout``);
+A mask is ``(L, F)`` or ``(B, L, F)`` bool over the episode's features (``trumans.model.episodes.FeatureLayout``);
 ``True`` marks a *given* entry: it enters the denoiser clean (never noised), is excluded from the
 loss, and is overwritten with its given value at every sampling step.
 
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import torch
 
 from .episodes import PELVIS, FeatureLayout
-from .skeleton import JOINT_INDEX
+from trumans.skeleton import JOINT_INDEX
 
 __all__ = ["transition_mask", "pelvis_goal_mask", "joint_goal_mask", "MaskSampler", "HAND_JOINTS"]
 

@@ -22,8 +22,8 @@ import logging
 import numpy as np
 import torch
 
-from .rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
-from .skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, REST_JOINTS, children, forward_kinematics, rest_offsets
+from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, REST_JOINTS, children, forward_kinematics, rest_offsets
 
 __all__ = ["fit_rotations", "offsets_from_joints", "fit_error", "kabsch", "rotation_between"]
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
 
 __all__ = ["retarget", "scale_offsets", "leg_length"]
 

@@ -1,0 +1,1 @@
+"""Contacts between the body and the scene: the TRUMANS joint rule (``rule``)."""

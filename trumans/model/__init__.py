@@ -1,0 +1,1 @@
+"""The TRUMANS model family: diffusion, episode features, masks, networks and checkpoints."""

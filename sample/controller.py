@@ -1,0 +1,280 @@
+"""From a plan to per-episode controls: subgoals and frame-wise action labels (TRUMANS §4.1).
+
+The plan is compiled once against the scene into *phases* (walk along an A* path, sit down, sit,
+stand up, lie down, lie, get up, reach, act). The ``Controller`` then runs closed-loop: before each
+episode it looks at where the body really is and returns the episode's control — the pelvis
+subgoal at its last frame (``M_goal``) or a hand goal, and the action labels of its new frames
+with the progress indicator. Walking subgoals lie on the path ``speed * (L - k) / fps`` metres
+ahead of the body's projection onto the path (the training data's episode displacement), and
+walking progress is the covered fraction of the path, so a body that lags still gets a reachable
+goal. Timed phases (sit down, stand up, ...) last their typical training-data duration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scenes.walkability import NoPathError, WalkMap, nearest_walkable, plan_path
+
+from .plan import Plan
+
+__all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "seat_target"]
+
+# typical durations (s) when the checkpoint carries none (meta "action_seconds")
+DEFAULT_SECONDS: dict[str, float] = {
+    "sit_down": 2.0, "stand_up": 1.8, "lie_down": 3.0, "get_up": 3.0, "reach": 1.5, "sit": 4.0, "lie": 4.0,
+    "stand": 2.0, "pick_up": 2.0, "put_down": 2.0, "open_door": 3.0, "close_door": 3.0, "open_drawer": 2.5,
+    "close_drawer": 2.5, "drink": 3.0, "phone_call": 4.0, "type": 4.0, "use_mouse": 4.0,
+}
+
+
+@dataclass
+class Phase:
+    """One compiled phase. kind 'walk' follows ``path`` (P, 2) world xy m; the others last ``frames``
+    frames with the pelvis subgoal ``goal`` (2,) (None = stay where the body is) or, for a reach,
+    the hand goal ``hand_goal`` (3,) world m of joint ``hand``. ``actions``: labels switched on (the
+    first gets the progress indicator; the others, e.g. a posture under a hand action, too)."""
+
+    kind: str
+    actions: tuple[str, ...]
+    frames: int = 0
+    path: np.ndarray | None = None
+    goal: np.ndarray | None = None
+    hand_goal: np.ndarray | None = None
+    hand: str = "right_wrist"
+    step: int = -1
+    info: dict = field(default_factory=dict)
+
+    @property
+    def length(self) -> float:
+        """Path length, m (walk phases)."""
+        return float(np.linalg.norm(np.diff(self.path, axis=0), axis=1).sum()) if self.path is not None else 0.0
+
+
+@dataclass
+class EpisodeControl:
+    """goal: (2,) pelvis xy at the episode's last frame, world m, or None; hand_goal: (3,) world m
+    with ``hand`` and ``hand_frame`` (episode frame index) or None; labels: (L, N_A) float with the
+    progress indicator for every frame of the episode (the transition frames keep their labels);
+    phases: index of the active phase per episode frame (L,)."""
+
+    goal: np.ndarray | None
+    labels: np.ndarray
+    phases: np.ndarray
+    hand_goal: np.ndarray | None = None
+    hand: str = "right_wrist"
+    hand_frame: int = -1
+
+
+def _rot_z(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def _world(obj, local_xy) -> np.ndarray:
+    """Object-frame point (2,) or (3,) -> world (same length)."""
+    p = np.zeros(3)
+    p[: len(local_xy)] = local_xy
+    w = obj.pose[:3, :3] @ p + obj.pose[:3, 3]
+    return w[: len(local_xy)]
+
+
+def seat_target(obj) -> tuple[np.ndarray, float]:
+    """(seat centre (3,) world m, seat height m) of a seat object (meta 'seat_center')."""
+    c = _world(obj, np.asarray(obj.meta["seat_center"], dtype=np.float64))
+    return c, float(c[2])
+
+
+def _approach(obj, wm: WalkMap) -> np.ndarray:
+    meta = obj.meta
+    p = _world(obj, np.asarray(meta.get("approach", [0.0, 0.0]), dtype=np.float64))
+    return nearest_walkable(wm, p) if not wm.query(p[None])[0] else p
+
+
+def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
+                 fps: float, spacing: float = 0.3) -> list[Phase]:
+    """Phases of ``plan`` in ``scene`` from ``start_xy`` (2,). Raises ValueError (naming the step)
+    when a goal is not reachable on the walkable floor."""
+    def frames(name: str, s: float | None = None) -> int:
+        return max(2, int(round((s if s is not None else seconds.get(name, DEFAULT_SECONDS.get(name, 2.0))) * fps)))
+
+    phases: list[Phase] = []
+    pos = np.asarray(start_xy, dtype=np.float64)
+    posture: str | None = None  # "sit" / "lie" while seated / lying
+    posture_exit: np.ndarray | None = None
+
+    def leave(i: int) -> None:
+        nonlocal posture, pos
+        if posture == "sit":
+            phases.append(Phase("stand_up", ("stand_up",), frames("stand_up"), goal=posture_exit, step=i))
+        elif posture == "lie":
+            phases.append(Phase("get_up", ("get_up",), frames("get_up"), goal=posture_exit, step=i))
+        if posture is not None:
+            pos = posture_exit
+        posture = None
+
+    def walk(i: int, goal: np.ndarray) -> None:
+        nonlocal pos
+        leave(i)
+        if not wm.query(goal[None])[0]:
+            raise ValueError(f"plan step {i + 1}: goal {np.round(goal, 2).tolist()} is not on walkable floor "
+                             f"(inside furniture, a wall or outside the room); choose another point")
+        if np.linalg.norm(goal - pos) < 0.15:
+            return
+        try:
+            path = plan_path(wm, pos, goal, spacing=spacing)
+        except NoPathError as e:
+            raise ValueError(f"plan step {i + 1}: no walkable path from {np.round(pos, 2).tolist()} to "
+                             f"{np.round(goal, 2).tolist()} ({e})") from None
+        phases.append(Phase("walk", ("walk",), path=path, goal=goal, step=i))
+        pos = goal
+
+    for i, s in enumerate(plan.steps):
+        obj = scene.objects.get(s.object) if s.object else None
+        if s.kind == "goto":
+            walk(i, np.asarray(s.to, dtype=np.float64))
+        elif s.kind in ("sit_on", "lie_on"):
+            walk(i, _approach(obj, wm))
+            if s.kind == "sit_on":
+                seat, h = seat_target(obj)
+                phases.append(Phase("sit_down", ("sit_down",), frames("sit_down"), goal=seat[:2], step=i,
+                                    info={"seat_height": h, "object": obj.name}))
+                phases.append(Phase("sit", ("sit",), frames("sit", s.seconds), goal=seat[:2], step=i,
+                                    info={"seat_height": h, "object": obj.name}))
+                posture = "sit"
+            else:
+                lie = _world(obj, np.asarray(obj.meta["lie_center"], dtype=np.float64))
+                phases.append(Phase("lie_down", ("lie_down",), frames("lie_down"), goal=lie[:2], step=i,
+                                    info={"surface_height": float(lie[2]), "object": obj.name}))
+                phases.append(Phase("lie", ("lie",), frames("lie", s.seconds), goal=lie[:2], step=i,
+                                    info={"surface_height": float(lie[2]), "object": obj.name}))
+                posture = "lie"
+            posture_exit = pos.copy()
+        elif s.kind in ("stand_up", "get_up"):
+            if posture is None:
+                raise ValueError(f"plan step {i + 1}: {s.kind} but the person is not seated or lying")
+            leave(i)
+        elif s.kind == "act":
+            held = ("sit",) if posture == "sit" else ("lie",) if posture == "lie" else ()
+            phases.append(Phase("act", (s.action, *held), frames(s.action, s.seconds), goal=None, step=i))
+        elif s.kind in ("reach", "pick_up", "put_down", "open", "close"):
+            target = s.target if s.kind == "reach" else s.object
+            if isinstance(target, str):
+                tobj = scene.objects[target]
+                meta = tobj.meta
+                local = meta.get("grasp_point") or meta.get("handle") or meta.get("surface_center") or [0, 0, 0]
+                point = tobj.pose[:3, :3] @ np.asarray(local, dtype=np.float64) + tobj.pose[:3, 3]
+                support = scene.objects.get(meta.get("support", ""), tobj)
+                stand = _approach(support if "approach" in support.meta else tobj, wm)
+            else:
+                point = np.asarray(target, dtype=np.float64)
+                d = point[:2] - pos
+                stand = point[:2] - 0.45 * d / max(np.linalg.norm(d), 1e-6)
+                stand = nearest_walkable(wm, stand) if not wm.query(stand[None])[0] else stand
+            walk(i, stand)
+            action = {"reach": "reach", "pick_up": "pick_up", "put_down": "put_down"}.get(s.kind)
+            if action is None:
+                cat = scene.objects[s.object].category
+                action = f"{s.kind}_{cat}"
+            hand = "left_wrist" if s.hand == "left" else "right_wrist"
+            phases.append(Phase("reach", (action,), frames(action), hand_goal=point, hand=hand, step=i,
+                                info={"object": target if isinstance(target, str) else None}))
+    return phases
+
+
+class Controller:
+    """Closed-loop episode controls for compiled ``phases``; see the module doc.
+
+    vocabulary: the model's action names; L, k: episode and transition frames; speed: walking
+    speed, m/s; fps: the model's frame rate."""
+
+    def __init__(self, phases: list[Phase], vocabulary: list[str], L: int, k: int, fps: float,
+                 speed: float = 1.0, arrive_m: float = 0.25) -> None:
+        if not phases:
+            raise ValueError("the plan compiled to no phases (every goal is where the person already stands)")
+        self.phases, self.vocab = phases, list(vocabulary)
+        self.col = {a: i for i, a in enumerate(self.vocab)}
+        self.L, self.k, self.fps, self.speed, self.arrive = L, k, fps, float(speed), float(arrive_m)
+        self.index = 0  # current phase
+        self.elapsed = 0  # frames spent in the current phase
+        self.walk_s = 0.0  # arc length covered on the current walk path, m
+        self._cum: np.ndarray | None = None
+
+    @property
+    def done(self) -> bool:
+        return self.index >= len(self.phases)
+
+    def _arc(self, path: np.ndarray) -> np.ndarray:
+        return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+
+    def _point_at(self, path: np.ndarray, cum: np.ndarray, s: float) -> np.ndarray:
+        s = float(np.clip(s, 0.0, cum[-1]))
+        return np.array([np.interp(s, cum, path[:, 0]), np.interp(s, cum, path[:, 1])])
+
+    def _project(self, path: np.ndarray, cum: np.ndarray, p: np.ndarray) -> float:
+        """Arc length of the closest path point to p (2,)."""
+        a, b = path[:-1], path[1:]
+        ab = b - a
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+        q = a + t[:, None] * ab
+        i = int(np.argmin(np.linalg.norm(q - p, axis=1)))
+        return float(cum[i] + t[i] * np.linalg.norm(ab[i]))
+
+    def next(self, pelvis_xy: np.ndarray, prev_labels: np.ndarray) -> EpisodeControl:
+        """Control of the next episode given the body's pelvis xy (2,) at its first new frame
+        and the labels of the k transition frames (k, N_A)."""
+        L, k = self.L, self.k
+        labels = np.zeros((L, len(self.vocab)), np.float32)
+        labels[:k] = prev_labels
+        phase_of = np.full(L, -1, np.int64)
+        new = L - k
+        step_m = self.speed / self.fps
+        goal = hand_goal = None
+        hand, hand_frame = "right_wrist", -1
+        f = k
+        p = self.phases[self.index] if not self.done else None
+        if p is not None and p.kind == "walk":  # re-anchor on the path where the body really is
+            cum = self._arc(p.path)
+            self.walk_s = max(self.walk_s, self._project(p.path, cum, np.asarray(pelvis_xy, np.float64)))
+        while f < L and not self.done:
+            p = self.phases[self.index]
+            if p.kind == "walk":
+                cum = self._arc(p.path)
+                remaining = cum[-1] - self.walk_s
+                n = max(1, min(L - f, int(np.ceil(remaining / step_m))))
+                s = self.walk_s + step_m * np.arange(1, n + 1)
+                prog = np.clip(s / max(cum[-1], 1e-6), 0, 1)
+                labels[f:f + n, self.col["walk"]] = 1.0 + prog
+                phase_of[f:f + n] = self.index
+                goal = self._point_at(p.path, cum, s[-1])
+                self.walk_s = float(min(s[-1], cum[-1]))
+                f += n
+                if self.walk_s >= cum[-1] - 1e-6:
+                    self.index, self.elapsed, self.walk_s = self.index + 1, 0, 0.0
+            else:
+                n = min(L - f, p.frames - self.elapsed)
+                prog = (self.elapsed + np.arange(1, n + 1)) / p.frames
+                for j, a in enumerate(p.actions):
+                    if a in self.col:
+                        labels[f:f + n, self.col[a]] = 1.0 + (prog if j == 0 else 0.5)
+                phase_of[f:f + n] = self.index
+                if p.hand_goal is not None:
+                    hand_goal, hand, hand_frame, goal = p.hand_goal, p.hand, f + n - 1, None
+                elif p.goal is not None:
+                    goal = np.asarray(p.goal, np.float64)
+                self.elapsed += n
+                f += n
+                if self.elapsed >= p.frames:
+                    self.index, self.elapsed = self.index + 1, 0
+        if f < L:  # the plan is over: stand (or hold the posture) where the body is
+            last = phase_of[f - 1] if f > 0 and phase_of[f - 1] >= 0 else None
+            held = self.phases[last].actions[-1] if last is not None and self.phases[last].kind in ("sit", "lie", "sit_down", "lie_down") else "stand"
+            held = {"sit_down": "sit", "lie_down": "lie"}.get(held, held)
+            if held in self.col:
+                labels[f:, self.col[held]] = 1.5
+            if goal is None and hand_goal is None:
+                goal = np.asarray(pelvis_xy, np.float64)
+        if goal is None and hand_goal is None:
+            goal = np.asarray(pelvis_xy, np.float64)
+        return EpisodeControl(goal, labels, phase_of, hand_goal, hand, hand_frame)

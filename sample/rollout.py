@@ -1,0 +1,188 @@
+"""Long motions: a plan rolled out episode by episode, as a batch or as a stream (TRUMANS §4.1, §5.4).
+
+``sample_plan`` runs the closed-loop controller (``sample.controller``) and the episode sampler
+(``sample.sampler``) until the plan is done and returns every frame. ``stream`` is the real-time
+form: a Python generator that yields new frames as soon as they are made and accepts a new plan
+at any time through ``send``; after a new plan it commits 2, then 4, then 8 new frames per
+episode before going back to full episodes (the paper's incremental schedule, §5.4), so the body
+reacts after one short episode instead of a full one.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Generator
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from trumans.model.checkpoint import Checkpoint
+from trumans.skeleton import JOINT_INDEX
+
+from .controller import Controller, Phase, compile_plan
+from .plan import Plan
+from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
+
+__all__ = ["SampleResult", "start_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
+
+PELVIS = JOINT_INDEX["pelvis"]
+INCREMENTAL_SCHEDULE: tuple[int, ...] = (2, 4, 8)
+
+
+@dataclass
+class SampleResult:
+    """joints: (B, T, 24, 3) world m at ``fps``; labels: (B, T, N_A) action labels used; phase:
+    (B, T) index into ``phases`` (-1 = before the first / after the last); episodes: count;
+    seconds: wall-clock time spent sampling episodes (s)."""
+
+    joints: np.ndarray
+    labels: np.ndarray
+    phase: np.ndarray
+    phases: list[Phase]
+    fps: float
+    vocabulary: list[str]
+    episodes: int
+    seconds: float
+    episode_starts: list[int] = field(default_factory=list)
+
+    @property
+    def seconds_per_episode(self) -> float:
+        return self.seconds / max(self.episodes, 1)
+
+    @property
+    def realtime_factor(self) -> float:
+        """Seconds of motion made per second of sampling."""
+        return (self.joints.shape[1] / self.fps) / max(self.seconds, 1e-9)
+
+
+def start_pose(ckpt: Checkpoint) -> np.ndarray:
+    """(24, 3) standing pose in the canonical frame (pelvis at x = y = 0, facing +x): the
+    checkpoint's ``meta['start_pose']``, else the training data's mean pose."""
+    if "start_pose" in ckpt.meta:
+        p = np.asarray(ckpt.meta["start_pose"], dtype=np.float32)
+        if p.shape != (24, 3) or not np.isfinite(p).all():
+            raise ValueError(f"checkpoint meta start_pose must be finite (24, 3), got {p.shape}")
+        return p
+    mean = ckpt.normalizer.mean[: 24 * 3].reshape(24, 3).copy()
+    mean[:, :2] -= mean[PELVIS, :2]
+    return mean
+
+
+def start_context(ckpt: Checkpoint, xy: np.ndarray, heading: float, batch: int = 1) -> np.ndarray:
+    """(B, k, 24, 3) world: the start pose standing still at floor point xy facing ``heading``."""
+    p = start_pose(ckpt).astype(np.float64)
+    c, s = np.cos(heading), np.sin(heading)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    w = p @ R.T + np.array([xy[0], xy[1], 0.0])
+    return np.broadcast_to(w.astype(np.float32), (batch, ckpt.k, 24, 3)).copy()
+
+
+def _speed(ckpt: Checkpoint) -> float:
+    return float(ckpt.meta.get("walk_speed", 1.0))
+
+
+def _seconds(ckpt: Checkpoint) -> dict[str, float]:
+    return {str(k): float(v) for k, v in dict(ckpt.meta.get("action_seconds", {})).items()}
+
+
+def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
+          lengths: np.ndarray, generator: torch.Generator | None):
+    """One episode for every sample: (new frames (B, L - k, 24, 3), labels (B, L, N_A), phase (B, L))."""
+    ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
+    goals = [Goal(tuple(c.goal)) if c.hand_goal is None else Goal(tuple(c.hand_goal), c.hand, c.hand_frame)
+             for c in ctrls]
+    labels = np.stack([c.labels for c in ctrls])
+    world = sampler.episode(context, labels, goals, generator=generator)
+    world = project_bones(world, lengths)
+    return world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls])
+
+
+def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,
+                seed: int = 0, max_seconds: float = 600.0, progress: bool = False,
+                start_xy: np.ndarray | None = None) -> SampleResult:
+    """Roll ``plan`` out in ``scene`` for ``num_samples`` variations (one batch); see the module doc."""
+    from tqdm import tqdm
+
+    if num_samples < 1:
+        raise ValueError(f"num_samples must be >= 1, got {num_samples}")
+    xy = np.asarray(plan.start if plan.start is not None else start_xy, dtype=np.float64)
+    heading = float(plan.heading) if plan.heading is not None else 0.0
+    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps)
+    controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt))
+                   for _ in range(num_samples)]
+    context = start_context(ckpt, xy, heading, num_samples)
+    lengths = bone_lengths_of(context[0, 0].astype(np.float64))
+    N_A = len(ckpt.vocabulary)
+    stand = np.zeros((ckpt.k, N_A), np.float32)
+    if "stand" in ckpt.vocabulary:
+        stand[:, ckpt.vocabulary.index("stand")] = 1.5
+    frames, labels, phase = [context], [np.broadcast_to(stand, (num_samples,) + stand.shape)], \
+        [np.full((num_samples, ckpt.k), -1)]
+    g = torch.Generator().manual_seed(int(seed))
+    max_episodes = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
+    t0, episodes, starts = 0.0, 0, []
+    bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
+    while not all(c.done for c in controllers):
+        if episodes >= max_episodes:
+            raise ValueError(f"the plan did not finish within {max_seconds:.0f} s of motion; the body does not "
+                             f"reach its goals - check the plan or raise --max-seconds")
+        tic = time.perf_counter()
+        starts.append(sum(f.shape[1] for f in frames) - ckpt.k)
+        new, lab, ph = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g)
+        t0 += time.perf_counter() - tic
+        frames.append(new)
+        labels.append(lab[:, ckpt.k:])
+        phase.append(ph[:, ckpt.k:])
+        episodes += 1
+        bar.update(1)
+    bar.close()
+    return SampleResult(np.concatenate(frames, 1), np.concatenate(labels, 1), np.concatenate(phase, 1), phases,
+                        ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts)
+
+
+def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, seed: int = 0,
+           schedule: tuple[int, ...] = INCREMENTAL_SCHEDULE) -> Generator[np.ndarray, Plan | None, None]:
+    """Yield (n, 24, 3) world frames as they are made, forever; ``send(plan)`` switches to a new
+    plan from where the body is. After a (new) plan the first episodes commit ``schedule`` new
+    frames each (2, 4, 8), then full episodes of L - k frames. When the plan is done the body
+    stands (or holds its posture) where it is."""
+    k, L = ckpt.k, ckpt.L_epi
+    if any(not 1 <= n <= L - k for n in schedule):
+        raise ValueError(f"schedule entries must be in [1, {L - k}], got {schedule}")
+    xy = np.asarray(plan.start if plan.start is not None else (0.0, 0.0), dtype=np.float64)
+    context = start_context(ckpt, xy, float(plan.heading or 0.0), 1)
+    lengths = bone_lengths_of(context[0, 0].astype(np.float64))
+    prev = np.zeros((1, k, len(ckpt.vocabulary)), np.float32)
+    g = torch.Generator().manual_seed(int(seed))
+
+    def controller_for(p: Plan, at: np.ndarray) -> Controller:
+        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps), ckpt.vocabulary, L, k,
+                          ckpt.fps, _speed(ckpt))
+
+    ctrl = controller_for(plan, xy)
+    todo = list(schedule)
+    while True:
+        n = todo.pop(0) if todo else L - k
+        if ctrl.done:  # hold: an empty plan keeps the last posture label
+            ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
+        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s)
+        new, lab, _ = _step(sampler, [ctrl], context, prev, lengths, g)
+        if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
+            ctrl.index, ctrl.elapsed, ctrl.walk_s = snapshot
+            _advance(ctrl, n, context[0, -1, PELVIS, :2])
+        out = new[:, :n]
+        context = np.concatenate([context, out], 1)[:, -k:]
+        prev = lab[:, k:k + n][:, -k:] if n >= k else np.concatenate([prev, lab[:, k:k + n]], 1)[:, -k:]
+        sent = yield out[0]
+        if sent is not None:
+            ctrl = controller_for(sent, context[0, -1, PELVIS, :2].astype(np.float64))
+            todo = list(schedule)
+
+
+def _advance(ctrl: Controller, n: int, pelvis_xy: np.ndarray) -> None:
+    """Advance a rewound controller by n frames (the committed part of an episode)."""
+    L, k = ctrl.L, ctrl.k
+    saved = ctrl.L
+    ctrl.L = k + n
+    ctrl.next(pelvis_xy, np.zeros((k, len(ctrl.vocab)), np.float32))
+    ctrl.L = saved

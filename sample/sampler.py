@@ -1,0 +1,186 @@
+"""Autoregressive episode sampling (TRUMANS §4.1-4.2, appendix A.1).
+
+Each episode of ``L`` frames is generated in the canonical frame of its first frame; its first
+``k`` frames are the last ``k`` frames of the motion so far (``M_trans``) and its goal is the
+pelvis xy at the last frame or a hand joint's 3D position (``M_goal``). The scene condition is the
+local occupancy grid around the subgoal with the dynamic objects where they are now, the action
+condition the frame-wise labels with the progress indicator; both are encoded once per episode
+and reused by every denoising step. After each episode the joints are projected onto the
+skeleton's bone lengths (the body keeps its proportions over minutes); rotations for export are
+fitted afterwards (``trumans.ik.fit``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from scenes.scene_grids import SceneGrids
+from trumans.model.checkpoint import Checkpoint
+from trumans.model.episodes import PELVIS, FeatureLayout, canonical_frame, canonicalize, uncanonicalize
+from trumans.model.masks import joint_goal_mask, pelvis_goal_mask, transition_mask
+from trumans.model.nets import GuidedDenoiser
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
+
+__all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of", "to_canonical"]
+
+
+@dataclass(frozen=True)
+class Goal:
+    """An episode goal (M_goal): ``joint`` 'pelvis' with ``point`` (2,) world xy at the last
+    frame, or a joint name with ``point`` (3,) world m at episode frame ``frame``."""
+
+    point: tuple[float, ...]
+    joint: str = "pelvis"
+    frame: int = -1
+
+
+def to_canonical(p: np.ndarray, origin: np.ndarray, yaw: float) -> np.ndarray:
+    """World point (2,) or (3,) -> the episode's canonical frame (R_z(-yaw) (p - origin))."""
+    d = np.array(p, dtype=np.float64)
+    d[:2] -= origin[:2]
+    if len(d) == 3:
+        d[2] -= origin[2]
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = d.copy()
+    out[0], out[1] = c * d[0] + s * d[1], -s * d[0] + c * d[1]
+    return out
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """steps: denoising steps (respaced DDIM when < T); eta: DDIM noise (0 = deterministic);
+    scene_scale / action_scale: classifier-free guidance scales (1 = plain conditional);
+    naive: recompute the condition embeddings at every step (the reference sampler)."""
+
+    steps: int = 20
+    eta: float = 0.0
+    scene_scale: float = 1.0
+    action_scale: float = 1.0
+    naive: bool = False
+
+    def __post_init__(self) -> None:
+        if self.steps < 1:
+            raise ValueError(f"steps must be >= 1, got {self.steps}")
+        if not self.eta >= 0:
+            raise ValueError(f"eta must be >= 0, got {self.eta}")
+        for name in ("scene_scale", "action_scale"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"{name} must be a finite number >= 0, got {v}")
+
+
+def bone_lengths_of(joints: np.ndarray) -> np.ndarray:
+    """joints (..., 24, 3) -> (..., 24) length of each joint's bone to its parent (root 0), m."""
+    par = np.asarray(PARENTS)
+    d = joints[..., 1:, :] - joints[..., par[1:], :]
+    return np.concatenate([np.zeros(joints.shape[:-2] + (1,)), np.linalg.norm(d, axis=-1)], axis=-1)
+
+
+def project_bones(joints: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Put joints (..., 24, 3) on a skeleton with bone ``lengths`` (24,) m: from the root down, each
+    joint moves along its bone's direction to the right distance from its (already moved) parent."""
+    out = np.array(joints, dtype=np.float64, copy=True)
+    for j in range(1, NUM_JOINTS):  # topological order (parents come first)
+        p = PARENTS[j]
+        d = joints[..., j, :] - joints[..., p, :]
+        n = np.linalg.norm(d, axis=-1, keepdims=True)
+        out[..., j, :] = out[..., p, :] + lengths[j] * d / np.maximum(n, 1e-9)
+    return out.astype(np.float32)
+
+
+class EpisodeSampler:
+    """One episode at a time for a batch of B variations; see the module doc.
+
+    ckpt: a generator checkpoint; grids: the scene's ``SceneGrids`` (None = open floor)."""
+
+    def __init__(self, ckpt: Checkpoint, grids: SceneGrids | None, config: SamplerConfig = SamplerConfig(),
+                 device: str = "cpu") -> None:
+        self.ckpt, self.grids, self.config, self.device = ckpt, grids, config, torch.device(device)
+        self.model = ckpt.build_model().to(self.device)
+        self.diffusion = ckpt.build_diffusion().to(self.device)
+        if config.steps > self.diffusion.steps:
+            raise ValueError(f"steps must be <= the model's {self.diffusion.steps} diffusion steps, got {config.steps}")
+        self.layout: FeatureLayout = ckpt.model_config.layout
+        self.L, self.k = ckpt.L_epi, ckpt.k
+        self.norm = ckpt.normalizer
+        self.n = int(ckpt.grid.get("n", 32))
+        self.extent = tuple(ckpt.grid.get("extent", (1.2, 1.2, 1.2)))
+        self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
+
+    # ------------------------------------------------------------------ conditions
+    def local_grids(self, goal_xy: np.ndarray, yaw: np.ndarray, object_poses: dict | None = None) -> np.ndarray:
+        """(B, n, n, n) bool grids around floor points goal_xy (B, 2) turned by yaw (B,)."""
+        B = len(goal_xy)
+        centers = np.concatenate([goal_xy, np.zeros((B, 1))], axis=1)
+        if self.grids is None:
+            return np.zeros((B, self.n, self.n, self.n), dtype=bool)
+        return self.grids.query(centers, yaw, object_poses, n=self.n, extent=self.extent)
+
+    def _given(self, context: np.ndarray, origin: np.ndarray, yaw: np.ndarray, goals: list["Goal"]):
+        """Normalised given values and the mask, both (B, L, F)."""
+        B, L, lay = context.shape[0], self.L, self.layout
+        feats = np.zeros((B, L, lay.dim), np.float32)
+        feats[:, : self.k, : NUM_JOINTS * 3] = canonicalize(context, origin, yaw).reshape(B, self.k, -1)
+        masks = []
+        for b, g in enumerate(goals):
+            m = transition_mask(L, lay, self.k)
+            local = to_canonical(np.asarray(g.point, np.float64), origin[b], yaw[b])
+            if g.joint == "pelvis" and len(g.point) == 2:
+                feats[b, L - 1, lay.position_index(PELVIS, (0, 1))] = local[:2]
+                m = m | pelvis_goal_mask(L, lay)
+            else:
+                frame = g.frame % L
+                feats[b, frame, lay.position_index(g.joint)] = local
+                m = m | joint_goal_mask(L, lay, g.joint, frame)
+            masks.append(m)
+        x = torch.from_numpy(self.norm.normalize(feats)).to(self.device)
+        return x, torch.stack(masks).to(self.device)
+
+    # ------------------------------------------------------------------ one episode
+    @torch.inference_mode()
+    def episode(self, context: np.ndarray, labels: np.ndarray, goals: list["Goal"],
+                object_poses: dict | None = None, generator: torch.Generator | None = None) -> np.ndarray:
+        """context: (B, k, 24, 3) world m, the last k frames so far; labels: (B, L, N_A) action
+        labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) world joints (first k = context)."""
+        B = context.shape[0]
+        if context.ndim != 4 or context.shape[1:] != (self.k, NUM_JOINTS, 3):
+            raise ValueError(f"context must be (B, {self.k}, 24, 3), got {context.shape}")
+        if len(goals) != B or labels.shape[:2] != (B, self.L):
+            raise ValueError(f"need {B} goals and labels (B, {self.L}, N_A), got {len(goals)} and {labels.shape}")
+        origin, yaw = canonical_frame(context)  # (B, 3), (B,)
+        x_given, mask = self._given(context, origin, yaw, goals)
+        # the grid is centred on the pelvis floor point at the episode's end (as in training): the
+        # subgoal, or where the body stands now for a hand goal
+        centre = np.stack([np.asarray(g.point, np.float64)[:2] if g.joint == "pelvis" else context[b, -1, PELVIS, :2]
+                           for b, g in enumerate(goals)])
+        scene = torch.from_numpy(self.local_grids(centre, yaw, object_poses)).to(self.device)
+        acts = torch.as_tensor(labels, dtype=torch.float32, device=self.device)
+        cond = self._conditions(scene, acts)
+        x0 = self.diffusion.sample(self._model_fn(cond), (B, self.L, self.layout.dim), mask=mask, given=x_given,
+                                   num_steps=self.config.steps, eta=self.config.eta, generator=generator,
+                                   device=self.device)
+        feats = self.norm.denormalize(x0.cpu().numpy())
+        cj, _ = self.layout.unpack(feats)
+        world = uncanonicalize(cj, origin, yaw)
+        world[:, : self.k] = context
+        return world
+
+    def _conditions(self, scene: torch.Tensor, actions: torch.Tensor) -> dict:
+        """Condition embeddings once per episode (or the raw conditions for the naive sampler)."""
+        if self.config.naive:
+            return {"scene": scene, "actions": actions}
+        return {"cond_emb": self.guided.encode_conditions(scene=scene, actions=actions)}
+
+    def _model_fn(self, cond: dict):
+        guided = self.guided
+
+        def fn(x, t, mask=None):
+            return guided(x, t, mask=mask, **cond)
+        return fn
+
+
+def pelvis_of(joints: np.ndarray) -> np.ndarray:
+    """(..., 24, 3) -> (..., 3) pelvis position."""
+    return joints[..., JOINT_INDEX["pelvis"], :]

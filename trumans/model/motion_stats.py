@@ -1,0 +1,64 @@
+"""Statistics of a training set that a sampler needs to drive the generator like the data moved.
+
+Stored in a generator checkpoint's ``meta`` (``sampling_stats``): the walking speed (so subgoals
+are spaced like the training episodes' displacement), the typical duration of each action (so
+the progress indicator runs at the data's pace), and a standing start pose (canonical frame:
+pelvis at x = y = 0, facing +x).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from trumans.actions import remap_labels
+from trumans.contacts.intervals import runs
+from trumans.resample import resample_sequence
+from trumans.skeleton import JOINT_INDEX, heading
+
+__all__ = ["sampling_stats"]
+
+_PELVIS = JOINT_INDEX["pelvis"]
+
+
+def _canonical_pose(joints: np.ndarray) -> np.ndarray:
+    """(N, 24, 3) world -> (N, 24, 3) each frame with its pelvis at x = y = 0, facing +x."""
+    yaw = heading(joints)
+    c, s = np.cos(-yaw), np.sin(-yaw)
+    d = joints.astype(np.float64).copy()
+    d[..., :2] -= d[:, None, _PELVIS, :2]
+    x, y = d[..., 0].copy(), d[..., 1].copy()
+    d[..., 0] = c[:, None] * x - s[:, None] * y
+    d[..., 1] = s[:, None] * x + c[:, None] * y
+    return d
+
+
+def sampling_stats(dataset, split: str, vocabulary: list[str], fps: float, max_sequences: int = 200) -> dict:
+    """{"walk_speed": m/s, "action_seconds": {name: s}, "start_pose": (24, 3) list} from ``split``.
+
+    dataset: ``trumans.dataset.Dataset``; sequences are resampled to ``fps`` first."""
+    speeds, durations, stand = [], {a: [] for a in vocabulary}, []
+    files = list(dataset.index["splits"].get(split, []))[:max_sequences]
+    if not files:
+        raise ValueError(f"split {split!r} has no sequences to take sampling statistics from")
+    for rel in files:
+        seq = resample_sequence(dataset.load(rel), fps)
+        if seq.actions is None or seq.num_frames < 3:
+            continue
+        lab = remap_labels(np.asarray(seq.actions, np.float32), seq.action_names, vocabulary) > 0
+        v = np.linalg.norm(np.diff(seq.joints[:, _PELVIS, :2], axis=0), axis=1) * fps
+        for i, a in enumerate(vocabulary):
+            for s, e in runs(lab[:, i], max_gap=0, min_len=1):
+                durations[a].append((e - s) / fps)
+        if "walk" in vocabulary:
+            w = lab[1:, vocabulary.index("walk")]
+            speeds.append(v[w])
+        if "stand" in vocabulary:
+            only = lab[:, vocabulary.index("stand")] & (lab.sum(1) == 1)
+            stand.append(seq.joints[only][::5])
+    speed = float(np.median(np.concatenate(speeds))) if speeds and sum(map(len, speeds)) else 1.0
+    pose_src = np.concatenate(stand) if stand and sum(map(len, stand)) else None
+    pose = np.median(_canonical_pose(pose_src), axis=0) if pose_src is not None and len(pose_src) else None
+    out = {"walk_speed": round(speed, 4),
+           "action_seconds": {a: round(float(np.median(d)), 3) for a, d in durations.items() if d}}
+    if pose is not None:
+        out["start_pose"] = np.round(pose, 5).tolist()
+    return out

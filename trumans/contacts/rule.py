@@ -42,6 +42,7 @@ __all__ = [
     "body_penetration",
     "FACING_COS",
     "CONTACT_THRESHOLD",
+    "HOLD_THRESHOLD",
     "FLOOR_NAME",
     "ContactResult",
     "ContactScene",
@@ -52,6 +53,10 @@ __all__ = [
 
 FACING_COS = 0.5  # cos(60 deg), TRUMANS appendix B.6
 CONTACT_THRESHOLD = 0.02  # m beyond the body surface (TRUMANS leaves the value open; 2 cm)
+# m beyond the body surface within which the augmentation holds a joint to its surface: wider than
+# CONTACT_THRESHOLD so that near-contacts the labels leave out (a hand hovering on a handle) still
+# follow a changed object instead of drifting off it.
+HOLD_THRESHOLD = 0.03
 FLOOR_NAME = "floor_plane"
 
 _RADIUS = {

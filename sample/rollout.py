@@ -44,6 +44,9 @@ class SampleResult:
     episodes: int
     seconds: float
     episode_starts: list[int] = field(default_factory=list)
+    goals: list[tuple[int, int, str, np.ndarray]] = field(default_factory=list)  # (frame, sample, joint, point)
+    raw_bone_cv: float = float("nan")  # bone-length std/mean of the network's output before projection
+    sit_offset: float = 0.095  # pelvis height above a seat surface for this body, m
 
     @property
     def seconds_per_episode(self) -> float:
@@ -85,16 +88,36 @@ def _seconds(ckpt: Checkpoint) -> dict[str, float]:
     return {str(k): float(v) for k, v in dict(ckpt.meta.get("action_seconds", {})).items()}
 
 
+@dataclass
+class _Episode:
+    new: np.ndarray  # (B, L - k, 24, 3) world
+    labels: np.ndarray  # (B, L, N_A)
+    phase: np.ndarray  # (B, L)
+    goals: list[Goal]
+    raw_cv: float
+
+
 def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
-          lengths: np.ndarray, generator: torch.Generator | None):
-    """One episode for every sample: (new frames (B, L - k, 24, 3), labels (B, L, N_A), phase (B, L))."""
+          lengths: np.ndarray, generator: torch.Generator | None) -> _Episode:
+    """One episode for every sample, projected onto the bone ``lengths``."""
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
     goals = [Goal(tuple(c.goal)) if c.hand_goal is None else Goal(tuple(c.hand_goal), c.hand, c.hand_frame)
              for c in ctrls]
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, generator=generator)
+    bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
+    raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
     world = project_bones(world, lengths)
-    return world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls])
+    return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
+
+
+def sit_offset(pose: np.ndarray) -> float:
+    """Pelvis height above a seat surface (m) for the body of ``pose`` (24, 3): 0.095 m scaled by
+    its leg length (``trumans.synth.posture.seat_clearance`` convention of the training data)."""
+    from trumans.synth.posture import seat_clearance
+    from trumans.skeleton import offsets_from_joints
+
+    return float(seat_clearance(offsets_from_joints(np.asarray(pose)[None])))
 
 
 def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,
@@ -120,7 +143,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         [np.full((num_samples, ckpt.k), -1)]
     g = torch.Generator().manual_seed(int(seed))
     max_episodes = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
-    t0, episodes, starts = 0.0, 0, []
+    t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
     bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
     while not all(c.done for c in controllers):
         if episodes >= max_episodes:
@@ -128,16 +151,22 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
                              f"reach its goals - check the plan or raise --max-seconds")
         tic = time.perf_counter()
         starts.append(sum(f.shape[1] for f in frames) - ckpt.k)
-        new, lab, ph = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g)
+        ep = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g)
         t0 += time.perf_counter() - tic
-        frames.append(new)
-        labels.append(lab[:, ckpt.k:])
-        phase.append(ph[:, ckpt.k:])
+        frames.append(ep.new)
+        labels.append(ep.labels[:, ckpt.k:])
+        phase.append(ep.phase[:, ckpt.k:])
+        end = starts[-1] + ckpt.L_epi - 1
+        for b, gl in enumerate(ep.goals):
+            f = end if gl.joint == "pelvis" else starts[-1] + gl.frame % ckpt.L_epi
+            goals.append((f, b, gl.joint, np.asarray(gl.point)))
+        cvs.append(ep.raw_cv)
         episodes += 1
         bar.update(1)
     bar.close()
     return SampleResult(np.concatenate(frames, 1), np.concatenate(labels, 1), np.concatenate(phase, 1), phases,
-                        ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts)
+                        ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts, goals,
+                        float(np.median(cvs)) if cvs else float("nan"), sit_offset(start_pose(ckpt)))
 
 
 def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, seed: int = 0,
@@ -166,7 +195,8 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         if ctrl.done:  # hold: an empty plan keeps the last posture label
             ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
         snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s)
-        new, lab, _ = _step(sampler, [ctrl], context, prev, lengths, g)
+        ep = _step(sampler, [ctrl], context, prev, lengths, g)
+        new, lab = ep.new, ep.labels
         if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
             ctrl.index, ctrl.elapsed, ctrl.walk_s = snapshot
             _advance(ctrl, n, context[0, -1, PELVIS, :2])

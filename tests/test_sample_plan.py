@@ -1,0 +1,133 @@
+"""sample.plan (parsing, validation) and sample.controller (phases, closed-loop episode controls)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from sample.controller import Controller, Phase, compile_plan
+from sample.plan import Step, load_plan, plan_from_dict, validate_plan
+from scenes import furniture
+from scenes.occupancy import scene_occupancy
+from scenes.scene import Scene
+from scenes.walkability import walkable_map
+
+VOCAB = ["stand", "walk", "sit_down", "sit", "stand_up", "drink", "reach", "lie_down", "lie", "get_up"]
+
+
+@pytest.fixture(scope="module")
+def room():
+    import trimesh
+
+    rng = np.random.default_rng(0)
+    chair = furniture.chair(rng, "chair_0")
+    chair.pose[:3, 3] = [3.0, 2.0, 0.0]
+    floor = trimesh.creation.box((6.0, 4.0, 0.1))
+    floor.apply_translation([3.0, 2.0, -0.05])
+    scene = Scene("test_room", static={"floor": floor}, objects={"chair_0": chair})
+    occ = scene_occupancy(scene, None, voxel=0.05)
+    return scene, walkable_map(occ)
+
+
+def test_plan_from_dict_and_files(tmp_path):
+    d = {"start": [1, 1], "heading": 0.5, "steps": [{"do": "goto", "to": [2, 1]}, {"do": "sit_on", "object": "c",
+                                                                                   "seconds": 3}]}
+    p = plan_from_dict(d)
+    assert p.start == (1.0, 1.0) and p.heading == 0.5
+    assert p.steps == (Step("goto", to=(2.0, 1.0)), Step("sit_on", object="c", seconds=3.0))
+    (tmp_path / "p.json").write_text(json.dumps(d))
+    (tmp_path / "p.toml").write_text('start = [1, 1]\nheading = 0.5\n[[steps]]\ndo = "goto"\nto = [2, 1]\n'
+                                     '[[steps]]\ndo = "sit_on"\nobject = "c"\nseconds = 3\n')
+    assert load_plan(tmp_path / "p.json").steps == p.steps == load_plan(tmp_path / "p.toml").steps
+
+
+@pytest.mark.parametrize("bad, msg", [
+    ({"steps": []}, "non-empty"),
+    ({"steps": [{"do": "fly"}]}, "unknown step 'fly'"),
+    ({"steps": [{"do": "goto"}]}, "missing"),
+    ({"steps": [{"do": "goto", "to": [1, "x"]}]}, "2 numbers"),
+    ({"steps": [{"do": "goto", "to": [1, float("nan")]}]}, "finite"),
+    ({"steps": [{"do": "act", "action": "drink", "seconds": -1}]}, "seconds"),
+    ({"steps": [{"do": "goto", "to": [1, 2], "speed": 3}]}, "unknown keys"),
+    ({"steps": [{"do": "reach", "target": "cup", "hand": "middle"}]}, "hand"),
+    ({"stepz": []}, "unknown keys"),
+])
+def test_bad_plans_name_the_problem(bad, msg):
+    with pytest.raises(ValueError, match=msg):
+        plan_from_dict(bad)
+
+
+def test_plan_files_errors(tmp_path):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_plan(tmp_path / "none.json")
+    (tmp_path / "x.json").write_text("{not json")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        load_plan(tmp_path / "x.json")
+    (tmp_path / "x.yaml").write_text("a: 1")
+    with pytest.raises(ValueError, match=".json or .toml"):
+        load_plan(tmp_path / "x.yaml")
+
+
+def test_validate_against_scene_and_vocabulary(room):
+    scene, _ = room
+    validate_plan(plan_from_dict({"steps": [{"do": "sit_on", "object": "chair_0"}]}), scene, VOCAB)
+    with pytest.raises(ValueError, match="no object 'sofa_9'.*chair_0"):
+        validate_plan(plan_from_dict({"steps": [{"do": "sit_on", "object": "sofa_9"}]}), scene, VOCAB)
+    with pytest.raises(ValueError, match="unknown action 'dance'"):
+        validate_plan(plan_from_dict({"steps": [{"do": "act", "action": "dance"}]}), scene, VOCAB)
+    with pytest.raises(ValueError, match="is a chair; lie_on needs"):
+        validate_plan(plan_from_dict({"steps": [{"do": "lie_on", "object": "chair_0"}]}), scene, VOCAB)
+
+
+def test_compile_walk_sit_stand_act(room):
+    scene, wm = room
+    plan = plan_from_dict({"steps": [{"do": "sit_on", "object": "chair_0", "seconds": 2},
+                                     {"do": "act", "action": "drink", "seconds": 1}, {"do": "goto", "to": [1.0, 1.0]}]})
+    phases = compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {"sit_down": 1.5}, fps=10)
+    kinds = [p.kind for p in phases]
+    assert kinds == ["walk", "sit_down", "sit", "act", "stand_up", "walk"]
+    assert phases[1].frames == 15 and phases[2].frames == 20  # checkpoint duration, plan seconds
+    assert phases[3].actions == ("drink", "sit")  # a hand action while seated keeps the posture label
+    seat = scene.objects["chair_0"].pose[:2, 3]
+    assert np.linalg.norm(phases[1].goal - seat) < 0.3
+    assert np.allclose(phases[-1].path[-1], [1.0, 1.0])
+
+
+def test_unreachable_goal_fails_before_sampling(room):
+    scene, wm = room
+    plan = plan_from_dict({"steps": [{"do": "goto", "to": [3.0, 2.0]}]})  # inside the chair
+    with pytest.raises(ValueError, match="step 1.*not on walkable floor"):
+        compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {}, fps=10)
+    with pytest.raises(ValueError, match="not seated or lying"):
+        compile_plan(plan_from_dict({"steps": [{"do": "stand_up"}]}), scene, wm, np.array([1.0, 2.0]), {}, fps=10)
+
+
+def test_controller_walk_progress_and_goals():
+    path = np.array([[0.0, 0.0], [3.0, 0.0]])
+    ctrl = Controller([Phase("walk", ("walk",), path=path, goal=path[-1])], VOCAB, L=16, k=2, fps=10, speed=1.0)
+    prev = np.zeros((2, len(VOCAB)), np.float32)
+    c = ctrl.next(np.array([0.0, 0.0]), prev)
+    assert c.labels.shape == (16, len(VOCAB))
+    w = c.labels[2:, VOCAB.index("walk")]
+    assert np.all(np.diff(w) > 0) and 1.0 < w[0] < w[-1] < 2.0  # progress rises from 1 towards 2
+    assert np.allclose(c.goal, [1.4, 0.0])  # 14 new frames at 1 m/s, 10 fps
+    # a body that lagged behind: the next goal is re-anchored on where it is, not where it should be
+    c2 = ctrl.next(np.array([0.5, 0.1]), c.labels[-2:])
+    assert np.allclose(c2.goal, [2.8, 0.0])
+    c3 = ctrl.next(np.array([2.6, 0.0]), c2.labels[-2:])
+    assert np.allclose(c3.goal, [3.0, 0.0]) and ctrl.done
+    assert c3.labels[-1, VOCAB.index("stand")] == 1.5  # after the plan: stand
+    assert np.isclose(c3.labels[c3.phases >= 0, VOCAB.index("walk")].max(), 2.0)
+
+
+def test_controller_timed_phase_spans_episodes():
+    ph = [Phase("sit_down", ("sit_down",), frames=20, goal=np.array([1.0, 1.0]))]
+    ctrl = Controller(ph, VOCAB, L=16, k=2, fps=10)
+    a = ctrl.next(np.zeros(2), np.zeros((2, len(VOCAB)), np.float32))
+    b = ctrl.next(np.zeros(2), a.labels[-2:])
+    col = VOCAB.index("sit_down")
+    seq = np.concatenate([a.labels[2:, col], b.labels[2:, col]])[:20]
+    np.testing.assert_allclose(seq, 1.0 + np.arange(1, 21) / 20, atol=1e-6)
+    assert ctrl.done and np.allclose(b.goal, [1.0, 1.0])
+    assert b.labels[-1, VOCAB.index("sit")] == 1.5  # held posture after sitting down

@@ -1,0 +1,116 @@
+"""sample.sampler / sample.rollout mechanics on a tiny untrained generator: masks honoured at the
+episode ends, bone lengths kept, precomputed conditions equal to the naive sampler, streaming
+order and the incremental latency schedule. (Motion quality is the synthesis benchmark's job.)"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from sample.controller import Phase
+from sample.plan import plan_from_dict
+from sample.rollout import INCREMENTAL_SCHEDULE, sample_plan, start_context, stream
+from sample.sampler import EpisodeSampler, Goal, SamplerConfig, bone_lengths_of, project_bones
+from scenes.occupancy import OccupancyGrid
+from scenes.scene import Scene
+from scenes.scene_grids import SceneGrids
+from scenes.walkability import walkable_map
+from trumans.model.checkpoint import Checkpoint
+from trumans.model.diffusion import DiffusionConfig
+from trumans.model.episodes import FeatureLayout, Normalizer
+from trumans.model.nets import ActionEncoderConfig, Denoiser, DenoiserConfig, ScenePerceiverConfig
+from trumans.skeleton import JOINT_INDEX, REST_JOINTS
+
+VOCAB = ["stand", "walk", "sit_down", "sit", "stand_up", "drink"]
+
+
+def tiny_checkpoint(seed: int = 0) -> Checkpoint:
+    torch.manual_seed(seed)
+    cfg = DenoiserConfig(layout=FeatureLayout(), frames=16, d_model=32, layers=1, heads=2, ff=32, dropout=0.0,
+                         scene=ScenePerceiverConfig(grid=16, patch=8, d_model=16, layers=1, heads=2, ff=16, dropout=0.0),
+                         action=ActionEncoderConfig(num_actions=len(VOCAB), frames=16, d_model=16, layers=1, heads=2,
+                                                    ff=16, dropout=0.0))
+    model = Denoiser(cfg)
+    rest = REST_JOINTS.copy()
+    mean = np.tile(rest.reshape(-1), 1).astype(np.float32)
+    return Checkpoint(kind="generator", model_config=cfg, diffusion_config=DiffusionConfig(steps=20, schedule="cosine",
+                                                                                          prediction="x0"),
+                      model_state=model.state_dict(), normalizer=Normalizer(mean, np.full(72, 0.3, np.float32)),
+                      vocabulary=VOCAB, fps=10.0, L_epi=16, k=2, grid={"n": 16, "extent": [1.2, 1.2, 1.2]},
+                      meta={"walk_speed": 1.0})
+
+
+@pytest.fixture(scope="module")
+def open_room():
+    grid = np.zeros((120, 120, 120), dtype=bool)
+    grid[:, :, :5] = True  # floor: z < 0
+    occ = OccupancyGrid(grid, np.array([0.01, 0.01, -0.09]), 0.02)
+    return Scene("open"), occ, walkable_map(occ)
+
+
+def test_project_bones_keeps_lengths_and_directions():
+    rng = np.random.default_rng(0)
+    lengths = bone_lengths_of(REST_JOINTS.astype(np.float64))
+    noisy = REST_JOINTS[None] + rng.normal(0, 0.03, (5, 24, 3))
+    out = project_bones(noisy, lengths)
+    np.testing.assert_allclose(bone_lengths_of(out.astype(np.float64)), np.broadcast_to(lengths, (5, 24)), atol=1e-5)
+    np.testing.assert_allclose(out[:, 0], noisy[:, 0], atol=1e-6)  # the root stays
+    np.testing.assert_allclose(project_bones(REST_JOINTS, lengths), REST_JOINTS, atol=1e-5)  # a fixed point
+
+
+def test_episode_honours_masks_and_context(open_room):
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint()
+    sampler = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=5))
+    ctx = start_context(ck, np.array([1.0, 1.0]), 0.3, batch=2)
+    labels = np.zeros((2, 16, len(VOCAB)), np.float32)
+    goals = [Goal((1.8, 1.2)), Goal((1.5, 1.0, 0.9), "right_wrist", 9)]
+    out = sampler.episode(ctx, labels, goals, generator=torch.Generator().manual_seed(0))
+    assert out.shape == (2, 16, 24, 3) and np.isfinite(out).all()
+    np.testing.assert_allclose(out[:, :2], ctx, atol=1e-5)  # M_trans: the context frames exactly
+    np.testing.assert_allclose(out[0, -1, JOINT_INDEX["pelvis"], :2], [1.8, 1.2], atol=1e-4)  # M_goal pelvis xy
+    np.testing.assert_allclose(out[1, 9, JOINT_INDEX["right_wrist"]], [1.5, 1.0, 0.9], atol=1e-4)  # hand goal
+
+
+def test_precomputed_conditions_match_naive(open_room):
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint(1)
+    ctx = start_context(ck, np.array([1.0, 1.0]), 0.0)
+    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels[:, :, 1] = 1.5
+    outs = [EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=4, naive=n)).episode(
+        ctx, labels, [Goal((1.5, 1.0))], generator=torch.Generator().manual_seed(3)) for n in (False, True)]
+    np.testing.assert_allclose(outs[0], outs[1], atol=1e-5)
+
+
+def test_sample_plan_runs_to_the_end_and_keeps_bones(open_room):
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint()
+    sampler = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3))
+    plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "goto", "to": [1.6, 0.6]},
+                                                           {"do": "act", "action": "drink", "seconds": 1.0}]})
+    res = sample_plan(ck, sampler, scene, wm, plan, num_samples=2, seed=0)
+    B, T = res.joints.shape[:2]
+    assert B == 2 and T == 2 + 14 * res.episodes and res.labels.shape == (2, T, len(VOCAB))
+    cv = np.std(bone_lengths_of(res.joints[0].astype(np.float64))[:, 1:], 0)
+    assert cv.max() < 1e-4  # bone lengths kept over the whole rollout
+    assert res.episode_starts == [14 * e for e in range(res.episodes)]
+    # every episode's goal is honoured at its last frame (pelvis xy)
+    for f, b, joint, p in res.goals:
+        if joint == "pelvis":
+            np.testing.assert_allclose(res.joints[b, f, JOINT_INDEX["pelvis"], :2], p, atol=2e-3)
+
+
+def test_stream_incremental_schedule_and_new_plans(open_room):
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint()
+    sampler = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=2))
+    plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "goto", "to": [2.0, 0.6]}]})
+    gen = stream(ck, sampler, scene, wm, plan, seed=0)
+    sizes = [len(next(gen)) for _ in range(5)]
+    assert sizes == [*INCREMENTAL_SCHEDULE, 14, 14]  # 2, 4, 8 frames, then full episodes
+    chunk = gen.send(plan_from_dict({"steps": [{"do": "goto", "to": [0.8, 1.6]}]}))  # a new control signal
+    assert len(chunk) == INCREMENTAL_SCHEDULE[0]  # reacts at once: the schedule restarts
+    assert [len(next(gen)) for _ in range(3)] == [*INCREMENTAL_SCHEDULE[1:], 14]
+    with pytest.raises(ValueError, match="schedule"):
+        next(stream(ck, sampler, scene, wm, plan, schedule=(0,)))

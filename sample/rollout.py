@@ -122,8 +122,11 @@ def sit_offset(pose: np.ndarray) -> float:
 
 def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,
                 seed: int = 0, max_seconds: float = 600.0, progress: bool = False,
-                start_xy: np.ndarray | None = None) -> SampleResult:
-    """Roll ``plan`` out in ``scene`` for ``num_samples`` variations (one batch); see the module doc."""
+                start_xy: np.ndarray | None = None, max_episodes: int | None = None) -> SampleResult:
+    """Roll ``plan`` out in ``scene`` for ``num_samples`` variations (one batch); see the module doc.
+
+    Raises ValueError when the plan is not done after ``max_seconds`` of motion; ``max_episodes``
+    instead stops quietly after that many episodes (timing runs)."""
     from tqdm import tqdm
 
     if num_samples < 1:
@@ -142,11 +145,11 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     frames, labels, phase = [context], [np.broadcast_to(stand, (num_samples,) + stand.shape)], \
         [np.full((num_samples, ckpt.k), -1)]
     g = torch.Generator().manual_seed(int(seed))
-    max_episodes = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
+    limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
     t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
     bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
-    while not all(c.done for c in controllers):
-        if episodes >= max_episodes:
+    while not all(c.done for c in controllers) and (max_episodes is None or episodes < max_episodes):
+        if episodes >= limit:
             raise ValueError(f"the plan did not finish within {max_seconds:.0f} s of motion; the body does not "
                              f"reach its goals - check the plan or raise --max-seconds")
         tic = time.perf_counter()

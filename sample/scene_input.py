@@ -21,7 +21,7 @@ from scenes.walkability import WalkMap, nearest_walkable, walkable_map
 
 __all__ = ["SampleScene", "load_sample_scene", "DEFAULT_ROOM_SEED"]
 
-DEFAULT_ROOM_SEED = 7  # the default room: a procedural room with a desk set, chairs, a sofa and a bed
+DEFAULT_ROOM_SEED = 2  # the default room: a procedural room with a chair, a sofa, a bed, a table and cups
 
 
 @dataclass

@@ -1,0 +1,130 @@
+"""``trumans eval synthesis``: the synthesis benchmark (the sampling issue's figures).
+
+Rooms: procedural rooms whose seeds (``EVAL_ROOM_SEEDS``) are not among the training rooms (the
+dataset builder draws 32-bit hashed seeds), so every seat height and layout is unseen. Plans: per
+room, a seeded plan "walk to a seat, sit, stand up, walk to a far point, drink, walk back"
+(``sample.cli.default_plan`` with a seeded start). Every figure of ``sample.synthesis_metrics`` is
+averaged over the plans; speed is measured on the same plans: ``seconds_per_episode`` of the fast
+sampler (conditions encoded once per episode, ``--steps`` respaced DDIM steps, inference mode)
+and of the naive one (full T-step ancestral sampling, conditions recomputed at every step) over
+the same episodes of the first plan, in this run; ``realtime_factor`` = seconds of motion per
+second of sampling. ``fid`` / ``diversity`` / ``action_acc`` use the project's motion encoder
+(``trumans.model.motion_encoder``) when it is shipped; the real-data value sits beside each.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS"]
+
+EVAL_ROOM_SEEDS: tuple[int, ...] = (9001, 9002, 9003, 9004, 9005, 9006)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("checkpoint", nargs="?", default=None, help="generator checkpoint (default: the shipped one)")
+    p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
+    p.add_argument("--steps", type=int, default=20, help="denoising steps of the fast sampler")
+    p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
+    p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
+                   help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true")
+
+
+def _plans(sc, seed: int):
+    from .cli import default_plan
+    from .plan import plan_from_dict
+
+    d = default_plan(sc)
+    rng = np.random.default_rng(seed)
+    free = sc.walkmap.centers(np.argwhere(sc.walkmap.walkable))
+    d["start"] = free[rng.integers(len(free))].tolist()
+    d["heading"] = float(rng.uniform(-np.pi, np.pi))
+    d["steps"][-1]["to"] = d["start"]
+    return plan_from_dict(d, name=f"eval_{seed}")
+
+
+def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int) -> dict:
+    import torch
+
+    from trumans.model.checkpoint import load_checkpoint
+
+    from .rollout import sample_plan
+    from .sampler import EpisodeSampler, SamplerConfig
+    from .scene_input import load_sample_scene
+    from .synthesis_metrics import motion_figures
+
+    ckpt = load_checkpoint(ckpt_path, kind="generator")
+    torch.set_grad_enabled(False)
+    per, results, times, motion_s = [], [], 0.0, 0.0
+    first = None
+    for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:rooms]):
+        sc = load_sample_scene(f"room:{room_seed}")
+        plan = _plans(sc, seed * 1000 + r)
+        sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps))
+        res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
+        per.append(motion_figures(res, sc))
+        results.append(res)
+        times += res.seconds
+        motion_s += res.joints.shape[1] / res.fps
+        if first is None:
+            first = (sc, plan, res)
+    figs = {}
+    for key in per[0]:
+        vals = [p[key] for p in per if p[key] is not None and np.isfinite(p[key])]
+        figs[key] = round(float(np.mean(vals)), 4) if vals else None
+    eps = sum(r.episodes for r in results)
+    figs["seconds_per_episode"] = round(times / max(eps, 1), 4)
+    figs["realtime_factor"] = round(motion_s / max(times, 1e-9), 2)
+    figs["episodes"] = eps
+    figs["seconds_of_motion"] = round(motion_s, 1)
+    if naive_episodes > 0:
+        sc, plan, res = first
+        naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True))
+        fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps))
+        t = {}
+        for name, s in (("fast", fast), ("naive", naive)):
+            t0 = time.perf_counter()
+            short = sample_plan(ckpt, s, sc.scene, sc.walkmap, plan, seed=seed, max_seconds=1e9,
+                                max_episodes=naive_episodes)
+            t[name] = (time.perf_counter() - t0) / short.episodes
+            if name == "naive":
+                nf = motion_figures(short, sc)
+                figs["naive_goal_err_cm"] = nf["goal_err_cm"]
+        figs["naive_seconds_per_episode"] = round(t["naive"], 4)
+        figs["speedup_vs_naive"] = round(t["naive"] / t["fast"], 2)
+    figs.update(_encoder_figures(results, ckpt))
+    return figs
+
+
+def _encoder_figures(results, ckpt) -> dict:
+    """fid / diversity / action_acc from the shipped motion encoder, when there is one."""
+    try:
+        from trumans.model.motion_encoder import load_motion_encoder
+    except ModuleNotFoundError:
+        return {"fid": None, "diversity": None, "action_acc": None, "encoder": "not shipped"}
+    enc = load_motion_encoder()
+    joints = np.concatenate([r.joints for r in results], 0) if len({r.joints.shape[1] for r in results}) == 1 else None
+    return enc.synthesis_figures([r.joints[0] for r in results], [r.labels[0] for r in results], results[0].fps,
+                                 list(ckpt.vocabulary)) if joints is not None or True else {}
+
+
+def run(args: argparse.Namespace) -> int:
+    from .cli import DEFAULT_CHECKPOINT
+
+    if not 1 <= args.rooms <= len(EVAL_ROOM_SEEDS):
+        raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")
+    if args.steps < 1 or args.naive_episodes < 0:
+        raise ValueError("--steps must be >= 1 and --naive-episodes >= 0")
+    figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes)
+    for spec in args.ablation:
+        name, _, path = spec.partition("=")
+        if not name or not path:
+            raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
+        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0)
+    print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
+    return 0

@@ -12,13 +12,13 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from sample.export import FORMATS, export, export_paths, skeleton_motion
-from sample.glb import Z_UP_TO_Y_UP
+from sample.glb import BONE_RADIUS, Z_UP_TO_Y_UP
 from scenes.io import save_scene
 from scenes.scene import Scene, SceneObject
 from trumans.bvh import import_bvh
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d
 from trumans.sequence import ObjectTrack, Sequence, load_sequence
-from trumans.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, forward_kinematics, rest_offsets
+from trumans.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, children, forward_kinematics, rest_offsets
 
 FPS = 10.0
 
@@ -133,6 +133,20 @@ def test_glb_animation_reproduces_joints_and_objects(tmp_path):
         pose_back = np.eye(4)
         pose_back[:3] = y_from_z.T @ world[box][:3]
         np.testing.assert_allclose(pose_back, seq.objects["box"].pose[f], atol=1e-5)
+    # every limb capsule, posed at the last frame, hugs the bone from its joint to a child joint
+    world, P = _node_matrices(gltf, bin_, T - 1), seq.joints[T - 1].astype(np.float64)
+    for m in gltf["meshes"]:
+        if not m["name"].startswith("body_") or m["name"] == "body_head":
+            continue
+        j = JOINT_NAMES.index(m["name"][5:])
+        v = _accessor(gltf, bin_, m["primitives"][0]["attributes"]["POSITION"]).astype(np.float64)
+        v = (v @ world[jnode[j]][:3, :3].T + world[jnode[j]][:3, 3]) @ y_from_z
+        dist = []
+        for c in children(j):
+            a, b = P[j], P[c]
+            u = np.clip((v - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+            dist.append(np.linalg.norm(v - (a + u[:, None] * (b - a)), axis=-1) - BONE_RADIUS[JOINT_NAMES[c]])
+        assert np.min(dist, axis=0).max() < 2e-3, m["name"]
     table = _node_matrices(gltf, bin_, 0)[names.index("table")]
     np.testing.assert_allclose(y_from_z.T @ table[:3, 3], [2.0, 0.0, 0.35], atol=1e-6)  # static object at its pose
 

@@ -61,3 +61,28 @@ def test_action_labels_and_foot_slides_use_the_same_runs():
     contact = np.zeros((10, 1), bool)
     contact[2:5, 0] = True  # frames 2, 3, 4: two frame steps
     np.testing.assert_allclose(foot_slides(foot, contact), [0.02])
+
+
+def test_joint_centre_inside_vs_body_penetration():
+    """joint_centre_inside_cm measures joint centres only; penetration_max_cm the body around them."""
+    import trimesh
+
+    from scenes.scene import Scene, SceneObject
+    from trumans.metrics import joint_centre_inside_cm, penetration_depth, penetration_max_cm
+
+    pose = np.eye(4)
+    pose[:3, 3] = [2.0, 0.0, 0.4]
+    box = SceneObject("box", "table", trimesh.creation.box((1.0, 1.0, 0.8)), pose=pose)  # top at z = 0.8
+    scene = Scene(name="s", objects={"box": box})
+    joints = np.zeros((3, 24, 3))
+    joints[:, :, 2] = 1.5  # everything far above
+    joints[1, 20] = [2.0, 0.0, 0.75]  # left wrist centre 5 cm inside the top
+    assert abs(joint_centre_inside_cm(joints, scene, ["box"]) - 5.0) < 1e-3
+    assert joint_centre_inside_cm(joints[[0, 2]], scene, ["box"]) == 0.0
+    assert joint_centre_inside_cm(joints, scene, []) == 0.0
+    with pytest.raises(ValueError, match="not in scene"):
+        joint_centre_inside_cm(joints, scene, ["sofa"])
+    # the same wrist 1 cm *above* the top: no centre inside, but the palm (3 cm radius) is 2 cm in
+    signed = np.full((1, 24), 1.0)
+    signed[0, 20] = 0.01
+    assert abs(penetration_max_cm(penetration_depth(signed)) - 2.0) < 1e-9

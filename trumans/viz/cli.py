@@ -5,11 +5,15 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from trumans.sequence import load_sequence
 from .render import SceneView, render_animation, render_topdown
+
+if TYPE_CHECKING:
+    from scenes.scene import Scene
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,6 +48,14 @@ def find_scene_dir(seq_path: Path, scene_field: str, explicit: str | None) -> Pa
     return None
 
 
+def scene_view(sc: Scene) -> SceneView:
+    """What the renderer draws of a ``scenes.Scene``: static meshes and non-dynamic objects in world
+    frame, dynamic objects' meshes in their own frame (posed by the sequence); no grid."""
+    static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values() if not o.dynamic]
+    dynamic = {name: o.mesh for name, o in sc.objects.items() if o.dynamic}
+    return SceneView(static=static, dynamic=dynamic)
+
+
 def load_scene_view(folder: Path | None) -> SceneView | None:
     """Meshes from ``scene.json`` (when present) and the grid from ``occupancy.npz`` (when present)."""
     if folder is None:
@@ -52,9 +64,8 @@ def load_scene_view(folder: Path | None) -> SceneView | None:
     if (folder / "scene.json").is_file():
         from scenes.io import load_scene
 
-        sc = load_scene(folder)
-        static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values() if not o.dynamic]
-        dynamic = {name: o.mesh for name, o in sc.objects.items() if o.dynamic}
+        view = scene_view(load_scene(folder))
+        static, dynamic = view.static, view.dynamic
     grid = origin = voxel = None
     if (folder / "occupancy.npz").is_file():
         with np.load(folder / "occupancy.npz", allow_pickle=False) as z:

@@ -1,0 +1,143 @@
+"""trumans.model.motion_encoder: windows, FID / diversity / accuracy, the network, the shipped weights."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from trumans.model.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
+                                          MotionEncoderNet, action_acc, diversity, dominant_action, fid,
+                                          load_motion_encoder, motion_windows)
+from trumans.bvh import import_bvh
+from trumans.rotations import yaw_matrix
+from trumans.skeleton import REST_JOINTS, heading
+from trumans.synth.cases import make_case
+
+
+def _walk(T: int = 90, fps: float = 30.0, speed: float = 1.0) -> np.ndarray:
+    """(T, 24, 3) rest pose (facing +x) moving forwards at ``speed`` m/s, legs swinging."""
+    t = np.arange(T) / fps
+    J = np.repeat(REST_JOINTS[None], T, 0).copy()
+    J[:, :, 0] += speed * t[:, None]
+    J[:, [4, 7, 10], 0] += 0.2 * np.sin(2 * np.pi * t)[:, None]
+    J[:, [5, 8, 11], 0] -= 0.2 * np.sin(2 * np.pi * t)[:, None]
+    return J.astype(np.float32)
+
+
+def _tiny_encoder(seed: int = 0) -> MotionEncoder:
+    torch.manual_seed(seed)
+    cfg = MotionEncoderConfig(num_actions=3, window=8, channels=(8, 8, 8), feature_dim=6)
+    rng = np.random.default_rng(seed)
+    return MotionEncoder(cfg, MotionEncoderNet(cfg), rng.normal(0, 0.1, 144), rng.uniform(0.5, 1.5, 144),
+                         ["stand", "walk", "sit"])
+
+
+def test_fid_analytic_cases():
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(400, 5)) @ rng.normal(size=(5, 5))
+    assert fid(a, a) == pytest.approx(0.0, abs=1e-6)
+    d = np.array([1.0, -2.0, 0.5, 0.0, 3.0])
+    assert fid(a, a + d) == pytest.approx(float(d @ d), rel=1e-6)  # equal covariances: |mu_a - mu_b|^2
+    # b = 2a: S_b = 4 S_a, (S_a S_b)^(1/2) = 2 S_a -> |mu_a|^2 + Tr(S_a)
+    expect = float(a.mean(0) @ a.mean(0) + np.trace(np.cov(a, rowvar=False)))
+    assert fid(a, 2 * a) == pytest.approx(expect, rel=1e-5)
+    assert fid(a.reshape(20, 20, 5), a[::-1]) == pytest.approx(0.0, abs=1e-6)  # leading dims flatten
+    with pytest.raises(ValueError, match="feature widths differ"):
+        fid(a, a[:, :3])
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        fid(a[:1], a)
+
+
+def test_diversity_and_accuracy():
+    two = np.array([[0.0, 0.0], [3.0, 4.0]])  # |difference| 5: half the random pairs differ
+    assert diversity(two, pairs=4000, seed=1) == pytest.approx(2.5, abs=0.15)
+    assert diversity(np.ones((50, 3)), pairs=10) == 0.0
+    rng = np.random.default_rng(0)
+    f = rng.normal(size=(500, 8))
+    assert diversity(f, seed=3) == diversity(f, seed=3) != diversity(f, seed=4)
+    assert diversity(f, pairs=300) == pytest.approx(4.0, rel=0.1)  # E|x - y| for N(0, 2 I_8) ~ 3.9
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        diversity(f[:1])
+    probs = np.array([[0.7, 0.3], [0.2, 0.8], [0.6, 0.4], [0.1, 0.9]])
+    assert action_acc(probs, np.array([0, 1, 1, -1])) == pytest.approx(2 / 3)
+    with pytest.raises(ValueError, match="disagree"):
+        action_acc(probs, np.array([0, 1]))
+
+
+def test_windows_are_canonical_and_resampled():
+    J = _walk(T=121, fps=30.0) @ yaw_matrix(0.7).T.astype(np.float32) + np.float32([1.0, 2.0, 0.0])  # 4 s
+    w, starts = motion_windows(J, 30.0, window=16, target_fps=10.0, stride=8)
+    assert w.shape == (4, 16, 24, 3) and starts.tolist() == [0, 8, 16, 24]
+    np.testing.assert_allclose(w[:, 0, 0, :2], 0.0, atol=1e-5)  # first pelvis at the origin
+    np.testing.assert_allclose(heading(w[:, 0]), 0.0, atol=1e-5)  # facing +x
+    np.testing.assert_allclose(w[:, 0, 0, 2], REST_JOINTS[0, 2], atol=1e-5)  # height kept
+    # walking forwards at 1 m/s: 1.5 s later the pelvis is 1.5 m along +x
+    np.testing.assert_allclose(w[:, -1, 0, :2], [[1.5, 0.0]] * 4, atol=1e-4)
+    short, _ = motion_windows(J[:20], 30.0, window=16, target_fps=10.0)
+    assert short.shape == (0, 16, 24, 3)
+    acts = np.zeros((121, 3), np.float32)
+    acts[:50, 0] = 1.0
+    acts[40:, 1] = 1.5
+    assert dominant_action(acts, 30.0, 16, 10.0, stride=8).tolist() == [0, 1, 1, 1]
+    acts[:] = 0
+    assert dominant_action(acts, 30.0, 16, 10.0, stride=8).tolist() == [-1] * 4
+
+
+def test_encoder_is_invariant_to_world_placement_and_round_trips(tmp_path):
+    enc = _tiny_encoder()
+    J = _walk(T=60, fps=30.0)
+    moved = J @ yaw_matrix(1.1).T + np.array([3.0, -2.0, 0.0])
+    feats = enc.encode(np.stack([J, moved]), fps=30.0)
+    assert feats.shape == (2, 4, 6)  # 20 frames at 10 fps, windows of 8 every 4
+    np.testing.assert_allclose(feats[0], feats[1], atol=1e-5)
+    probs = enc.classify(J, fps=30.0)
+    assert probs.shape == (1, 4, 3)
+    np.testing.assert_allclose(probs.sum(-1), 1.0, atol=1e-5)
+    acts = np.zeros((60, 2), np.float32)
+    acts[:, 1] = 1.0  # "walk" throughout; columns named in another order than the vocabulary
+    labels = enc.window_labels(acts, ["sit", "walk"], fps=30.0)
+    assert labels.tolist() == [[1, 1, 1, 1]]
+    assert action_acc(probs, labels) == float((probs.argmax(-1) == 1).mean())
+    with pytest.raises(ValueError, match="not in the vocabulary"):
+        enc.window_labels(acts, ["sit", "fly"], fps=30.0)
+    path = tmp_path / "enc.pt"
+    torch.save(enc.state(), path)
+    back = load_motion_encoder(path)
+    assert back.vocabulary == ["stand", "walk", "sit"] and back.cfg == enc.cfg
+    np.testing.assert_allclose(back.encode(J, 30.0), feats[:1], atol=1e-6)
+    with pytest.raises(ValueError, match="shorter than"):
+        enc.encode(J[:10], 30.0)
+    with pytest.raises(ValueError, match=r"\(N, T, 24, 3\)"):
+        enc.encode(J[..., :2], 30.0)
+
+
+def test_bad_checkpoints_are_refused(tmp_path):
+    with pytest.raises(FileNotFoundError, match="train one with"):
+        load_motion_encoder(tmp_path / "none.pt")
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(ValueError, match="not a readable motion encoder"):
+        load_motion_encoder(tmp_path / "junk.pt")
+    torch.save({"weights": torch.zeros(3)}, tmp_path / "other.pt")
+    with pytest.raises(ValueError, match="not a trumans motion encoder"):
+        load_motion_encoder(tmp_path / "other.pt")
+    with pytest.raises(ValueError, match="unknown motion encoder config keys"):
+        MotionEncoderConfig.from_dict({"num_actions": 2, "layers": 3})
+    with pytest.raises(ValueError, match="window must be >= 4, got 2"):
+        MotionEncoderConfig(num_actions=2, window=2)
+
+
+def test_shipped_encoder_loads_and_recognises_actions():
+    assert DEFAULT_MOTION_ENCODER.is_file(), "models/motion_encoder.pt is missing (python -m train.motion_encoder)"
+    assert DEFAULT_MOTION_ENCODER.stat().st_size < 3 * 2**20
+    enc = load_motion_encoder()
+    assert len(enc.vocabulary) == enc.cfg.num_actions and "walk" in enc.vocabulary
+    assert enc.info["test_acc"] > 0.5
+    # a clip it never saw: sit down on a chair, sit, stand up (30 fps toy case)
+    seq, _ = make_case("sit", 0)
+    names = [enc.vocabulary[i] for i in enc.classify(seq.joints, seq.fps, stride=8)[0].argmax(-1)]
+    assert names[0] == "sit_down" and "sit" in names and names[-1] == "stand_up"
+    # real motion capture (CMU 131_01 at 120 fps, read through our BVH importer): walking
+    walk = import_bvh(Path(__file__).parent / "data" / "cmu_131_01_start_walk_stop_first480.bvh", refine_steps=0)
+    assert all(enc.vocabulary[i] == "walk" for i in enc.classify(walk.joints, walk.fps)[0].argmax(-1))

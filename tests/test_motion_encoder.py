@@ -124,6 +124,8 @@ def test_bad_checkpoints_are_refused(tmp_path):
         load_motion_encoder(tmp_path / "other.pt")
     with pytest.raises(ValueError, match="unknown motion encoder config keys"):
         MotionEncoderConfig.from_dict({"num_actions": 2, "layers": 3})
+    with pytest.raises(ValueError, match="window must be >= 4, got 2"):
+        MotionEncoderConfig(num_actions=2, window=2)
 
 
 def test_shipped_encoder_loads_and_recognises_actions():

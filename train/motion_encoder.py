@@ -19,7 +19,7 @@ from torch import nn
 
 from trumans.actions import remap_labels
 from trumans.dataset import Dataset
-from trumans.model.motion_encoder import (MotionEncoder, MotionEncoderConfig, MotionEncoderNet, _window_inputs,
+from trumans.model.motion_encoder import (MotionEncoder, MotionEncoderConfig, MotionEncoderNet, window_inputs,
                                           action_acc, diversity, dominant_action, fid, motion_windows)
 from trumans.sequence import atomic_write
 
@@ -78,12 +78,12 @@ def train_motion_encoder(data_root: str | Path, cfg: MotionEncoderConfig | None 
     if cfg.num_actions != len(vocab):
         raise ValueError(f"config has {cfg.num_actions} actions but the dataset vocabulary {len(vocab)}")
     wx, y = split_windows(data, "train", cfg, tcfg.train_stride)
-    x = _window_inputs(wx, cfg.fps)
+    x = window_inputs(wx, cfg.fps)
     mean = x.reshape(-1, x.shape[-1]).mean(0)
     std = np.maximum(x.reshape(-1, x.shape[-1]).std(0), 1e-2)
     x = (x - mean) / std
     wt, yt = split_windows(data, "test", cfg)
-    xt = (_window_inputs(wt, cfg.fps) - mean) / std
+    xt = (window_inputs(wt, cfg.fps) - mean) / std
     log(f"motion encoder: {len(x)} train windows, {len(xt)} test windows, {len(vocab)} actions "
         f"({time.time() - t0:.0f} s loading)")
     net = MotionEncoderNet(cfg)

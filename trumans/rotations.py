@@ -29,6 +29,7 @@ __all__ = [
     "yaw_matrix",
     "fit_yaw",
     "unit",
+    "skew",
     "rodrigues",
 ]
 
@@ -90,6 +91,19 @@ def unit(v: np.ndarray | torch.Tensor, eps: float = 1e-9) -> np.ndarray | torch.
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
 
 
+def skew(v: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+    """(..., 3) -> (..., 3, 3) cross-product matrices: ``skew(v) @ x == cross(v, x)``."""
+    if isinstance(v, torch.Tensor):
+        K = torch.zeros(*v.shape[:-1], 3, 3, dtype=v.dtype, device=v.device)
+    else:
+        v = np.asarray(v, dtype=np.float64)
+        K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    return K
+
+
 def rodrigues(axis: np.ndarray | torch.Tensor, angle: np.ndarray | torch.Tensor | float) -> np.ndarray | torch.Tensor:
     """Rotation by ``angle`` (...,) radians about ``axis`` (..., 3) (normalised here; a zero axis
     gives the identity) -> (..., 3, 3), by Rodrigues' formula ``R = c I + s [k]x + (1 - c) k k^T``.
@@ -101,14 +115,13 @@ def rodrigues(axis: np.ndarray | torch.Tensor, angle: np.ndarray | torch.Tensor 
         ang = torch.as_tensor(angle, dtype=axis.dtype, device=axis.device)
         k, ang = torch.broadcast_tensors(k, ang[..., None])
         s, c = torch.sin(ang[..., 0])[..., None, None], torch.cos(ang[..., 0])[..., None, None]
-        K = torch.zeros(*k.shape[:-1], 3, 3, dtype=k.dtype, device=k.device)
-        K[..., 0, 1], K[..., 0, 2] = -k[..., 2], k[..., 1]
-        K[..., 1, 0], K[..., 1, 2] = k[..., 2], -k[..., 0]
-        K[..., 2, 0], K[..., 2, 1] = -k[..., 1], k[..., 0]
+        K = skew(k)
         eye = torch.eye(3, dtype=k.dtype, device=k.device).expand_as(K)
         return eye + s * K + (1 - c) * (K @ K)
-    k, ang = np.broadcast_arrays(unit(axis, 1e-12), np.asarray(angle, dtype=np.float64)[..., None])
-    ang = ang[..., 0]
+    axis = np.asarray(axis, dtype=np.float64)
+    n = np.linalg.norm(axis, axis=-1, keepdims=True)
+    k, ang = np.broadcast_arrays(axis / np.maximum(n, 1e-12), np.where(n > 0, np.asarray(angle, dtype=np.float64)[..., None], 0.0))
+    ang = ang[..., 0]  # zero axis: angle 0 (the form below needs k k^T = I + [k]x^2)
     s, c = np.sin(ang), np.cos(ang)
     R = (1 - c)[..., None, None] * (k[..., :, None] * k[..., None, :])
     R[..., 0, 0] += c

@@ -1,13 +1,16 @@
 """Runs of True in per-frame masks: the one interval convention, half-open ``[start, end)``.
 
 Used for contact intervals (augmentation, metrics) and action labels alike. ``run_bounds`` gives
-the raw runs as arrays; ``runs`` closes short gaps and drops short runs.
+the raw runs as arrays; ``runs`` closes short gaps and drops short runs; ``joint_contact_intervals``
+turns per-frame contact labels into (joint, object, start, end) intervals.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-__all__ = ["run_bounds", "runs"]
+__all__ = ["run_bounds", "runs", "JointContact", "joint_contact_intervals"]
 
 
 def run_bounds(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -33,3 +36,31 @@ def runs(mask: np.ndarray, max_gap: int = 0, min_len: int = 1) -> list[tuple[int
         else:
             out.append((int(s), int(e)))
     return [(s, e) for s, e in out if e - s >= min_len]
+
+
+class JointContact(NamedTuple):
+    """Joint ``joint`` touches object ``obj`` on frames ``[start, end)``."""
+
+    joint: int
+    obj: str
+    start: int
+    end: int
+
+
+def joint_contact_intervals(object_index: np.ndarray, names: list[str], max_gap: int = 0,
+                            min_len: int = 1) -> list[JointContact]:
+    """Contact intervals of every joint with every object: object_index (T, J) int, index into
+    ``names`` of the object each joint touches (-1 = none; ``ContactResult.object_index``) ->
+    runs per (joint, object) (``runs(.., max_gap, min_len)``), ordered by joint, object index, start."""
+    idx = np.asarray(object_index)
+    if idx.ndim != 2:
+        raise ValueError(f"object_index must be (T, J) int, got shape {idx.shape}")
+    if idx.size and idx.max() >= len(names):
+        raise ValueError(f"object_index refers to object {int(idx.max())} but names has {len(names)} entries")
+    out: list[JointContact] = []
+    for j in range(idx.shape[1]):
+        for k in np.unique(idx[:, j]):
+            if k < 0:
+                continue
+            out += [JointContact(j, names[k], s, e) for s, e in runs(idx[:, j] == k, max_gap, min_len)]
+    return out

@@ -32,6 +32,7 @@ __all__ = [
     "DEFAULT_MOTION_ENCODER",
     "load_motion_encoder",
     "motion_windows",
+    "window_inputs",
     "dominant_action",
     "fid",
     "diversity",
@@ -54,8 +55,10 @@ class MotionEncoderConfig:
     dropout: float = 0.1
 
     def __post_init__(self) -> None:
-        if self.num_actions < 1 or self.window < 4 or self.fps <= 0 or self.feature_dim < 1:
-            raise ValueError(f"bad motion encoder config: {self}")
+        for name, ok, need in (("num_actions", self.num_actions >= 1, ">= 1"), ("window", self.window >= 4, ">= 4"),
+                               ("fps", self.fps > 0, "> 0"), ("feature_dim", self.feature_dim >= 1, ">= 1")):
+            if not ok:
+                raise ValueError(f"motion encoder config: {name} must be {need}, got {getattr(self, name)}")
 
     @classmethod
     def from_dict(cls, d: dict) -> "MotionEncoderConfig":
@@ -95,7 +98,7 @@ class MotionEncoderNet(nn.Module):
         return feats, self.head(self.drop(feats))
 
 
-def _window_inputs(windows: np.ndarray, fps: float) -> np.ndarray:
+def window_inputs(windows: np.ndarray, fps: float) -> np.ndarray:
     """Canonical windows (M, L, 24, 3) m -> (M, L, 144): positions then velocities (m/s, first frame repeats)."""
     pos = rearrange(windows, "m l j c -> m l (j c)")
     vel = np.diff(pos, axis=1, prepend=pos[:, :1]) * fps
@@ -155,7 +158,7 @@ class MotionEncoder:
             span = self.cfg.window / self.cfg.fps
             raise ValueError(f"clips of {joints.shape[1]} frames at {fps} fps are shorter than the encoder's "
                              f"{span:g} s window; pass longer clips")
-        x = (_window_inputs(np.concatenate(per), self.cfg.fps) - self.mean) / self.std
+        x = (window_inputs(np.concatenate(per), self.cfg.fps) - self.mean) / self.std
         with torch.inference_mode():
             feats, logits = [], []
             for chunk in torch.from_numpy(x).split(512):

@@ -185,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
         seq = Sequence(joints=result.joints[b], fps=result.fps, actions=result.labels[b],
                        action_names=list(result.vocabulary), scene=sc.source)
         stem = out if args.num_samples == 1 else out.with_name(f"{out.name}_{b:02d}")
-        written += [str(p) for p in export(seq, stem, formats, scene=sc.scene)]
+        written += [str(p) for p in export(seq, stem, formats, scene=sc.scene).values()]
     figures = motion_figures(result, sc)
     summary = {"plan": plan.name, "scene": sc.source, "samples": args.num_samples, "frames": int(result.joints.shape[1]),
                "seconds_of_motion": round(result.joints.shape[1] / result.fps, 2), "episodes": result.episodes,

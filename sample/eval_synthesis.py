@@ -16,12 +16,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 
 __all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS"]
 
 EVAL_ROOM_SEEDS: tuple[int, ...] = (9001, 9002, 9003, 9004, 9005, 9006)
+REFERENCE_FILE = Path(__file__).resolve().parent.parent / "models" / "synthesis_reference.npz"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,6 +33,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
+    p.add_argument("--data", default=None, help="dataset whose test split is the real reference for fid "
+                   "(default: the shipped models/synthesis_reference.npz)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
 
@@ -48,7 +52,7 @@ def _plans(sc, seed: int):
     return plan_from_dict(d, name=f"eval_{seed}")
 
 
-def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int) -> dict:
+def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None) -> dict:
     import torch
 
     from trumans.model.checkpoint import load_checkpoint
@@ -97,20 +101,48 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int) 
                 figs["naive_goal_err_cm"] = nf["goal_err_cm"]
         figs["naive_seconds_per_episode"] = round(t["naive"], 4)
         figs["speedup_vs_naive"] = round(t["naive"] / t["fast"], 2)
-    figs.update(_encoder_figures(results, ckpt))
+    figs.update(_encoder_figures(results, list(ckpt.vocabulary), reference))
     return figs
 
 
-def _encoder_figures(results, ckpt) -> dict:
-    """fid / diversity / action_acc from the shipped motion encoder, when there is one."""
-    try:
-        from trumans.model.motion_encoder import load_motion_encoder
-    except ModuleNotFoundError:
-        return {"fid": None, "diversity": None, "action_acc": None, "encoder": "not shipped"}
+def reference_features(enc, data: str, split: str = "test") -> np.ndarray:
+    """Motion-encoder features (N, D) of a dataset split's real clips (the FID reference)."""
+    from trumans.dataset import Dataset
+
+    ds = Dataset(data)
+    feats = []
+    for rel in ds.index["splits"].get(split, []):
+        seq = ds.load(rel)
+        if seq.num_frames / seq.fps >= enc.cfg.window / enc.cfg.fps:
+            feats.append(enc.encode(seq.joints, seq.fps)[0])
+    if not feats:
+        raise ValueError(f"split {split!r} of {data} has no clip long enough for the motion encoder")
+    return np.concatenate(feats)
+
+
+def _encoder_figures(results, vocabulary: list[str], reference: str | None) -> dict:
+    """fid / diversity / action_acc of the generated clips (first sample of each plan) with the
+    shipped motion encoder, and the real data's values beside them."""
+    from trumans.model.motion_encoder import action_acc, diversity, fid, load_motion_encoder
+
     enc = load_motion_encoder()
-    joints = np.concatenate([r.joints for r in results], 0) if len({r.joints.shape[1] for r in results}) == 1 else None
-    return enc.synthesis_figures([r.joints[0] for r in results], [r.labels[0] for r in results], results[0].fps,
-                                 list(ckpt.vocabulary)) if joints is not None or True else {}
+    fps = results[0].fps
+    feats = np.concatenate([enc.encode(r.joints[0], fps)[0] for r in results])
+    probs = np.concatenate([enc.classify(r.joints[0], fps)[0] for r in results])
+    labels = np.concatenate([enc.window_labels(r.labels[0], vocabulary, fps)[0] for r in results])
+    out = {"diversity": round(diversity(feats), 3), "action_acc": round(action_acc(probs, labels), 3),
+           "real_action_acc": round(float(enc.info.get("test_acc", float("nan"))), 3)}
+    if reference is None and REFERENCE_FILE.is_file():
+        with np.load(REFERENCE_FILE, allow_pickle=False) as z:
+            ref = z["features"].astype(np.float64)
+    elif reference is not None:
+        ref = reference_features(enc, reference)
+    else:
+        return {**out, "fid": None, "fid_note": f"no reference features: give --data DATASET or ship {REFERENCE_FILE}"}
+    out["fid"] = round(fid(ref, feats), 3)
+    out["real_fid"] = round(float(enc.info.get("fid_train_vs_test", float("nan"))), 3)
+    out["real_diversity"] = round(diversity(ref), 3)
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -120,11 +152,12 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")
     if args.steps < 1 or args.naive_episodes < 0:
         raise ValueError("--steps must be >= 1 and --naive-episodes >= 0")
-    figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes)
+    figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
+                    args.data)
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
-        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0)
+        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

@@ -198,3 +198,13 @@ def test_kinds_registry_required_fields_and_old_files(tmp_path: Path, monkeypatc
     torch.save(d, p)
     with pytest.raises(ValueError, match="unknown checkpoint kind 'tracker'"):
         load_checkpoint(p, kind=None)
+
+
+def test_non_finite_weights_are_refused(tmp_path: Path) -> None:
+    ck, _ = _ckpt()
+    ck.ema_state = {k: v.clone() for k, v in ck.ema_state.items()}
+    ck.ema_state["out_proj.bias"][0] = float("nan")
+    p = tmp_path / "nan.pt"
+    save_checkpoint(p, ck)
+    with pytest.raises(ValueError, match=r"non-finite \(NaN or inf\) ema weights in \['out_proj.bias'\]"):
+        load_checkpoint(p)

@@ -213,3 +213,20 @@ def test_generator_with_cosine_v_and_refused_resumes(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"trained with the action vocabulary \['walk', 'sit', 'reach'\], but .* has "
                                          r"\['reach', 'sit', 'walk'\]"):
         train(cfg, other, tmp_path / "run", steps=2, resume=True, progress=False)
+
+
+class DivergingTask(RegressionTask):
+    def loss(self, model, batch, generator, device) -> TaskLoss:
+        self.calls = getattr(self, "calls", 0) + 1
+        out = super().loss(model, batch, generator, device)
+        return TaskLoss(out.loss * (float("nan") if self.calls > 35 else 1.0), out.terms)
+
+
+def test_a_diverging_run_stops_with_a_clear_error_and_keeps_its_checkpoint(tmp_path: Path, monkeypatch) -> None:
+    from train.loop import train
+
+    monkeypatch.setitem(KINDS, "contact", KindSpec(config_from_dict=lambda d: LinearConfig(**d),
+                                                   build=lambda c: torch.nn.Linear(c.width, 1, bias=False)))
+    with pytest.raises(ValueError, match=r"loss became nan at step 36 \(the checkpoint of step 30 is kept\)"):
+        train(DivergingTask(RegressionConfig()), tmp_path, tmp_path / "run", progress=False)
+    assert load_checkpoint(tmp_path / "run" / "checkpoint.pt", kind="contact").train_state["step"] == 30

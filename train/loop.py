@@ -208,7 +208,7 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
                 history["zero"].append(z)
 
         t_start = time.perf_counter()
-        saved_at = -1
+        saved_at = step if prev is not None else -1  # the step of the checkpoint on disk
         train_time = load_time = 0.0
         done_here = 0
         bar = tqdm(total=total, initial=min(step, total), desc=f"train[{cfg.name}]",
@@ -239,7 +239,8 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
                     be.copy_(bm)
             lv = ddp.all_mean(loss.item(), info)
             if not math.isfinite(lv):
-                raise FloatingPointError(f"training loss became {lv} at step {step}; lower train.lr or check the data")
+                kept = f"the checkpoint of step {saved_at} is kept" if saved_at >= 0 else "no checkpoint was written"
+                raise ValueError(f"training loss became {lv} at step {step} ({kept}); lower train.lr or check the data")
             history["train"].append(lv)
             if len(out_loss.terms) > 1:  # a single term is the loss itself
                 for name, v in out_loss.terms.items():

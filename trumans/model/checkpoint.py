@@ -226,6 +226,13 @@ def load_checkpoint(path: str | Path, kind: CheckpointKind | None = "generator")
                                                                          if k not in extra]
     if missing:
         raise ValueError(f"{path} lacks {missing}; the checkpoint is incomplete - retrain or re-export it")
+    for part in ("model", "ema"):
+        state = d.get(part) or {}
+        bad = [k for k, v in state.items() if isinstance(v, torch.Tensor) and v.is_floating_point()
+               and not bool(torch.isfinite(v).all())]
+        if bad:
+            raise ValueError(f"{path} has non-finite (NaN or inf) {part} weights in {bad[:3]}{' ...' if len(bad) > 3 else ''}; "
+                             f"the run diverged - use an earlier checkpoint or retrain with a lower train.lr")
     try:
         fields = {name: from_plain(d[key]) for key, (name, _, from_plain) in _OPTIONAL.items() if d.get(key) is not None}
         model_config = spec.config_from_dict(d["model_config"])

@@ -18,12 +18,13 @@ import torch
 
 from scenes.scene_grids import SceneGrids
 from trumans.model.checkpoint import Checkpoint
-from trumans.model.episodes import PELVIS, FeatureLayout, canonical_frame, canonicalize, uncanonicalize
+from trumans.model.conditions import EpisodeCondition, episode_condition, episode_scene_grids, subgoal_to_canonical
+from trumans.model.episodes import PELVIS, FeatureLayout, canonicalize, uncanonicalize
 from trumans.model.masks import joint_goal_mask, pelvis_goal_mask, transition_mask
 from trumans.model.nets import GuidedDenoiser
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
 
-__all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of", "to_canonical"]
+__all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 
 
 @dataclass(frozen=True)
@@ -34,18 +35,6 @@ class Goal:
     point: tuple[float, ...]
     joint: str = "pelvis"
     frame: int = -1
-
-
-def to_canonical(p: np.ndarray, origin: np.ndarray, yaw: float) -> np.ndarray:
-    """World point (2,) or (3,) -> the episode's canonical frame (R_z(-yaw) (p - origin))."""
-    d = np.array(p, dtype=np.float64)
-    d[:2] -= origin[:2]
-    if len(d) == 3:
-        d[2] -= origin[2]
-    c, s = np.cos(yaw), np.sin(yaw)
-    out = d.copy()
-    out[0], out[1] = c * d[0] + s * d[1], -s * d[0] + c * d[1]
-    return out
 
 
 @dataclass(frozen=True)
@@ -109,28 +98,30 @@ class EpisodeSampler:
         self.extent = tuple(ckpt.grid.get("extent", (1.2, 1.2, 1.2)))
         self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
 
-    # ------------------------------------------------------------------ conditions
-    def local_grids(self, goal_xy: np.ndarray, yaw: np.ndarray, object_poses: dict | None = None) -> np.ndarray:
-        """(B, n, n, n) bool grids around floor points goal_xy (B, 2) turned by yaw (B,)."""
-        B = len(goal_xy)
-        centers = np.concatenate([goal_xy, np.zeros((B, 1))], axis=1)
-        if self.grids is None:
-            return np.zeros((B, self.n, self.n, self.n), dtype=bool)
-        return self.grids.query(centers, yaw, object_poses, n=self.n, extent=self.extent)
+    # ------------------------------------------------------------------ one episode
+    def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:
+        """The episode's frame, subgoal and labels by the training definition (``episode_condition``):
+        the subgoal is the pelvis goal, or where the body stands now for a hand goal."""
+        sub = np.zeros((len(goals), 3))
+        for b, g in enumerate(goals):
+            sub[b, :2] = g.point[:2] if g.joint == "pelvis" else context[b, -1, PELVIS, :2]
+        return episode_condition(context, labels, subgoal=sub)
 
-    def _given(self, context: np.ndarray, origin: np.ndarray, yaw: np.ndarray, goals: list["Goal"]):
-        """Normalised given values and the mask, both (B, L, F)."""
+    def _given(self, context: np.ndarray, cond: EpisodeCondition, goals: list[Goal]):
+        """Normalised given values and the mask, both (B, L, F): M_trans (the context frames) and
+        M_goal (pelvis x, y at the last frame, or a joint's 3D position at its frame)."""
         B, L, lay = context.shape[0], self.L, self.layout
         feats = np.zeros((B, L, lay.dim), np.float32)
-        feats[:, : self.k, : NUM_JOINTS * 3] = canonicalize(context, origin, yaw).reshape(B, self.k, -1)
+        feats[:, : self.k, : NUM_JOINTS * 3] = canonicalize(context, cond.origin, cond.yaw).reshape(B, self.k, -1)
         masks = []
         for b, g in enumerate(goals):
             m = transition_mask(L, lay, self.k)
-            local = to_canonical(np.asarray(g.point, np.float64), origin[b], yaw[b])
-            if g.joint == "pelvis" and len(g.point) == 2:
+            if g.joint == "pelvis":
+                local = cond.subgoal_canonical()[b]
                 feats[b, L - 1, lay.position_index(PELVIS, (0, 1))] = local[:2]
                 m = m | pelvis_goal_mask(L, lay)
             else:
+                local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
                 frame = g.frame % L
                 feats[b, frame, lay.position_index(g.joint)] = local
                 m = m | joint_goal_mask(L, lay, g.joint, frame)
@@ -138,9 +129,8 @@ class EpisodeSampler:
         x = torch.from_numpy(self.norm.normalize(feats)).to(self.device)
         return x, torch.stack(masks).to(self.device)
 
-    # ------------------------------------------------------------------ one episode
     @torch.inference_mode()
-    def episode(self, context: np.ndarray, labels: np.ndarray, goals: list["Goal"],
+    def episode(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal],
                 object_poses: dict | None = None, generator: torch.Generator | None = None) -> np.ndarray:
         """context: (B, k, 24, 3) world m, the last k frames so far; labels: (B, L, N_A) action
         labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) world joints (first k = context)."""
@@ -149,21 +139,21 @@ class EpisodeSampler:
             raise ValueError(f"context must be (B, {self.k}, 24, 3), got {context.shape}")
         if len(goals) != B or labels.shape[:2] != (B, self.L):
             raise ValueError(f"need {B} goals and labels (B, {self.L}, N_A), got {len(goals)} and {labels.shape}")
-        origin, yaw = canonical_frame(context)  # (B, 3), (B,)
-        x_given, mask = self._given(context, origin, yaw, goals)
-        # the grid is centred on the pelvis floor point at the episode's end (as in training): the
-        # subgoal, or where the body stands now for a hand goal
-        centre = np.stack([np.asarray(g.point, np.float64)[:2] if g.joint == "pelvis" else context[b, -1, PELVIS, :2]
-                           for b, g in enumerate(goals)])
-        scene = torch.from_numpy(self.local_grids(centre, yaw, object_poses)).to(self.device)
-        acts = torch.as_tensor(labels, dtype=torch.float32, device=self.device)
-        cond = self._conditions(scene, acts)
-        x0 = self.diffusion.sample(self._model_fn(cond), (B, self.L, self.layout.dim), mask=mask, given=x_given,
+        cond = self.condition(context, labels, goals)
+        x_given, mask = self._given(context, cond, goals)
+        if self.grids is None:
+            grid = np.zeros((B, self.n, self.n, self.n), dtype=bool)
+        else:
+            grid = episode_scene_grids(self.grids, cond, object_poses, n=self.n, extent=self.extent)
+        scene = torch.from_numpy(grid).to(self.device)
+        acts = torch.as_tensor(cond.actions, dtype=torch.float32, device=self.device)
+        emb = self._conditions(scene, acts)
+        x0 = self.diffusion.sample(self._model_fn(emb), (B, self.L, self.layout.dim), mask=mask, given=x_given,
                                    num_steps=self.config.steps, eta=self.config.eta, generator=generator,
                                    device=self.device)
         feats = self.norm.denormalize(x0.cpu().numpy())
         cj, _ = self.layout.unpack(feats)
-        world = uncanonicalize(cj, origin, yaw)
+        world = uncanonicalize(cj, cond.origin, cond.yaw)
         world[:, : self.k] = context
         return world
 

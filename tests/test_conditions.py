@@ -48,7 +48,10 @@ def test_episode_condition_defines_frame_subgoal_and_labels() -> None:
     with pytest.raises(ValueError, match="subgoal must be"):
         episode_condition(joints, subgoal=goal[:2])
     with pytest.raises(ValueError, match="actions must be"):
-        episode_condition(joints, labels[:, :5])
+        episode_condition(joints, labels[:2])  # another batch
+    # a sampler: the context frames with the whole window's labels
+    s2 = episode_condition(joints[:, :2], labels, subgoal=goal)
+    assert np.array_equal(s2.actions, labels)
 
 
 def test_subgoal_round_trip() -> None:

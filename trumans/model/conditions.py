@@ -42,8 +42,8 @@ def episode_condition(joints: np.ndarray, actions: np.ndarray | None = None, *, 
                       progress_indicator: bool = True) -> EpisodeCondition:
     """The conditions of the episode(s) whose frames start with ``joints``.
 
-    joints: (..., L, 24, 3) world m (training: the whole window; sampling: at least its first
-    frame); actions: (..., L, N_A) labels of the window (0 off, 1 + progress on); subgoal: (..., 3)
+    joints: (..., L', 24, 3) world m (training: the whole window; sampling: the context frames, at
+    least the first); actions: (..., L, N_A) labels of the window (0 off, 1 + progress on); subgoal: (..., 3)
     world m, default the pelvis floor point at the last frame of ``joints`` (z = 0);
     progress_indicator = False turns the labels into plain 0/1 (the paper's ablation).
     """
@@ -60,8 +60,9 @@ def episode_condition(joints: np.ndarray, actions: np.ndarray | None = None, *, 
     acts = None
     if actions is not None:
         acts = np.asarray(actions, dtype=np.float32)
-        if acts.ndim != np.ndim(joints) - 1 or acts.shape[:-1] != np.shape(joints)[:-2]:
-            raise ValueError(f"actions must be (..., L, N_A) matching joints {np.shape(joints)[:-2]}, got {acts.shape}")
+        if acts.ndim != np.ndim(joints) - 1 or acts.shape[:-2] != np.shape(joints)[:-3]:
+            raise ValueError(f"actions must be (..., L, N_A) with the leading shape of joints {np.shape(joints)[:-3]}, "
+                             f"got {acts.shape}")
         if not progress_indicator:
             acts = (acts > 0).astype(np.float32)
     return EpisodeCondition(origin, yaw, goal, acts)

@@ -26,6 +26,7 @@ __all__ = ["OccupancyGrid", "compute_occupancy", "scene_occupancy", "OCCUPANCY_F
 
 OCCUPANCY_FILE = "occupancy.npz"
 _CACHE_VERSION = "occ-v1"
+DEFAULT_VOXEL = 0.02  # m, the voxel of cached scene grids (DESIGN.md)
 _CHUNK = 1 << 20  # voxel centres per ray-casting call (~12 MB of float32 points)
 
 
@@ -180,7 +181,7 @@ def compute_occupancy(
     return OccupancyGrid(grid, origin, voxel)
 
 
-def _scene_key(scene: "Scene", voxel: float, include_dynamic: bool) -> str:
+def scene_key(scene: "Scene", voxel: float, include_dynamic: bool) -> str:
     """SHA-256 of what determines the grid. Vertices are hashed as float32 (what PLY files keep),
     so a scene that went through save/load keeps its key; poses are hashed in float64."""
     h = hashlib.sha256(f"{_CACHE_VERSION}|{voxel!r}|{include_dynamic}".encode())
@@ -203,7 +204,7 @@ def _scene_key(scene: "Scene", voxel: float, include_dynamic: bool) -> str:
 def scene_occupancy(
     scene: "Scene",
     folder: str | Path | None = None,
-    voxel: float = 0.02,
+    voxel: float = DEFAULT_VOXEL,
     include_dynamic: bool = True,
     min_height: float = 2.2,
 ) -> OccupancyGrid:
@@ -224,7 +225,7 @@ def scene_occupancy(
     meshes = scene.world_meshes(include_dynamic)
     if not meshes:
         raise ValueError(f"scene {scene.name!r} has no meshes; add static meshes or objects first")
-    key = _scene_key(scene, float(voxel), include_dynamic) + f"|h{float(min_height)!r}"
+    key = scene_key(scene, float(voxel), include_dynamic) + f"|h{float(min_height)!r}"
     cache = Path(folder) / OCCUPANCY_FILE if folder is not None else None
     if cache is not None and cache.is_file():
         try:

@@ -12,10 +12,12 @@ far from an episode's grid are skipped. A scene without dynamic objects (or with
 """
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from scenes.local_grid import local_grids
-from scenes.occupancy import OccupancyGrid, compute_occupancy, scene_occupancy
+from scenes.occupancy import OccupancyGrid, compute_occupancy, scene_key, scene_occupancy
 
 __all__ = ["SceneGrids"]
 
@@ -23,23 +25,38 @@ __all__ = ["SceneGrids"]
 class SceneGrids:
     """Episode local grids of one scene. occ: its cached occupancy; scene: ``scenes.Scene`` or None."""
 
-    def __init__(self, occ: OccupancyGrid, scene=None) -> None:
+    def __init__(self, occ: OccupancyGrid | None, scene=None, voxel: float | None = None,
+                 memo: dict | None = None) -> None:
+        """occ: the scene's cached occupancy (may be None when ``scene`` is given: then only
+        ``voxel`` m is needed); memo: a dict shared between scenes so that scene variations that
+        differ in one object (augmented data) voxelise their common static part and each distinct
+        object mesh once."""
+        if occ is None and scene is None:
+            raise ValueError("SceneGrids needs an occupancy grid or a scene")
         self.occ = occ
         self.points: dict[str, np.ndarray] = {}  # object name -> (P, 3) interior points, object frame, m
         self.scene_pose: dict[str, np.ndarray] = {}
         dyn = {} if scene is None else {k: o for k, o in scene.objects.items() if o.dynamic}
+        v = float(voxel if voxel is not None else occ.voxel)
         if not dyn:
-            self.static = occ
+            self.static = occ if occ is not None else scene_occupancy(scene, None, voxel=v)
             return
-        self.static = scene_occupancy(scene, None, voxel=occ.voxel, include_dynamic=False)
-        v = occ.voxel
+        memo = {} if memo is None else memo
+        key = ("static", scene_key(scene, v, include_dynamic=False))
+        if key not in memo:
+            memo[key] = scene_occupancy(scene, None, voxel=v, include_dynamic=False)
+        self.static = memo[key]
         for name, o in dyn.items():
-            lo, hi = o.mesh.bounds
-            g = compute_occupancy([o.mesh], np.stack([lo - v, hi + v]), v)
-            pts = g.centers()[g.grid]
-            if len(pts) == 0:  # thinner than a voxel: keep its surface samples
-                pts = np.asarray(o.mesh.vertices)
-            self.points[name] = pts.astype(np.float32)
+            okey = ("object", v, hashlib.sha256(np.ascontiguousarray(o.mesh.vertices, np.float32).tobytes()
+                                                + np.ascontiguousarray(o.mesh.faces, np.int64).tobytes()).hexdigest())
+            if okey not in memo:
+                lo, hi = o.mesh.bounds
+                g = compute_occupancy([o.mesh], np.stack([lo - v, hi + v]), v)
+                pts = g.centers()[g.grid]
+                if len(pts) == 0:  # thinner than a voxel: keep its surface samples
+                    pts = np.asarray(o.mesh.vertices)
+                memo[okey] = pts.astype(np.float32)
+            self.points[name] = memo[okey]
             self.scene_pose[name] = np.asarray(o.pose, dtype=np.float64)
 
     def query(self, centers: np.ndarray, yaw: np.ndarray, object_poses: dict[str, np.ndarray] | None = None,

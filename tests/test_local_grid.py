@@ -106,3 +106,34 @@ def test_empty_batch_and_bad_inputs(random_grid):
         local_grids(random_grid, np.zeros((2, 3)), np.zeros(2), n=0)
     with pytest.raises(ValueError, match="extent"):
         local_grids(random_grid, np.zeros((2, 3)), np.zeros(2), extent=(1.0, -1.0, 1.0))
+
+
+def test_scene_grids_without_cached_occupancy_share_a_memo():
+    """Augmented scenes come without occupancy.npz: SceneGrids from the scene alone equals the one
+    from its cached grid, and scene variations reuse the voxelised static part and object meshes."""
+    import trimesh
+
+    from scenes import furniture
+    from scenes.occupancy import scene_occupancy
+    from scenes.scene import Scene
+    from scenes.scene_grids import SceneGrids
+
+    rng = np.random.default_rng(0)
+    floor = trimesh.creation.box((3.0, 3.0, 0.1))
+    floor.apply_translation([1.5, 1.5, -0.05])
+    chair = furniture.chair(rng, "chair_0")
+    chair.pose[:3, 3] = [1.5, 1.5, 0.0]
+    scene = Scene("s", static={"floor": floor}, objects={"chair_0": chair})
+    ref = SceneGrids(scene_occupancy(scene, None, voxel=0.05), scene)
+    memo: dict = {}
+    a = SceneGrids(None, scene, voxel=0.05, memo=memo)
+    n_memo = len(memo)
+    moved = Scene("s2", static={"floor": floor}, objects={"chair_0": chair})
+    b = SceneGrids(None, moved, voxel=0.05, memo=memo)
+    assert len(memo) == n_memo == 2  # one static part, one chair mesh: reused by the variation
+    centers, yaw = np.array([[1.5, 1.5, 0.0], [1.2, 1.0, 0.0]]), np.array([0.3, -1.0])
+    np.testing.assert_array_equal(a.query(centers, yaw, n=16), ref.query(centers, yaw, n=16))
+    np.testing.assert_array_equal(b.query(centers, yaw, n=16), ref.query(centers, yaw, n=16))
+    assert a.query(centers, yaw, n=16).any()
+    with pytest.raises(ValueError, match="needs an occupancy grid or a scene"):
+        SceneGrids(None)

@@ -32,6 +32,7 @@ from trumans.resample import resample_sequence
 from trumans.sequence import atomic_write
 
 from .config import DataSection
+from scenes.occupancy import DEFAULT_VOXEL, OCCUPANCY_FILE
 from scenes.scene_grids import SceneGrids
 
 __all__ = ["EpisodeSet", "build_episodes", "load_episodes", "BatchStream", "Batch"]
@@ -99,11 +100,16 @@ def _cut(seq, cfg: DataSection, layout: FeatureLayout, vocab: list[str]):
     return feats, cond, starts
 
 
-def _scene_grids(ds: Dataset, scene_id: str, dynamic: bool) -> SceneGrids:
-    occ = ds.occupancy(scene_id)
-    if not dynamic or not (ds.scene_dir(scene_id) / "scene.json").is_file():
-        return SceneGrids(occ)
-    return SceneGrids(occ, ds.scene(scene_id))
+def _scene_grids(ds: Dataset, scene_id: str, dynamic: bool, memo: dict) -> SceneGrids:
+    """The scene's episode grids. Without a cached occupancy.npz (augmented scenes are written
+    without one) the grids are built from scene.json; ``memo`` shares the voxelised static part and
+    object meshes between scene variations."""
+    has_json = (ds.scene_dir(scene_id) / "scene.json").is_file()
+    has_occ = (ds.scene_dir(scene_id) / OCCUPANCY_FILE).is_file()
+    if has_json and (dynamic or not has_occ):
+        return SceneGrids(ds.occupancy(scene_id) if has_occ else None, ds.scene(scene_id), voxel=DEFAULT_VOXEL,
+                          memo=memo)
+    return SceneGrids(ds.occupancy(scene_id))
 
 
 def _cache_key(ds: Dataset, split: str, cfg: DataSection, layout: FeatureLayout, vocab: list[str], files: list[str]) -> str:
@@ -126,6 +132,7 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
     files = [p for p in ds.index["splits"].get(split, []) if cfg.augmented or p not in augmented]
     parts: list = []
     occ_cache: dict = {}
+    memo: dict = {}  # voxelised static parts / object meshes shared between scene variations
     n = cfg.grid
     for si, rel in enumerate(tqdm(files, desc=f"episodes[{split}]", disable=not progress, leave=False)):
         seq = resample_sequence(ds.load(rel), cfg.fps)
@@ -135,7 +142,7 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
         feats, cond, starts = cut
         if seq.scene:
             if seq.scene not in occ_cache:
-                occ_cache[seq.scene] = _scene_grids(ds, seq.scene, cfg.dynamic_objects)
+                occ_cache[seq.scene] = _scene_grids(ds, seq.scene, cfg.dynamic_objects, memo)
             poses = {k: o.pose[starts] for k, o in seq.objects.items()} if cfg.dynamic_objects else None
             grids = episode_scene_grids(occ_cache[seq.scene], cond, poses, n=n, extent=cfg.extent)
         else:  # no scene recorded: open floor (nothing occupied above z = 0)

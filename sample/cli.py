@@ -122,10 +122,10 @@ def default_plan(sc) -> dict:
     d = np.linalg.norm(pts - start, axis=1)
     away = pts[int(np.argmax(np.where(d < 3.0, d, 0.0)))]
     return {"start": start.tolist(), "heading": 0.0, "steps": [
-        {"do": "sit_on", "object": seat.name, "seconds": 6.0},
+        {"do": "sit_on", "object": seat.name, "seconds": 8.0},
         {"do": "stand_up"},
         {"do": "goto", "to": away.tolist()},
-        {"do": "act", "action": "drink", "seconds": 4.0},
+        {"do": "act", "action": "drink", "seconds": 5.0},
         {"do": "goto", "to": start.tolist()},
     ]}
 

@@ -101,6 +101,8 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
 
     phases: list[Phase] = []
     pos = np.asarray(start_xy, dtype=np.float64)
+    if not wm.query(pos[None])[0]:  # a body slightly off the walkable floor plans from the nearest free cell
+        pos = nearest_walkable(wm, pos)
     posture: str | None = None  # "sit" / "lie" while seated / lying
     posture_exit: np.ndarray | None = None
 

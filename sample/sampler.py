@@ -131,9 +131,11 @@ class EpisodeSampler:
 
     @torch.inference_mode()
     def episode(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal],
-                object_poses: dict | None = None, generator: torch.Generator | None = None) -> np.ndarray:
+                object_poses: dict | None = None, generator: torch.Generator | None = None,
+                attach_pelvis: bool = True) -> np.ndarray:
         """context: (B, k, 24, 3) world m, the last k frames so far; labels: (B, L, N_A) action
-        labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) world joints (first k = context)."""
+        labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) world joints (first k = context).
+        attach_pelvis: put a pinned pelvis back on the generated body (``_attach_pinned_pelvis``)."""
         B = context.shape[0]
         if context.ndim != 4 or context.shape[1:] != (self.k, NUM_JOINTS, 3):
             raise ValueError(f"context must be (B, {self.k}, 24, 3), got {context.shape}")
@@ -155,7 +157,7 @@ class EpisodeSampler:
         cj, _ = self.layout.unpack(feats)
         world = uncanonicalize(cj, cond.origin, cond.yaw)
         world[:, : self.k] = context
-        return world
+        return _attach_pinned_pelvis(world, goals) if attach_pelvis else world
 
     def _conditions(self, scene: torch.Tensor, actions: torch.Tensor) -> dict:
         """Condition embeddings once per episode (or the raw conditions for the naive sampler)."""
@@ -169,6 +171,19 @@ class EpisodeSampler:
         def fn(x, t, mask=None):
             return guided(x, t, mask=mask, **cond)
         return fn
+
+
+def _attach_pinned_pelvis(world: np.ndarray, goals: list[Goal]) -> np.ndarray:
+    """The pinned pelvis x, y at the last frame is the goal, not necessarily where the generated
+    body is (a model that lags leaves it torn from the hips; that frame would become the next
+    episode's context). Put it back on the body: the last frame's pelvis keeps the previous
+    frame's offset from the hip midpoint (the goal error is then measured on the body)."""
+    hips = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
+    for b, g in enumerate(goals):
+        if g.joint == "pelvis":
+            mid = world[b][:, hips].mean(axis=1)  # (L, 3)
+            world[b, -1, PELVIS, :2] = mid[-1, :2] + world[b, -2, PELVIS, :2] - mid[-2, :2]
+    return world
 
 
 def pelvis_of(joints: np.ndarray) -> np.ndarray:

@@ -200,7 +200,8 @@ class Controller:
         self.L, self.k, self.fps, self.speed, self.arrive = L, k, fps, float(speed), float(arrive_m)
         self.index = 0  # current phase
         self.elapsed = 0  # frames spent in the current phase
-        self.walk_s = 0.0  # arc length covered on the current walk path, m
+        self.walk_s = 0.0  # arc length planned on the current walk path, m
+        self.body_s = 0.0  # arc length the body has covered (its projection on the path), m
         self._cum: np.ndarray | None = None
 
     @property
@@ -236,9 +237,10 @@ class Controller:
         hand, hand_frame = "right_wrist", -1
         f = k
         p = self.phases[self.index] if not self.done else None
-        if p is not None and p.kind == "walk":  # re-anchor on the path where the body really is
+        if p is not None and p.kind == "walk":  # anchor on the path where the body really is (closed loop)
             cum = self._arc(p.path)
-            self.walk_s = max(self.walk_s, self._project(p.path, cum, np.asarray(pelvis_xy, np.float64)))
+            self.walk_s = max(self.body_s, self._project(p.path, cum, np.asarray(pelvis_xy, np.float64)))
+            self.body_s = self.walk_s
         while f < L and not self.done:
             p = self.phases[self.index]
             if p.kind == "walk":
@@ -253,7 +255,7 @@ class Controller:
                 self.walk_s = float(min(s[-1], cum[-1]))
                 f += n
                 if self.walk_s >= cum[-1] - 1e-6:
-                    self.index, self.elapsed, self.walk_s = self.index + 1, 0, 0.0
+                    self.index, self.elapsed, self.walk_s, self.body_s = self.index + 1, 0, 0.0, 0.0
             else:
                 n = min(L - f, p.frames - self.elapsed)
                 prog = (self.elapsed + np.arange(1, n + 1)) / p.frames

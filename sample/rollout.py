@@ -197,11 +197,11 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         n = todo.pop(0) if todo else L - k
         if ctrl.done:  # hold: an empty plan keeps the last posture label
             ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
-        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s)
+        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s)
         ep = _step(sampler, [ctrl], context, prev, lengths, g)
         new, lab = ep.new, ep.labels
         if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
-            ctrl.index, ctrl.elapsed, ctrl.walk_s = snapshot
+            ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s = snapshot
             _advance(ctrl, n, context[0, -1, PELVIS, :2])
         out = new[:, :n]
         context = np.concatenate([context, out], 1)[:, -k:]

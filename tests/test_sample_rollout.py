@@ -119,3 +119,37 @@ def test_stream_incremental_schedule_and_new_plans(open_room):
     assert [len(next(gen)) for _ in range(3)] == [*INCREMENTAL_SCHEDULE[1:], 14]
     with pytest.raises(ValueError, match="schedule"):
         next(stream(ck, sampler, scene, wm, plan, schedule=(0,)))
+
+
+def test_external_mesh_as_scene_is_cached_and_sampled(tmp_path):
+    import trimesh
+
+    from sample.scene_input import load_sample_scene
+
+    floor = trimesh.creation.box((4.0, 3.0, 0.1))
+    floor.apply_translation([2.0, 1.5, -0.05])
+    block = trimesh.creation.box((0.6, 0.6, 0.8))
+    block.apply_translation([2.0, 1.5, 0.4])
+    room = trimesh.util.concatenate([floor, block])
+    path = tmp_path / "scan.obj"
+    room.export(path)
+    sc = load_sample_scene(str(path), voxel=0.05)
+    assert (tmp_path / "scan.occupancy" / "occupancy.npz").is_file()  # cached beside the mesh
+    assert not sc.walkmap.query(np.array([[2.0, 1.5]]))[0] and sc.walkmap.query(np.array([[0.8, 1.5]]))[0]
+    ck = tiny_checkpoint()
+    sampler = EpisodeSampler(ck, sc.grids, SamplerConfig(steps=2))
+    plan = plan_from_dict({"start": [0.7, 0.7], "steps": [{"do": "goto", "to": [3.3, 2.3]}]})
+    res = sample_plan(ck, sampler, sc.scene, sc.walkmap, plan, seed=0)
+    assert res.joints.shape[1] > 16 and np.isfinite(res.joints).all()
+    # the y-up file of the same room, read with up='y', gives the same occupancy
+    yup = room.copy()
+    yup.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    yup.export(tmp_path / "scan_y.obj")
+    sy = load_sample_scene(str(tmp_path / "scan_y.obj"), voxel=0.05, up="y")
+    assert sy.occupancy.grid.shape == sc.occupancy.grid.shape
+    assert (sy.occupancy.grid != sc.occupancy.grid).mean() < 0.01
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_sample_scene(str(tmp_path / "nothing.obj"))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match="no scene.json"):
+        load_sample_scene(str(tmp_path / "empty"))

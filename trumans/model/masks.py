@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import torch
 
 from .episodes import PELVIS, FeatureLayout
-from trumans.skeleton import JOINT_INDEX
+from trumans.skeleton import WRISTS
 
 __all__ = ["transition_mask", "pelvis_goal_mask", "joint_goal_mask", "MaskSampler", "HAND_JOINTS"]
 
-HAND_JOINTS: tuple[int, ...] = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
+HAND_JOINTS: tuple[int, ...] = WRISTS  # hand goals are on the wrists
 
 
 def transition_mask(length: int, layout: FeatureLayout, k: int) -> torch.Tensor:

@@ -8,7 +8,8 @@ from trumans.rotations import euler_to_matrix
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import bone_lengths, forward_kinematics, heading, rest_offsets
 from trumans.ik.limb import LIMBS, limb_reach, set_global_rotation, solve_limb
-from trumans.synth.locomotion import foot_places, stand, standing_state, turn, walk
+from trumans.synth.legs import foot_places, standing_state
+from trumans.synth.locomotion import stand, turn, walk
 from trumans.synth.motion import Motion, concat_motions
 from trumans.synth.poses import POSES, blend_into, ease, keyframe_track, pose, slerp_rot
 from trumans.synth.posture import (

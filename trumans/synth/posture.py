@@ -26,7 +26,7 @@ from trumans.contacts.rule import JOINT_RADIUS
 from trumans.rotations import euler_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
 from trumans.ik.limb import limb_reach
-from .locomotion import _rest_ankle_rel, foot_places, pelvis_height_limit, solve_legs, standing_state
+from .legs import foot_places, pelvis_height_limit, rest_ankle_rel, solve_legs, standing_state
 from .motion import Motion
 from .poses import POSES, ease, pose, slerp_poses, slerp_rot
 
@@ -135,7 +135,7 @@ def lying_state(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float,
                              f"(min_leg_reach), got {leg_reach}")
         axis = np.array([np.cos(lie_yaw), np.sin(lie_yaw), 0.0])
         P, _ = forward_kinematics(rot[None], root[None], offsets)
-        z0 = offsets[0, 2] + _rest_ankle_rel(offsets)[0, 2]  # ankle height of a flat foot
+        z0 = offsets[0, 2] + rest_ankle_rel(offsets)[0, 2]  # ankle height of a flat foot
         feet = np.empty((1, 2, 3))
         for k, h in enumerate(_HIPS):
             lateral = P[0, h] - root - ((P[0, h] - root) @ axis) * axis

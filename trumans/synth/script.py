@@ -16,7 +16,7 @@ from . import hands
 from .activities import ACTIVITIES, candidates
 from .moves import idle
 from .room import RoomContext
-from .take import Skip, Take, TakeState, draw_actor, finish_take
+from .take import Skip, Take, TakeState, draw_actor
 
 __all__ = ["script_take", "script_room"]
 
@@ -27,14 +27,13 @@ def script_take(ctx: RoomContext, rng: np.random.Generator, n_frames: int, cover
     ``coverage`` counts how often each activity has been performed in the room (updated): less
     performed activities are preferred, so a room shows all it affords."""
     offsets = draw_actor(rng)
-    init = {n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic}
     wm = next((w for w in ctx.plans if w.walkable.any()), None)
     if wm is None:
         raise ValueError(f"room {ctx.scene.name!r} has no walkable floor")
     cells = np.argwhere(wm.walkable)
     pos = wm.centers(cells[rng.integers(len(cells))])
-    st = TakeState(offsets=offsets, speed=float(rng.uniform(0.9, 1.4)), pos=pos,
-                yaw=float(rng.uniform(-np.pi, np.pi)), poses=dict(init))
+    st = TakeState(offsets=offsets, speed=float(rng.uniform(0.9, 1.4)), pos=pos, yaw=float(rng.uniform(-np.pi, np.pi)),
+                   poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
     st.append(idle(ctx, st, rng, 0.5, 2.0))
     cands = candidates(ctx.scene)
     failures = 0
@@ -45,18 +44,17 @@ def script_take(ctx: RoomContext, rng: np.random.Generator, n_frames: int, cover
         w = np.exp(-1.5 * (counts - counts.min()))
         w[[i for i, (a, _) in enumerate(cands) if a == "wander"]] *= 0.3
         act, obj = cands[rng.choice(len(cands), p=w / w.sum())]
-        snapshot = (len(st.parts), st.frames, st.pos.copy(), st.yaw, dict(st.poses), list(st.grasped))
+        snapshot = st.snapshot()
         try:
-            ACTIVITIES[act][1](ctx, st, rng, obj)
+            ACTIVITIES[act].run(ctx, st, rng, obj)
             coverage[act] = coverage.get(act, 0) + 1
             done[act] = done.get(act, 0) + 1
         except (Skip, hands.OutOfReach) as e:  # OutOfReach: the hand cannot reach from where the body is
             skipped.setdefault(act, []).append(f"{obj}: {e}")
-            n, st.frames, st.pos, st.yaw, st.poses, st.grasped = snapshot
-            del st.parts[n:]
+            st.restore(snapshot)
             failures += 1
             coverage[act] = coverage.get(act, 0) + 1  # do not insist on an impossible activity
-    take = finish_take(ctx, st, init)
+    take = st.finish(ctx)
     take.done, take.skipped = done, skipped
     return take
 

@@ -11,6 +11,7 @@ joints by FK of the rotations (exact bone lengths). Each take draws a new actor:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from .motion import Motion, concat_motions
 from .room import RoomContext
 from .vocab import SYNTH_ACTIONS
 
-__all__ = ["Skip", "Take", "TakeState", "draw_actor", "object_tracks", "finish_take"]
+__all__ = ["Skip", "Take", "TakeState", "TakeSnapshot", "draw_actor"]
 
 _HANDS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 _FEET = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])
@@ -49,9 +50,26 @@ class Take:
     skipped: dict[str, list[str]] = field(default_factory=dict)  # activity -> reasons it was skipped
 
 
+class TakeSnapshot(NamedTuple):
+    """What ``TakeState.restore`` needs to roll a take back to where ``TakeState.snapshot`` was taken."""
+
+    parts: int
+    frames: int
+    pos: np.ndarray
+    yaw: float
+    poses: dict[str, np.ndarray]
+    grasped: list[tuple[np.ndarray, int, str]]
+
+
 @dataclass
 class TakeState:
-    """The actor and the room during a take: pelvis xy, heading, current object poses."""
+    """The actor and the room during a take: the actor's rest ``offsets`` (24, 3) m and walking
+    ``speed`` (m/s), the pelvis xy ``pos`` (2,) m and heading ``yaw`` (rad) where the last motion
+    ended, and the current world pose (4, 4) of every dynamic object (``poses``; the poses at
+    construction are kept as ``initial``).
+
+    Activities add motion with ``append``; a failed activity is rolled back with ``snapshot`` /
+    ``restore``; ``finish`` turns the motions into a ``Take``."""
 
     offsets: np.ndarray
     speed: float
@@ -61,9 +79,15 @@ class TakeState:
     parts: list[Motion] = field(default_factory=list)
     frames: int = 0
     grasped: list[tuple[np.ndarray, int, str]] = field(default_factory=list)  # (take frames, wrist joint, object)
+    initial: dict[str, np.ndarray] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.initial = {n: p.copy() for n, p in self.poses.items()}
 
     def append(self, m: Motion, grasp_object: dict[int, str] | None = None) -> None:
-        """Add a motion; update position, heading and the poses of the objects it moved."""
+        """Add a motion; update position, heading and the poses of the objects it moved.
+        ``grasp_object``: wrist joint -> name of the object that hand holds in ``m`` (its grasp
+        frames are recorded for ``Take.grasp_gaps``)."""
         for hand, name in (grasp_object or {}).items():
             g = m.grasp.get(hand)
             if g is not None and g.any():
@@ -80,6 +104,29 @@ class TakeState:
         self.pos = m.root[-1, :2].copy()
         self.yaw = float(heading(j))
 
+    def snapshot(self) -> TakeSnapshot:
+        """The state as it is now (see ``restore``)."""
+        return TakeSnapshot(len(self.parts), self.frames, self.pos.copy(), self.yaw, dict(self.poses),
+                            list(self.grasped))
+
+    def restore(self, snap: TakeSnapshot) -> None:
+        """Roll back to ``snap``: the motions appended since are dropped."""
+        self.frames, self.pos, self.yaw, self.poses, self.grasped = (snap.frames, snap.pos, snap.yaw, snap.poses,
+                                                                      snap.grasped)
+        del self.parts[snap.parts:]
+
+    def motion(self) -> Motion:
+        """All motions so far, concatenated."""
+        return concat_motions(self.parts)
+
+    def object_tracks(self, ctx: RoomContext) -> dict[str, np.ndarray]:
+        """(T, 4, 4) world pose of every dynamic object over ``motion()`` (see ``_fill_tracks``)."""
+        return _fill_tracks(ctx, self.motion(), self.initial)
+
+    def finish(self, ctx: RoomContext) -> Take:
+        """The take: the parts concatenated, with labels, object tracks, contacts and metric terms."""
+        return _finish(ctx, self)
+
 
 def draw_actor(rng: np.random.Generator) -> np.ndarray:
     """A random actor's rest offsets (24, 3) m: overall scale U(0.9, 1.1) times symmetric per-bone
@@ -92,7 +139,7 @@ def draw_actor(rng: np.random.Generator) -> np.ndarray:
     return rest_offsets(scale * per)
 
 
-def object_tracks(ctx: RoomContext, motion: Motion, init: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def _fill_tracks(ctx: RoomContext, motion: Motion, init: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """(T, 4, 4) pose of every dynamic object: moved where a primitive gave it, else held at the
     last known pose (initially the scene pose)."""
     T = motion.num_frames
@@ -112,12 +159,11 @@ def object_tracks(ctx: RoomContext, motion: Motion, init: dict[str, np.ndarray])
     return out
 
 
-def finish_take(ctx: RoomContext, st: TakeState, init: dict[str, np.ndarray]) -> Take:
-    """Concatenate the parts and compute labels, object tracks, contacts and metric terms."""
-    m = concat_motions(st.parts)
+def _finish(ctx: RoomContext, st: TakeState) -> Take:
+    m = st.motion()
     T = m.num_frames
     joints, G = forward_kinematics(m.rot, m.root, m.offsets)
-    tracks = object_tracks(ctx, m, init)
+    tracks = _fill_tracks(ctx, m, st.initial)
     res = ctx.contacts.query(joints, tracks)
     con = contact_rule(joints, res, threshold=CONTACT_THRESHOLD, global_rot=G)
     # Floor contact of a foot: in contact with a surface point at floor level (the floor plane or

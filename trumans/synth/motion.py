@@ -57,6 +57,14 @@ class Motion:
         """(T, 24, 3, 3) global joint rotations."""
         return forward_kinematics(self.rot, self.root, self.offsets)[1]
 
+    def reversed(self, label: str) -> "Motion":
+        """This motion played backwards, labelled ``label`` on every frame; object tracks and grasp
+        flags are reversed with it."""
+        return Motion(rot=self.rot[::-1].copy(), root=self.root[::-1].copy(), offsets=self.offsets, fps=self.fps,
+                      foot_contact=self.foot_contact[::-1].copy(), actions=[ActionInterval(label, 0, self.num_frames - 1)],
+                      objects={k: v[::-1].copy() for k, v in self.objects.items()},
+                      grasp={k: v[::-1].copy() for k, v in self.grasp.items()})
+
     def rotations_6d(self) -> np.ndarray:
         """(T, 24, 6) float32 local 6D rotations (first two columns)."""
         return matrix_to_6d(self.rot).astype(np.float32)

@@ -7,13 +7,13 @@ import numpy as np
 from scenes.scene import SceneObject
 
 from trumans.contacts.rule import JOINT_RADIUS
-from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, forward_kinematics
 from trumans.ik.limb import limb_reach
-from .core import PLAN_FRAC, SHOULDER, Side, actor_scale
+from .core import PLAN_FRAC, SHOULDER, OutOfReach, Side, actor_scale
 from .lean import lean_candidates, lean_pose
 
 __all__ = ["LEAN_LIMIT", "ARM_JOINTS", "BODY_JOINTS", "CLEAR_PLAN", "CLEAR_TOL", "solid_boxes", "body_clear",
-           "lean_table"]
+           "lean_table", "require_body_clear"]
 
 # Lean limits (pitch rad, drop m) per object kind: a door handle at hip height needs no squat.
 LEAN_LIMIT = {"door": (np.radians(25.0), 0.05), "drawer": (np.inf, np.inf)}
@@ -78,3 +78,21 @@ def lean_table(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Sid
     first = np.argmax(ok, axis=1)  # cheapest feasible candidate (candidates are sorted by cost)
     return ok.any(axis=1), np.take_along_axis(np.broadcast_to(pitch, (N, K)), first, 1), \
         np.take_along_axis(np.broadcast_to(drop, (N, K)), first, 1)
+
+
+def require_body_clear(P: np.ndarray, solids: tuple[np.ndarray, np.ndarray, np.ndarray], what: str, hint: str) -> None:
+    """Final check on every frame of a generated motion: the body joints P (T, 24, 3), arms aside,
+    keep their contact radius (less ``CLEAR_TOL``) clear of the boxes ``solids`` (``solid_boxes``
+    at the T frames: (T, B, 4, 4) world-from-box, lo / hi (B, 3)). Raises OutOfReach naming the
+    deepest joint and ``hint`` (how to fix it)."""
+    frames, lo, hi = solids
+    inv = np.linalg.inv(frames)  # (T, B, 4, 4)
+    loc = np.einsum("tbij,tkj->tbki", inv[..., :3, :3], P[:, BODY_JOINTS]) + inv[:, :, None, :3, 3]
+    gap = np.linalg.norm(np.maximum(np.maximum(lo[None, :, None] - loc, loc - hi[None, :, None]), 0.0), axis=-1)
+    bad = (gap < JOINT_RADIUS[BODY_JOINTS] - CLEAR_TOL).any(axis=(1, 2))
+    if bad.any():
+        depth = JOINT_RADIUS[BODY_JOINTS] - gap  # (T, B, J)
+        j = BODY_JOINTS[int(np.unravel_index(int(depth.argmax()), depth.shape)[2])]
+        raise OutOfReach(f"{what}: the body would touch it on {int(bad.sum())} frames (first "
+                         f"{int(np.flatnonzero(bad)[0])}, {100 * float(depth.max()):.1f} cm deep, {JOINT_NAMES[j]}); "
+                         f"{hint}")

@@ -36,7 +36,7 @@ __all__ = [
     "Side", "WRIST", "INDEX1", "SHOULDER", "ELBOW", "SIGN", "PALM_GAP", "REACH_FRAC", "PLAN_FRAC", "OutOfReach",
     "palm_points", "hand_transform", "hand_frame", "heading_frame", "actor_scale", "slerp_track", "place_arm",
     "wrist_targets", "wrist_to_palm", "base_arrays", "base_palm", "is_seated", "finish_motion", "require_reached",
-    "reach_path", "hand_world",
+    "reach_path", "reach_hold_retract", "hand_world",
 ]
 
 Side = Literal["left", "right"]
@@ -250,3 +250,27 @@ def hand_world(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Sid
 def base_palm(base: Motion, side: Side) -> np.ndarray:
     """(T, 3) the base motion's own palm point of ``side``."""
     return palm_points(base.joints())[:, 0 if side == "left" else 1]
+
+
+def reach_hold_retract(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Side, palm_base: np.ndarray,
+                       held: np.ndarray, R_hand: np.ndarray, grip: int, release: int, reach: tuple[np.ndarray, np.ndarray],
+                       retract: tuple[np.ndarray, np.ndarray], ramp: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The ``side`` arm reaches from its base palm track ``palm_base`` (T, 3) to the palm point
+    ``reach[0]`` (3,) by frame ``grip``, arriving from outside along ``reach[1]`` (3,) (``reach_path``),
+    follows the palm track ``held`` (T, 3) world m on the hold frames grip..release, and retracts
+    from ``retract[0]`` to the base track by the last frame, leaving along ``retract[1]``; wrist
+    rotations ``R_hand`` (T, 3, 3). The arm's weight rises ``ramp`` times faster than the path
+    progress (eased), so the wrist is turned early. Returns (rot (T, 24, 3, 3), hold (T,) bool);
+    raises OutOfReach when the hand misses a hold frame."""
+    T = len(palm_base)
+    t = np.arange(T)
+    s_in = t / max(grip, 1)
+    s_out = (T - 1 - t) / max(T - 1 - release, 1)
+    path = np.where((t <= grip)[:, None], reach_path(palm_base, reach[0], reach[1], s_in),
+                    reach_path(palm_base, retract[0], retract[1], s_out))
+    hold = (t >= grip) & (t <= release)
+    path[hold] = held[hold]
+    w = np.where(hold, 1.0, ease(np.clip(np.minimum(s_in, s_out) * ramp, 0, 1)))
+    rot, reached = place_arm(rot, root, offsets, side, path, R_hand, w)
+    require_reached(reached, hold, what)
+    return rot, hold

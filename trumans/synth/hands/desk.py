@@ -17,10 +17,10 @@ from ..motion import Motion
 from ..poses import ease
 from .core import (
     PALM_GAP, WRIST, OutOfReach, Side, apply_h, base_arrays, check_pose, check_side, finish_motion, hand_frame,
-    hand_world, inv_h, is_seated, palm_points, place_arm, reach_path, require_reached, to_h, wrist_targets,
+    hand_world, inv_h, is_seated, palm_points, reach_hold_retract, to_h, wrist_targets,
 )
-from .lean import choose_lean, lean_pose, lean_travel
-from .timing import phases, ramp
+from .lean import choose_lean, lean_between, lean_travel
+from .timing import phases
 
 __all__ = ["TYPE_HOVER", "type_keyboard", "use_mouse"]
 
@@ -35,6 +35,20 @@ def _lean_for(base: Motion, frame: int, wrists: dict[str, np.ndarray], spread: n
         p, d = choose_lean(rot[frame], root[frame], off, side, w[None] + spread, is_seated(base))
         best = (max(best[0], p), max(best[1], d))
     return best
+
+
+def _lean_in(base: Motion, kind: str, rng: np.random.Generator, dist: float, pitch: float,
+             drop: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """The reach / work / retract phases of desk primitive ``kind``, timed for a palm travel of
+    ``dist`` m (or the lean's own travel, when longer), and the base leaned in (pitch rad, drop m)
+    for the work. Returns (rot, root, joints (T, 24, 3) of the leaned body, first work frame, last)."""
+    rot, root, off = base_arrays(base)
+    seated = is_seated(base)
+    dist = max(dist, lean_travel(rot[0], root[0], off, pitch, drop, seated))
+    ph = phases(kind, base.num_frames, rng, base.fps, moves={"reach": dist, "retract": dist})
+    r1, k1 = ph["reach"][1], ph["work"][1]
+    rot, root = lean_between(rot, root, off, pitch, drop, seated, r1, k1)
+    return rot, root, forward_kinematics(rot, root, off)[0], r1, k1
 
 
 def type_keyboard(base: Motion, keyboard: SceneObject, pose: np.ndarray, rng: np.random.Generator) -> Motion:
@@ -58,17 +72,9 @@ def type_keyboard(base: Motion, keyboard: SceneObject, pose: np.ndarray, rng: np
     pitch, drop = _lean_for(base, 0, {s: wrist_targets(palm[s], Rh[s], off, s) for s in pts}, spread)
     pb0 = palm_points(base.joints())
     dist = max(np.linalg.norm(palm[s] - pb0[f, k]) for k, s in enumerate(("left", "right")) for f in (0, -1)) + 0.05
-    dist = max(dist, lean_travel(rot[0], root[0], off, pitch, drop, is_seated(base)))
-    ph = phases("type", T, rng, base.fps, moves={"reach": dist, "retract": dist})
-    r1 = ph["reach"][1]
-    k1 = ph["work"][1]
-    lean = ramp(T, 0, r1) * (1 - ramp(T, k1, T - 1))
-    rot, root = lean_pose(rot, root, off, pitch * lean, drop * lean, is_seated(base))
-    P, _ = forward_kinematics(rot, root, off)
+    rot, root, P, r1, k1 = _lean_in(base, "type", rng, dist, pitch, drop)
     t = np.arange(T)
     tsec = t / base.fps
-    s_in = t / max(r1, 1)
-    s_out = (T - 1 - t) / max(T - 1 - k1, 1)
     typing = (t >= r1) & (t <= k1)
     env = np.clip(np.minimum(t - r1, k1 - t) / (0.3 * base.fps), 0, 1) * typing
     lateral = pose[:3, 1]
@@ -78,16 +84,11 @@ def type_keyboard(base: Motion, keyboard: SceneObject, pose: np.ndarray, rng: np
         tap = 0.008 * (0.5 + 0.5 * np.sin(2 * np.pi * f * tsec + ph0)) ** 2
         drift = 0.015 * np.sin(2 * np.pi * rng.uniform(0.1, 0.25) * tsec + rng.uniform(0, 2 * np.pi))
         work = palm[side] + (env * tap)[:, None] * up + (env * drift)[:, None] * lateral
-        out_dir = up
-        path = np.where((t <= r1)[:, None], reach_path(pb, palm[side], out_dir, s_in),
-                        reach_path(pb, palm[side], out_dir, s_out))
-        path[typing] = work[typing]
-        w = np.where(typing, 1.0, ease(np.clip(np.minimum(s_in, s_out) * 2.5, 0, 1)))
-        rot, reached = place_arm(rot, root, off, side, path, np.broadcast_to(Rh[side], (T, 3, 3)), w)
-        require_reached(reached, typing, f"type ({side} hand)")
+        rot, _ = reach_hold_retract(rot, root, off, side, pb, work, np.broadcast_to(Rh[side], (T, 3, 3)), r1, k1,
+                                    (palm[side], up), (palm[side], up), 2.5, f"type ({side} hand)")
     grasp = {WRIST[s]: typing.copy() for s in ("left", "right")}
     return finish_motion(base, rot, root, [ActionInterval("type", 0, T - 1)],
-                   {keyboard.name: np.broadcast_to(pose, (T, 4, 4)).copy()}, grasp)
+                         {keyboard.name: np.broadcast_to(pose, (T, 4, 4)).copy()}, grasp)
 
 
 def use_mouse(base: Motion, mouse: SceneObject, pose: np.ndarray, rng: np.random.Generator,
@@ -125,13 +126,7 @@ def use_mouse(base: Motion, mouse: SceneObject, pose: np.ndarray, rng: np.random
                 raise
     pb0 = palm_points(base.joints())[:, 0 if side == "left" else 1]
     dist = max(np.linalg.norm(palm - pb0[0]), np.linalg.norm(palm - pb0[-1])) + 0.09
-    dist = max(dist, lean_travel(rot[0], root[0], off, pitch, drop, is_seated(base)))
-    ph = phases("use_mouse", T, rng, base.fps, moves={"reach": dist, "retract": dist})
-    r1 = ph["reach"][1]
-    k1 = ph["work"][1]
-    lean = ramp(T, 0, r1) * (1 - ramp(T, k1, T - 1))
-    rot, root = lean_pose(rot, root, off, pitch * lean, drop * lean, is_seated(base))
-    P, _ = forward_kinematics(rot, root, off)
+    rot, root, P, r1, k1 = _lean_in(base, "use_mouse", rng, dist, pitch, drop)
     t = np.arange(T)
     tsec = t / base.fps
     working = (t >= r1) & (t <= k1)
@@ -156,18 +151,13 @@ def use_mouse(base: Motion, mouse: SceneObject, pose: np.ndarray, rng: np.random
     palm_t = apply_h(track, palm_l)
     R_t = track[:, :3, :3] @ R_l
     pb = palm_points(P)[:, 0 if side == "left" else 1]
-    s_in = t / max(r1, 1)
-    s_out = (T - 1 - t) / max(T - 1 - k1, 1)
-    path = np.where((t <= r1)[:, None], reach_path(pb, palm, up, s_in), reach_path(pb, palm_t[k1], up, s_out))
-    path[working] = palm_t[working]
     R = np.where((t <= k1)[:, None, None], R_t, np.broadcast_to(R_t[k1], (T, 3, 3)))
-    w = np.where(working, 1.0, ease(np.clip(np.minimum(s_in, s_out) * 2.5, 0, 1)))
-    rot, reached = place_arm(rot, root, off, side, path, R, w)
-    require_reached(reached, working, f"use_mouse {mouse.name}")
+    rot, _ = reach_hold_retract(rot, root, off, side, pb, palm_t, R, r1, k1, (palm, up), (palm_t[k1], up), 2.5,
+                                f"use_mouse {mouse.name}")
     H = hand_world(rot, root, off, side)
     offset = inv_h(H[r1]) @ pose
     out = np.broadcast_to(pose, (T, 4, 4)).copy()
     out[working] = H[working] @ offset
     out[t > k1] = out[k1]
     return finish_motion(base, rot, root, [ActionInterval("use_mouse", 0, T - 1)], {mouse.name: out},
-                   {WRIST[side]: working})
+                         {WRIST[side]: working})

@@ -13,19 +13,17 @@ from scipy.ndimage import gaussian_filter1d
 from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
-from trumans.contacts.rule import JOINT_RADIUS
 from trumans.rotations import yaw_matrix
-from trumans.skeleton import JOINT_NAMES, forward_kinematics
+from trumans.skeleton import forward_kinematics
 from .. import locomotion
 from ..legs import standing_state
 from ..motion import Motion, concat_motions
-from ..poses import ease
-from .clearance import BODY_JOINTS, CLEAR_TOL, LEAN_LIMIT, lean_table, solid_boxes
+from .clearance import LEAN_LIMIT, lean_table, require_body_clear, solid_boxes
 from .core import (
     PALM_GAP, WRIST, OutOfReach, Side, actor_scale, apply_h, base_arrays, check_pose, check_side, finish_motion,
-    hand_frame, palm_points, place_arm, reach_path, require_reached, to_h, unit, wrist_targets,
+    hand_frame, palm_points, reach_hold_retract, to_h, unit, wrist_targets,
 )
-from .lean import lean_pose
+from .lean import lean_between
 from .timing import HAND_SPEED, ramp
 
 __all__ = ["door_pose", "DoorStance", "door_stance", "open_door", "close_door"]
@@ -213,35 +211,16 @@ def _door_close_walk(offsets: np.ndarray, door: SceneObject, closed: np.ndarray,
     if not ok[diag, diag].all():
         raise OutOfReach(f"{label} {door.name}: the hand cannot follow the handle from this path; "
                          f"use door_stance and an opening up to its reach")
-    env = ramp(T, 0, g0) * (1 - ramp(T, g1, T - 1))
-    pitch = env * np.interp(prog, prog[idx], pitch_f[diag, diag])
-    drop = env * np.interp(prog, prog[idx], drop_f[diag, diag])
-    rot, root = lean_pose(rot, root, off, pitch, drop, False)
+    rot, root = lean_between(rot, root, off, np.interp(prog, prog[idx], pitch_f[diag, diag]),
+                             np.interp(prog, prog[idx], drop_f[diag, diag]), False, g0, g1)
     P, _ = forward_kinematics(rot, root, off)
     pb = palm_points(P)[:, k]
     hp = apply_h(poses, np.asarray(door.meta["handle"], dtype=np.float64))
-    s_in = t / max(g0, 1)
-    s_out = (T - 1 - t) / max(T - 1 - g1, 1)
-    path = np.where((t <= g0)[:, None], reach_path(pb, palm[g0], unit(palm[g0] - hp[g0]), s_in),
-                    reach_path(pb, palm[-1], unit(palm[-1] - hp[-1]), s_out))
-    hold = (t >= g0) & (t <= g1)
-    path[hold] = palm[hold]
-    w = np.where(hold, 1.0, ease(np.clip(np.minimum(s_in, s_out) * 2.0, 0, 1)))
-    rot, reached = place_arm(rot, root, off, side, path, R, w)
-    require_reached(reached, hold, f"{label} {door.name}")
+    rot, hold = reach_hold_retract(rot, root, off, side, pb, palm, R, g0, g1, (palm[g0], unit(palm[g0] - hp[g0])),
+                                   (palm[-1], unit(palm[-1] - hp[-1])), 2.0, f"{label} {door.name}")
     # Final check on every frame: the body (arms aside) keeps clear of the swinging leaf.
-    P, _ = forward_kinematics(rot, root, off)
-    fr_b, lo_b, hi_b = solid_boxes(door, poses, closed)
-    inv = np.linalg.inv(fr_b)
-    loc = np.einsum("tbij,tkj->tbki", inv[..., :3, :3], P[:, BODY_JOINTS]) + inv[:, :, None, :3, 3]
-    gap = np.linalg.norm(np.maximum(np.maximum(lo_b[None, :, None] - loc, loc - hi_b[None, :, None]), 0.0), axis=-1)
-    bad = (gap < JOINT_RADIUS[BODY_JOINTS] - CLEAR_TOL).any(axis=(1, 2))
-    if bad.any():
-        depth = JOINT_RADIUS[BODY_JOINTS] - gap  # (T, B, J)
-        j = BODY_JOINTS[int(np.unravel_index(int(depth.argmax()), depth.shape)[2])]
-        raise OutOfReach(f"{label} {door.name}: the body would touch the door on {int(bad.sum())} frames "
-                         f"(first {int(np.flatnonzero(bad)[0])}, {100 * float(depth.max()):.1f} cm deep, "
-                         f"{JOINT_NAMES[j]}); use door_stance")
+    require_body_clear(forward_kinematics(rot, root, off)[0], solid_boxes(door, poses, closed),
+                       f"{label} {door.name}", "use door_stance")
     return finish_motion(base, rot, root, [ActionInterval(label, 0, T - 1)], {door.name: poses}, {WRIST[side]: hold})
 
 
@@ -261,11 +240,7 @@ def open_door(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, angle:
     (``close_door`` with its own timing). Label 'open_door'; the door's pose track is returned."""
     closed = check_pose(closed, "closed")
     _check_door_angle(door, angle, stance)
-    m = _door_close_walk(offsets, door, closed, angle, stance, rng, fps, "open_door")
-    return Motion(rot=m.rot[::-1].copy(), root=m.root[::-1].copy(), offsets=m.offsets, fps=m.fps,
-                  foot_contact=m.foot_contact[::-1].copy(), actions=[ActionInterval("open_door", 0, m.num_frames - 1)],
-                  objects={k: v[::-1].copy() for k, v in m.objects.items()},
-                  grasp={k: v[::-1].copy() for k, v in m.grasp.items()})
+    return _door_close_walk(offsets, door, closed, angle, stance, rng, fps, "open_door").reversed("open_door")
 
 
 def close_door(offsets: np.ndarray, door: SceneObject, closed: np.ndarray, angle: float, rng: np.random.Generator,

@@ -12,19 +12,18 @@ import numpy as np
 from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
-from trumans.contacts.rule import JOINT_RADIUS
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import forward_kinematics
 from ..legs import standing_state
 from ..motion import Motion
 from ..poses import ease
-from .clearance import BODY_JOINTS, CLEAR_TOL, LEAN_LIMIT, lean_table, solid_boxes
+from .clearance import LEAN_LIMIT, lean_table, require_body_clear, solid_boxes
 from .core import (
     PALM_GAP, WRIST, OutOfReach, Side, actor_scale, apply_h, base_arrays, check_pose, check_side, finish_motion,
-    hand_frame, is_seated, palm_points, place_arm, reach_path, require_reached, to_h, unit, wrist_targets,
+    hand_frame, is_seated, palm_points, reach_hold_retract, to_h, unit, wrist_targets,
 )
-from .lean import lean_pose, lean_steps, lean_travel
-from .timing import phases, ramp
+from .lean import lean_between, lean_steps, lean_travel
+from .timing import phases
 
 __all__ = ["drawer_pose", "Stance", "drawer_stance", "open_drawer", "close_drawer"]
 
@@ -124,7 +123,7 @@ def _articulate(base: Motion, obj: SceneObject, kin_fn, hand_fn, q0: float, q1: 
     rot, root, off = base_arrays(base)
     qs = np.linspace(q0, q1, 17)
     p_s, R_s = hand_fn(obj, kin_fn(qs), side)
-    limit = LEAN_LIMIT["door" if "door" in label else "drawer"]
+    limit = LEAN_LIMIT["drawer"]
     solids = solid_boxes(obj, kin_fn(qs), kin_fn(0.0))
     ok, pitch_q, drop_q = lean_table(rot[:1], root[:1], off, side, wrist_targets(p_s, R_s, off, side), solids,
                                       limit, is_seated(base))
@@ -158,56 +157,36 @@ def _articulate(base: Motion, obj: SceneObject, kin_fn, hand_fn, q0: float, q1: 
     poses = kin_fn(q)
     palm, R = hand_fn(obj, poses, side)
     # The torso leans as each opening needs (interpolated between the 17 planned openings).
-    env = ramp(T, 0, g0) * (1 - ramp(T, r1, T - 1))
-    pitch = env * np.interp(kpos, np.arange(len(qs)), pitch_q)
-    drop = env * np.interp(kpos, np.arange(len(qs)), drop_q)
-    rot, root = lean_pose(rot, root, off, pitch, drop, seated)
+    rot, root = lean_between(rot, root, off, np.interp(kpos, np.arange(len(qs)), pitch_q),
+                             np.interp(kpos, np.arange(len(qs)), drop_q), seated, g0, r1)
     P, _ = forward_kinematics(rot, root, off)
     pb = palm_points(P)[:, 0 if side == "left" else 1]
-    out_in = unit(palm[g0] - apply_h(poses[g0], np.asarray(obj.meta["handle"], dtype=np.float64)))
-    out_out = unit(palm[-1] - apply_h(poses[-1], np.asarray(obj.meta["handle"], dtype=np.float64)))
-    s_in = t / max(g0, 1)
-    s_out = (T - 1 - t) / max(T - 1 - r1, 1)
-    path = np.where((t <= g0)[:, None], reach_path(pb, palm[g0], out_in, s_in),
-                    reach_path(pb, palm[-1], out_out, s_out))
-    hold = (t >= g0) & (t <= r1)
-    path[hold] = palm[hold]
-    w = np.where(hold, 1.0, ease(np.clip(np.minimum(s_in, s_out) * 2.0, 0, 1)))
-    rot, reached = place_arm(rot, root, off, side, path, R, w)
-    require_reached(reached, hold, f"{label} {obj.name}")
-    # Final check on every frame: the body (arms aside) keeps clear of the object as it moves.
-    P, _ = forward_kinematics(rot, root, off)
-    fr, lo_b, hi_b = solid_boxes(obj, poses, kin_fn(0.0))
-    inv = np.linalg.inv(fr)  # (T, B, 4, 4)
-    loc = np.einsum("tbij,tkj->tbki", inv[..., :3, :3], P[:, BODY_JOINTS]) + inv[:, :, None, :3, 3]
-    gap = np.linalg.norm(np.maximum(np.maximum(lo_b[None, :, None] - loc, loc - hi_b[None, :, None]), 0.0), axis=-1)
-    bad = (gap < JOINT_RADIUS[BODY_JOINTS] - CLEAR_TOL).any(axis=(1, 2))
-    if bad.any():
-        depth = float((JOINT_RADIUS[BODY_JOINTS] - gap).max())
-        raise OutOfReach(f"{label} {obj.name}: the body would touch the object on {int(bad.sum())} frames "
-                         f"(first {int(np.flatnonzero(bad)[0])}, {100 * depth:.1f} cm deep); use the stance "
-                         f"from door_stance / drawer_stance")
+    handle = np.asarray(obj.meta["handle"], dtype=np.float64)
+    rot, hold = reach_hold_retract(rot, root, off, side, pb, palm, R, g0, r1,
+                                   (palm[g0], unit(palm[g0] - apply_h(poses[g0], handle))),
+                                   (palm[-1], unit(palm[-1] - apply_h(poses[-1], handle))), 2.0, f"{label} {obj.name}")
+    require_body_clear(forward_kinematics(rot, root, off)[0], solid_boxes(obj, poses, kin_fn(0.0)),
+                       f"{label} {obj.name}", "use the stance from drawer_stance")
     return finish_motion(base, rot, root, [ActionInterval(label, 0, T - 1)], {obj.name: poses}, {WRIST[side]: hold})
+
+
+def _move_drawer(base: Motion, drawer: SceneObject, closed: np.ndarray, q0: float, q1: float, label: str,
+                 side: Side, rng: np.random.Generator) -> Motion:
+    closed = check_pose(closed, "closed")
+    mt = float(drawer.meta["max_travel"])
+    if not (0.0 <= q0 <= mt and 0.0 <= q1 <= mt):
+        raise ValueError(f"drawer travel must lie in [0, {mt}] m, got {q0} -> {q1}")
+    return _articulate(base, drawer, lambda x: drawer_pose(drawer, closed, x), _drawer_hand, q0, q1, label, side, rng)
 
 
 def open_drawer(base: Motion, drawer: SceneObject, closed: np.ndarray, travel: float, rng: np.random.Generator,
                 side: Side = "right", start: float = 0.0) -> Motion:
     """Pull ``drawer`` (closed world pose (4, 4)) out from ``start`` to ``travel`` m (within
     [0, max_travel]) by its handle. Label 'open_drawer'; the drawer's pose track is returned."""
-    closed = check_pose(closed, "closed")
-    mt = float(drawer.meta["max_travel"])
-    if not 0.0 <= start <= mt or not 0.0 <= travel <= mt:
-        raise ValueError(f"drawer travel must lie in [0, {mt}] m, got start={start}, travel={travel}")
-    return _articulate(base, drawer, lambda x: drawer_pose(drawer, closed, x), _drawer_hand, start, travel,
-                       "open_drawer", side, rng)
+    return _move_drawer(base, drawer, closed, start, travel, "open_drawer", side, rng)
 
 
 def close_drawer(base: Motion, drawer: SceneObject, closed: np.ndarray, travel: float, rng: np.random.Generator,
                  side: Side = "right", end: float = 0.0) -> Motion:
     """Push ``drawer`` from ``travel`` m back to ``end`` (default closed). Label 'close_drawer'."""
-    closed = check_pose(closed, "closed")
-    mt = float(drawer.meta["max_travel"])
-    if not 0.0 <= end <= mt or not 0.0 <= travel <= mt:
-        raise ValueError(f"drawer travel must lie in [0, {mt}] m, got travel={travel}, end={end}")
-    return _articulate(base, drawer, lambda x: drawer_pose(drawer, closed, x), _drawer_hand, travel, end,
-                       "close_drawer", side, rng)
+    return _move_drawer(base, drawer, closed, travel, end, "close_drawer", side, rng)

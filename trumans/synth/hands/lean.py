@@ -8,8 +8,9 @@ from trumans.skeleton import JOINT_INDEX, forward_kinematics
 from trumans.ik.limb import limb_reach
 from ..legs import pelvis_height_limit, solve_legs
 from .core import PLAN_FRAC, SHOULDER, OutOfReach, Side, actor_scale, rodrigues
+from .timing import ramp
 
-__all__ = ["lean_pose", "lean_candidates", "choose_lean", "lean_travel", "lean_steps"]
+__all__ = ["lean_pose", "lean_candidates", "choose_lean", "lean_travel", "lean_steps", "lean_between"]
 
 def lean_pose(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, pitch: np.ndarray, drop: np.ndarray,
                seated: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -95,3 +96,12 @@ def lean_steps(rot1: np.ndarray, root1: np.ndarray, offsets: np.ndarray, pitch: 
     rot, root = lean_pose(np.repeat(rot1[None], A, 0), np.repeat(root1[None], A, 0), offsets, pitch, drop, seated)
     P, _ = forward_kinematics(rot, root, offsets)
     return np.linalg.norm(np.diff(P, axis=0), axis=-1).max(axis=1)
+
+
+def lean_between(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, pitch: np.ndarray | float,
+                 drop: np.ndarray | float, seated: bool, full: int, back: int) -> tuple[np.ndarray, np.ndarray]:
+    """``lean_pose`` of the body rot (T, 24, 3, 3), root (T, 3) with the lean (pitch rad, drop m;
+    scalars or (T,)) eased in over frames 0..``full`` and out over ``back``..T-1."""
+    T = rot.shape[0]
+    w = ramp(T, 0, full) * (1 - ramp(T, back, T - 1))
+    return lean_pose(rot, root, offsets, pitch * w, drop * w, seated)

@@ -21,10 +21,10 @@ from ..motion import Motion
 from ..poses import ease, slerp_rot
 from .core import (
     PALM_GAP, SHOULDER, SIGN, UP, WRIST, Side, actor_scale, apply_h, base_arrays, base_palm, check_pose, check_side,
-    finish_motion, hand_frame, hand_world, heading_frame, inv_h, is_seated, palm_points, place_arm, reach_path,
-    require_reached, unit, wrist_targets, wrist_to_palm,
+    finish_motion, hand_frame, hand_world, heading_frame, inv_h, is_seated, palm_points, place_arm, reach_hold_retract,
+    reach_path, require_reached, unit, wrist_targets, wrist_to_palm,
 )
-from .lean import choose_lean, lean_pose, lean_travel
+from .lean import choose_lean, lean_between, lean_pose, lean_travel
 from .timing import phases, ramp
 
 __all__ = ["Hold", "carry_pose", "grasp_target", "hand_for", "reach_grasp", "pick_up", "carry", "put_down"]
@@ -125,23 +125,15 @@ def reach_grasp(base: Motion, obj: SceneObject, pose: np.ndarray, side: Side, rn
                                                          "release": max(np.linalg.norm(palm - pb[-1]) + 0.05, lt)})
     g0, g1 = ph["grasp"]
     rot, root, off = base_arrays(base)
-    lean = ramp(T, 0, g0) * (1 - ramp(T, g1, T - 1))
-    rot, root = lean_pose(rot, root, off, pitch * lean, drop * lean, is_seated(base))
+    rot, root = lean_between(rot, root, off, pitch, drop, is_seated(base), g0, g1)
     P, _ = forward_kinematics(rot, root, off)
     palm_b = palm_points(P)[:, 0 if side == "left" else 1]
     out = unit(unit(palm - surf) + [0.0, 0.0, 1.0])  # arrive from outside and above (clear the support)
-    s_in = np.arange(T) / max(g0, 1)
-    s_out = (T - 1 - np.arange(T)) / max(T - 1 - g1, 1)
-    path = np.where((np.arange(T) <= g0)[:, None], reach_path(palm_b, palm, out, s_in),
-                    reach_path(palm_b, palm, out, s_out))
-    w = np.clip(np.minimum(s_in, s_out) * 4, 0, 1)  # orientation weight reaches 1 early in the reach
-    hold = (np.arange(T) >= g0) & (np.arange(T) <= g1)
-    path[hold] = palm
-    w = np.where(hold, 1.0, ease(w))
-    rot, reached = place_arm(rot, root, off, side, path, np.broadcast_to(Rh, (T, 3, 3)), w)
-    require_reached(reached, hold, f"reach_grasp {obj.name}")
+    rot, hold = reach_hold_retract(rot, root, off, side, palm_b, np.broadcast_to(palm, (T, 3)),
+                                   np.broadcast_to(Rh, (T, 3, 3)), g0, g1, (palm, out), (palm, out), 4.0,
+                                   f"reach_grasp {obj.name}")
     return finish_motion(base, rot, root, [ActionInterval("reach", 0, g0), ActionInterval("grasp", g0, g1)],
-                   {obj.name: np.broadcast_to(pose, (T, 4, 4)).copy()}, {WRIST[side]: hold})
+                         {obj.name: np.broadcast_to(pose, (T, 4, 4)).copy()}, {WRIST[side]: hold})
 
 
 def pick_up(base: Motion, obj: SceneObject, pose: np.ndarray, side: Side, rng: np.random.Generator,

@@ -16,13 +16,12 @@ from trumans.skeleton import forward_kinematics
 from .. import locomotion
 from ..legs import standing_state
 from ..motion import Motion, concat_motions
-from ..poses import ease
 from .core import (
     PALM_GAP, WRIST, actor_scale, apply_h, base_arrays, check_pose, finish_motion, hand_frame, palm_points,
-    place_arm, reach_path, require_reached, unit, wrist_targets,
+    reach_hold_retract, unit, wrist_targets,
 )
-from .lean import choose_lean, lean_pose
-from .timing import HAND_SPEED, ramp
+from .lean import choose_lean, lean_between
+from .timing import HAND_SPEED
 
 __all__ = ["push_handles", "push_stance", "push", "pull"]
 
@@ -80,7 +79,6 @@ def push(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray, distance: floa
     m3 = locomotion.stand(offsets, pos + distance * fwd, yaw, n3, rng, fps=fps)
     base = concat_motions([m1, m2, m3])
     T = base.num_frames
-    t = np.arange(T)
     g0, g1 = n1 - 1, n1 + m2.num_frames
     # Object displacement: the pelvis' xy displacement along the walk, smoothed (no gait sway).
     disp = base.root[:, :2] - pos
@@ -101,24 +99,16 @@ def push(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray, distance: floa
     slack = 0.04 * np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, -1.0, 0], [0, 0, 1.0], [0, 0, -1.0]])
     leans = [choose_lean(rot[g0], root[g0], off, s, wr[k] + slack, False) for k, s in enumerate(("left", "right"))]
     pitch, drop = max(lp[0] for lp in leans), max(lp[1] for lp in leans)
-    lean = ramp(T, 0, g0) * (1 - ramp(T, g1, T - 1))
-    rot, root = lean_pose(rot, root, off, pitch * lean, drop * lean, False)
+    rot, root = lean_between(rot, root, off, pitch, drop, False, g0, g1)
     P, _ = forward_kinematics(rot, root, off)
-    hold = (t >= g0) & (t <= g1)
-    s_in = t / max(g0, 1)
-    s_out = (T - 1 - t) / max(T - 1 - g1, 1)
     up = pose[:3, 2]
+    grasp = {}
     for k, side in enumerate(("left", "right")):
-        pb = palm_points(P)[:, k]
-        path = np.where((t <= g0)[:, None], reach_path(pb, palm[g0, k], up, s_in),
-                        reach_path(pb, palm[-1, k], up, s_out))
-        path[hold] = palm[hold, k]
-        w = np.where(hold, 1.0, ease(np.clip(np.minimum(s_in, s_out) * 2.0, 0, 1)))
-        rot, reached = place_arm(rot, root, off, side, path, R[:, k], w)
-        require_reached(reached, hold, f"{label} {obj.name} ({side} hand)")
-    grasp = {WRIST[s]: hold.copy() for s in ("left", "right")}
+        rot, grasp[WRIST[side]] = reach_hold_retract(rot, root, off, side, palm_points(P)[:, k], palm[:, k], R[:, k],
+                                                     g0, g1, (palm[g0, k], up), (palm[-1, k], up), 2.0,
+                                                     f"{label} {obj.name} ({side} hand)")
     return finish_motion(base, rot, root, [ActionInterval("reach", 0, g0), ActionInterval(label, g0, T - 1)],
-                   {obj.name: poses}, grasp)
+                         {obj.name: poses}, grasp)
 
 
 def push_stance(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray) -> tuple[np.ndarray, float]:
@@ -143,9 +133,4 @@ def pull(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray, distance: floa
     f = pose[:3, :3] @ face
     back = np.eye(4)
     back[:2, 3] = -distance * unit(np.array([f[0], f[1]]))
-    m = push(offsets, obj, back @ pose, distance, rng, fps, label="pull")
-    T = m.num_frames
-    return Motion(rot=m.rot[::-1].copy(), root=m.root[::-1].copy(), offsets=m.offsets, fps=m.fps,
-                  foot_contact=m.foot_contact[::-1].copy(), actions=[ActionInterval("pull", 0, T - 1)],
-                  objects={k: v[::-1].copy() for k, v in m.objects.items()},
-                  grasp={k: v[::-1].copy() for k, v in m.grasp.items()})
+    return push(offsets, obj, back @ pose, distance, rng, fps, label="pull").reversed("pull")

@@ -1,6 +1,8 @@
 """Activities with furniture: open and close a door or a drawer, push / pull a chair, stool or table."""
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from . import hands
@@ -9,55 +11,61 @@ from .moves import check_clean, go_to, grasped_by, idle, stand_base
 from .room import RoomContext
 from .take import Skip, TakeState
 
-__all__ = ["MIN_DOOR_ANGLE", "run_door", "run_drawer", "run_push_pull", "pushable"]
+__all__ = ["MIN_DOOR_ANGLE", "MIN_DRAWER_TRAVEL", "run_door", "run_drawer", "run_push_pull", "pushable"]
 
 MIN_DOOR_ANGLE = 0.8  # rad, a door opened less than this is no use: skip the activity
+MIN_DRAWER_TRAVEL = 0.12  # m, the same for a drawer
+
+
+def _stance(plan, st: TakeState, obj, closed: np.ndarray, least: float, unit: str):
+    """``plan(offsets, obj, closed)`` (door_stance / drawer_stance); Skip when no stance works or
+    the opening reachable from it is under ``least`` (rad / m: ``unit``)."""
+    try:
+        stance = plan(st.offsets, obj, closed)
+    except hands.OutOfReach as e:
+        raise Skip(str(e)) from e
+    if stance.reach < least:
+        raise Skip(f"{obj.name} opens only {stance.reach:.2f} {unit} from its stance")
+    return stance
+
+
+def _open_wait_close(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str, stance,
+                     open_it: Callable[[], Motion], close_it: Callable[[], Motion], kind: str) -> None:
+    """Walk to the stance, open ``name`` (``open_it()``), wait a moment, close it (``close_it()``);
+    the motions are labelled open_<kind> / close_<kind>."""
+    go_to(ctx, st, rng, stance.pos, stance.yaw)
+    try:
+        m = open_it()
+        st.append(check_clean(ctx, st, m, f"open_{kind} {name}"), grasped_by(m, name))
+        st.append(idle(ctx, st, rng, 0.3, 1.5))
+        m = close_it()
+    except hands.OutOfReach as e:
+        raise Skip(str(e)) from e
+    st.append(check_clean(ctx, st, m, f"close_{kind} {name}"), grasped_by(m, name))
 
 
 def run_door(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
     """Walk to the door, pull it open stepping back, wait, push it closed stepping forwards."""
     door = ctx.scene.objects[name]
     closed = st.poses[name].copy()
-    try:
-        stance = hands.door_stance(st.offsets, door, closed)
-    except hands.OutOfReach as e:
-        raise Skip(str(e)) from e
-    if stance.reach < MIN_DOOR_ANGLE:
-        raise Skip(f"{name} opens only {stance.reach:.2f} rad from its stance")
+    stance = _stance(hands.door_stance, st, door, closed, MIN_DOOR_ANGLE, "rad")
     angle = float(min(stance.reach, rng.uniform(0.6, 1.0) * float(door.meta["max_angle"])))  # rad
-    go_to(ctx, st, rng, stance.pos, stance.yaw)
-    try:
-        m = hands.open_door(st.offsets, door, closed, angle, rng, stance, fps=ctx.fps)
-        st.append(check_clean(ctx, st, m, f"open_door {name}"), grasped_by(m, name))
-        st.append(idle(ctx, st, rng, 0.3, 1.5))
-        m = hands.close_door(st.offsets, door, closed, angle, rng, stance, fps=ctx.fps)
-    except hands.OutOfReach as e:
-        raise Skip(str(e)) from e
-    st.append(check_clean(ctx, st, m, f"close_door {name}"), grasped_by(m, name))
+    _open_wait_close(ctx, st, rng, name, stance,
+                     lambda: hands.open_door(st.offsets, door, closed, angle, rng, stance, fps=ctx.fps),
+                     lambda: hands.close_door(st.offsets, door, closed, angle, rng, stance, fps=ctx.fps), "door")
 
 
 def run_drawer(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
     """Walk to a cabinet drawer, pull it out, wait, push it closed."""
     dr = ctx.scene.objects[name]
     closed = st.poses[name].copy()
-    try:
-        stance = hands.drawer_stance(st.offsets, dr, closed)
-    except hands.OutOfReach as e:
-        raise Skip(str(e)) from e
-    if stance.reach < 0.12:
-        raise Skip(f"{name} opens only {stance.reach:.2f} m from its stance")
+    stance = _stance(hands.drawer_stance, st, dr, closed, MIN_DRAWER_TRAVEL, "m")
     travel = float(min(stance.reach, rng.uniform(0.5, 1.0) * float(dr.meta["max_travel"])))
-    go_to(ctx, st, rng, stance.pos, stance.yaw)
-    try:
-        m = hands.open_drawer(stand_base(ctx, st, rng, "open_drawer"), dr, closed, travel, rng,
-                                        side=stance.side)
-        st.append(check_clean(ctx, st, m, f"open_drawer {name}"), grasped_by(m, name))
-        st.append(idle(ctx, st, rng, 0.3, 1.5))
-        m = hands.close_drawer(stand_base(ctx, st, rng, "close_drawer"), dr, closed, travel, rng,
-                                         side=stance.side)
-    except hands.OutOfReach as e:
-        raise Skip(str(e)) from e
-    st.append(check_clean(ctx, st, m, f"close_drawer {name}"), grasped_by(m, name))
+    _open_wait_close(ctx, st, rng, name, stance,
+                     lambda: hands.open_drawer(stand_base(ctx, st, rng, "open_drawer"), dr, closed, travel, rng,
+                                               side=stance.side),
+                     lambda: hands.close_drawer(stand_base(ctx, st, rng, "close_drawer"), dr, closed, travel, rng,
+                                                side=stance.side), "drawer")
 
 
 def _object_clear(ctx: RoomContext, name: str, pose: np.ndarray) -> bool:

@@ -107,19 +107,20 @@ def run_pick_place(ctx: RoomContext, st: TakeState, rng: np.random.Generator, na
     _release(ctx, st, rng, hold, target)
 
 
-def run_drink(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
-    """Pick up a bottle or cup, drink, put it back where it was."""
+def _use_and_put_back(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str, kind: str, use) -> None:
+    """Pick object ``name`` up, use it (``use(base, hold, obj, rng)``, primitive ``kind``), put it back."""
     where = st.poses[name].copy()
     hold = _grab(ctx, st, rng, name)
-    m = hands.drink(stand_base(ctx, st, rng, "drink"), hold, ctx.scene.objects[name], rng)
-    st.append(check_clean(ctx, st, m, f"drink {name}"), {hands.WRIST[hold.side]: name})
+    m = use(stand_base(ctx, st, rng, kind), hold, ctx.scene.objects[name], rng)
+    st.append(check_clean(ctx, st, m, f"{kind} {name}"), {hands.WRIST[hold.side]: name})
     _release(ctx, st, rng, hold, where)
+
+
+def run_drink(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
+    """Pick up a bottle or cup, drink, put it back where it was."""
+    _use_and_put_back(ctx, st, rng, name, "drink", hands.drink)
 
 
 def run_phone_call(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
     """Pick up a phone, make a call, put it back where it was."""
-    where = st.poses[name].copy()
-    hold = _grab(ctx, st, rng, name)
-    m = hands.phone_call(stand_base(ctx, st, rng, "phone_call"), hold, ctx.scene.objects[name], rng)
-    st.append(check_clean(ctx, st, m, f"phone_call {name}"), {hands.WRIST[hold.side]: name})
-    _release(ctx, st, rng, hold, where)
+    _use_and_put_back(ctx, st, rng, name, "phone_call", hands.phone_call)

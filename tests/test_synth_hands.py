@@ -379,7 +379,8 @@ def test_bad_inputs_and_determinism():
     with pytest.raises(ValueError, match="4, 4"):
         hands.pick_up(base, obj, np.eye(3), "right", rng)
     with pytest.raises(ValueError, match="door angle"):
-        st = hands.DoorStance(pos=np.array([0.5, 0.3]), yaw=np.pi, side="right", reach=1.0, open_pos=np.array([1.0, 0.3]))
+        st = hands.DoorStance(pos=np.array([0.5, 0.3]), yaw=np.pi, side="right", reach=1.0,
+                              open_pos=np.array([1.0, 0.3]))
         hands.open_door(OFF, door(), np.eye(4), 2.0, rng, st)
     with pytest.raises(ValueError, match="unknown primitive"):
         hands.nominal_frames("juggle", rng)

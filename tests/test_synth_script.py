@@ -31,8 +31,8 @@ def _perform(ctx: RoomContext, activity: str, name: str, seed: int) -> TakeState
     rng = np.random.default_rng(seed)
     cells = np.argwhere(ctx.plans[0].walkable)
     st = TakeState(offsets=draw_actor(rng), speed=1.1, pos=ctx.plans[0].centers(cells[rng.integers(len(cells))]),
-                  yaw=float(rng.uniform(-np.pi, np.pi)),
-                  poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
+                   yaw=float(rng.uniform(-np.pi, np.pi)),
+                   poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
     st.append(idle(ctx, st, rng))
     try:
         ACTIVITIES[activity].run(ctx, st, rng, name)
@@ -140,7 +140,7 @@ def test_turns_and_walks_keep_floor_contacts_planted(tmp_path):
     ctx = _context(tmp_path, 1, ["table"], size=(6.0, 6.0))
     rng = np.random.default_rng(2)
     st = TakeState(offsets=draw_actor(rng), speed=1.2, pos=np.array([1.5, 1.5]), yaw=0.0,
-                  poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
+                   poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
     st.append(idle(ctx, st, rng))
     for _ in range(6):
         try:

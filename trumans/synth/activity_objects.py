@@ -67,7 +67,8 @@ def _release(ctx: RoomContext, st: TakeState, rng: np.random.Generator, hold, ta
     st.append(check_clean(ctx, st, m, f"put_down {hold.name}"), {hands.WRIST[hold.side]: hold.name})
 
 
-def _free_spot(ctx: RoomContext, st: TakeState, rng: np.random.Generator, support: str, moving: str) -> np.ndarray | None:
+def _free_spot(ctx: RoomContext, st: TakeState, rng: np.random.Generator, support: str,
+               moving: str) -> np.ndarray | None:
     """A world pose on ``support``'s top near its front edge, >= 12 cm from other small objects."""
     sup = ctx.scene.objects[support]
     sx, sy = sup.meta["surface_size"]

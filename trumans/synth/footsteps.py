@@ -31,7 +31,7 @@ class Style:
     def draw(rng: np.random.Generator) -> "Style":
         u = rng.uniform
         return Style(arm_swing=u(0.2, 0.38), elbow=u(0.05, 0.25), lean=u(0.02, 0.08), twist=u(0.04, 0.09),
-                      width=u(0.75, 1.0), toe_out=u(0.0, 0.12), lift=u(0.05, 0.08), head=u(-0.05, 0.08))
+                     width=u(0.75, 1.0), toe_out=u(0.0, 0.12), lift=u(0.05, 0.08), head=u(-0.05, 0.08))
 
 
 def stance_plan(tl: Timeline, offsets: np.ndarray, style: Style, rng: np.random.Generator):

@@ -121,7 +121,7 @@ def turn_plan(xy: np.ndarray, y0: float, y1: float, fps: float, first_foot: int 
 
 
 def walk_plan(pts: np.ndarray, speed: float, step_len: float, fps: float, y_start: float, y_end: float,
-               first_foot: int):
+              first_foot: int):
     s_path = arc_length(pts)
     s = speed_profile(pts, speed, fps)
     T = len(s)

@@ -151,8 +151,8 @@ def walk(
         y0 = y_path0
     ff = tl.next_foot()
     xy, yaw, vel, swings = walk_plan(pts, speed, step_len, fps, y0,
-                                      y_path1 if abs(wrap_angle(y_path1 - y1)) > turn_threshold else y1,
-                                      int(rng.integers(2)) if ff is None else ff)
+                                     y_path1 if abs(wrap_angle(y_path1 - y1)) > turn_threshold else y1,
+                                     int(rng.integers(2)) if ff is None else ff)
     if tl.T:  # the turn's last frame is the walk's first state: drop the duplicate
         xy, yaw, vel = xy[1:], yaw[1:], vel[1:]
         swings = [(c - 1 / fps, f, d) for c, f, d in swings]

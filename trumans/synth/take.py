@@ -112,7 +112,7 @@ class TakeState:
     def restore(self, snap: TakeSnapshot) -> None:
         """Roll back to ``snap``: the motions appended since are dropped."""
         self.frames, self.pos, self.yaw, self.poses, self.grasped = (snap.frames, snap.pos, snap.yaw, snap.poses,
-                                                                      snap.grasped)
+                                                                     snap.grasped)
         del self.parts[snap.parts:]
 
     def motion(self) -> Motion:

@@ -52,7 +52,7 @@ def body_clear(P: np.ndarray, frames: np.ndarray, lo: np.ndarray, hi: np.ndarray
 
 
 def lean_table(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Side, wrists: np.ndarray,
-                solids, limit: tuple[float, float], seated: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               solids, limit: tuple[float, float], seated: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per body state and opening, the cheapest feasible lean. rot (N, 24, 3, 3), root (N, 3) body
     states; wrists (A, 3) wrist targets of openings 0..A-1; solids: ``solid_boxes`` at them.
     Returns (feasible (N, A) bool, pitch (N, A) rad, drop (N, A) m): the lean lets the shoulder reach
@@ -65,7 +65,7 @@ def lean_table(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Sid
     pp = (sc[:, None] * pitch[None]).ravel()
     dd = (sc[:, None] * drop[None]).ravel()
     rr, ro = lean_pose(np.repeat(rot, 3 * K, 0), np.repeat(root, 3 * K, 0), offsets, np.tile(pp, N),
-                        np.tile(dd, N), seated)
+                       np.tile(dd, N), seated)
     P, _ = forward_kinematics(rr, ro, offsets)
     lo, hi = limb_reach(offsets, f"{side}_arm")
     Pf = P.reshape(N, 3, K, 24, 3)[:, 0].reshape(N * K, 24, 3)

@@ -222,7 +222,9 @@ def is_seated(base: Motion) -> bool:
 
 
 def finish_motion(base: Motion, rot: np.ndarray, root: np.ndarray, actions: list[ActionInterval],
-            objects: dict[str, np.ndarray], grasp: dict[int, np.ndarray]) -> Motion:
+                  objects: dict[str, np.ndarray], grasp: dict[int, np.ndarray]) -> Motion:
+    """The primitive's result: ``base`` with the new rotations / root, its foot contacts, and the
+    primitive's action intervals, object tracks (name -> (T, 4, 4)) and grasp flags (wrist -> (T,))."""
     return Motion(rot=rot, root=root, offsets=base.offsets, fps=base.fps, foot_contact=base.foot_contact.copy(),
                   actions=actions, objects=objects, grasp=grasp)
 
@@ -235,7 +237,7 @@ def require_reached(reached: np.ndarray, frames: np.ndarray, what: str) -> None:
 
 
 def reach_path(palm0: np.ndarray, palm1: np.ndarray, out: np.ndarray, s: np.ndarray,
-                clear: float = 0.08) -> np.ndarray:
+               clear: float = 0.08) -> np.ndarray:
     """Palm path (T, 3) from palm0 (T, 3) at s = 0 to palm1 (3,) at s = 1, bowed out along ``out``
     (the outward surface direction at the target) so that the hand arrives from outside."""
     e = ease(s)[:, None]
@@ -253,8 +255,9 @@ def base_palm(base: Motion, side: Side) -> np.ndarray:
 
 
 def reach_hold_retract(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Side, palm_base: np.ndarray,
-                       held: np.ndarray, R_hand: np.ndarray, grip: int, release: int, reach: tuple[np.ndarray, np.ndarray],
-                       retract: tuple[np.ndarray, np.ndarray], ramp: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+                       held: np.ndarray, R_hand: np.ndarray, grip: int, release: int,
+                       reach: tuple[np.ndarray, np.ndarray], retract: tuple[np.ndarray, np.ndarray], ramp: float,
+                       what: str) -> tuple[np.ndarray, np.ndarray]:
     """The ``side`` arm reaches from its base palm track ``palm_base`` (T, 3) to the palm point
     ``reach[0]`` (3,) by frame ``grip``, arriving from outside along ``reach[1]`` (3,) (``reach_path``),
     follows the palm track ``held`` (T, 3) world m on the hold frames grip..release, and retracts

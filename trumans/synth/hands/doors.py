@@ -206,7 +206,7 @@ def _door_close_walk(offsets: np.ndarray, door: SceneObject, closed: np.ndarray,
     idx = np.clip(np.searchsorted(prog, fr * (1 - 1e-9)), g0, g1)  # frames at those progress points
     no_boxes = (np.zeros((len(idx), 0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3)))  # clearance: checked below
     ok, pitch_f, drop_f = lean_table(rot[idx], root[idx], off, side,
-                                      wrist_targets(palm[idx], R[idx], off, side), no_boxes, LEAN_LIMIT["door"])
+                                     wrist_targets(palm[idx], R[idx], off, side), no_boxes, LEAN_LIMIT["door"])
     diag = np.arange(len(idx))
     if not ok[diag, diag].all():
         raise OutOfReach(f"{label} {door.name}: the hand cannot follow the handle from this path; "

@@ -126,7 +126,7 @@ def _articulate(base: Motion, obj: SceneObject, kin_fn, hand_fn, q0: float, q1: 
     limit = LEAN_LIMIT["drawer"]
     solids = solid_boxes(obj, kin_fn(qs), kin_fn(0.0))
     ok, pitch_q, drop_q = lean_table(rot[:1], root[:1], off, side, wrist_targets(p_s, R_s, off, side), solids,
-                                      limit, is_seated(base))
+                                     limit, is_seated(base))
     ok = ok[0]
     if not (ok[0] and ok[-1]):
         raise OutOfReach(f"{label} {obj.name}: from this stance the hand cannot reach the handle at "

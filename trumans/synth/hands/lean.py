@@ -13,7 +13,7 @@ from .timing import ramp
 __all__ = ["lean_pose", "lean_candidates", "choose_lean", "lean_travel", "lean_steps", "lean_between"]
 
 def lean_pose(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, pitch: np.ndarray, drop: np.ndarray,
-               seated: bool) -> tuple[np.ndarray, np.ndarray]:
+              seated: bool) -> tuple[np.ndarray, np.ndarray]:
     """Forward lean ``pitch`` (T,) rad (hip hinge 55 %, spine 45 %) and pelvis drop ``drop`` (T,) m;
     feet kept where the input puts them (leg IK). Seated bodies keep the pelvis on the seat."""
     rot, root = rot.copy(), root.copy()
@@ -39,7 +39,7 @@ def lean_pose(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, pitch: np.
 
 
 def lean_candidates(seated: bool, scale: float, max_pitch: float = np.inf,
-                     max_drop: float = np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    max_drop: float = np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(pitch (K,), drop (K,), cost (K,)) candidate leans (pitch <= max_pitch rad, drop <= max_drop m),
     cheapest first."""
     pitch = np.radians(np.linspace(0.0, 55.0 if seated else 75.0, 12 if seated else 11))
@@ -84,13 +84,13 @@ def lean_travel(rot1: np.ndarray, root1: np.ndarray, offsets: np.ndarray, pitch:
     if pitch == 0.0 and drop == 0.0:
         return 0.0
     rot, root = lean_pose(np.stack([rot1, rot1]), np.stack([root1, root1]), offsets, np.array([0.0, pitch]),
-                           np.array([0.0, drop]), seated)
+                          np.array([0.0, drop]), seated)
     P, _ = forward_kinematics(rot, root, offsets)
     return float(np.linalg.norm(P[1] - P[0], axis=-1).max())
 
 
 def lean_steps(rot1: np.ndarray, root1: np.ndarray, offsets: np.ndarray, pitch: np.ndarray, drop: np.ndarray,
-                seated: bool) -> np.ndarray:
+               seated: bool) -> np.ndarray:
     """(A - 1,) largest joint displacement (m) between consecutive leans (pitch, drop) (A,)."""
     A = len(pitch)
     rot, root = lean_pose(np.repeat(rot1[None], A, 0), np.repeat(root1[None], A, 0), offsets, pitch, drop, seated)

@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import hands
-from .moves import approach, check_clean, stand_base, walk_to, world_point, yaw_of
+from .motion import yaw_of
+from .moves import approach, check_clean, stand_base, walk_to, world_point
 from .room import RoomContext
 from .take import Skip, TakeState
 

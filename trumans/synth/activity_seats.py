@@ -9,8 +9,8 @@ import numpy as np
 from trumans.contacts.rule import JOINT_RADIUS
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 from . import hands, posture
-from .motion import Motion
-from .moves import MAX_PENETRATION, approach, check_clean, walk_to, world_point, yaw_of
+from .motion import Motion, yaw_of
+from .moves import MAX_PENETRATION, approach, check_clean, walk_to, world_point
 from .room import RoomContext
 from .take import Skip, TakeState
 

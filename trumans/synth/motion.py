@@ -12,7 +12,13 @@ from trumans.actions import ActionInterval
 from trumans.rotations import matrix_to_6d
 from trumans.skeleton import NUM_JOINTS, forward_kinematics
 
-__all__ = ["Motion", "concat_motions"]
+__all__ = ["Motion", "concat_motions", "yaw_of"]
+
+
+def yaw_of(R: np.ndarray) -> np.ndarray:
+    """Heading (rad) of rotations (..., 3, 3) or poses (..., 4, 4): the angle of their x axis
+    projected on the ground plane, from world +x towards +y (the inverse of ``yaw_matrix``)."""
+    return np.arctan2(R[..., 1, 0], R[..., 0, 0])
 
 
 @dataclass

@@ -8,11 +8,11 @@ from scenes.walkability import NoPathError, nearest_walkable, plan_path
 
 from . import hands, locomotion
 from .legs import wrap_angle
-from .motion import Motion
+from .motion import Motion, yaw_of
 from .room import RoomContext
 from .take import Skip, TakeState
 
-__all__ = ["MAX_WALK_PENETRATION", "MAX_PENETRATION", "world_point", "yaw_of", "walk_to", "idle", "go_to",
+__all__ = ["MAX_WALK_PENETRATION", "MAX_PENETRATION", "world_point", "walk_to", "idle", "go_to",
            "check_clean", "stand_base", "approach", "grasped_by"]
 
 MAX_WALK_PENETRATION = 0.015  # m, a planned walk that brushes furniture deeper than this is rejected
@@ -20,14 +20,11 @@ MAX_PENETRATION = 0.025  # m, an interaction deeper than this into the scene is 
 
 
 def world_point(pose: np.ndarray, p_local) -> np.ndarray:
+    """World point (3,) of a point (3,) or floor point (2,) given in the frame of ``pose`` (4, 4)."""
     p = np.asarray(p_local, dtype=np.float64)
     if p.shape == (2,):
         p = np.array([p[0], p[1], 0.0])
     return pose[:3, :3] @ p + pose[:3, 3]
-
-
-def yaw_of(pose: np.ndarray) -> float:
-    return float(np.arctan2(pose[1, 0], pose[0, 0]))
 
 
 def walk_to(ctx: RoomContext, st: TakeState, rng: np.random.Generator, goal: np.ndarray, goal_yaw: float,

@@ -29,7 +29,7 @@ from trumans.actions import ActionInterval
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 from trumans.ik.limb import limb_reach, set_global_rotation, solve_limb
-from ..motion import Motion
+from ..motion import Motion, yaw_of
 from ..poses import ease
 
 __all__ = [
@@ -130,7 +130,7 @@ def hand_frame(normal: np.ndarray, fingers: np.ndarray, side: Side) -> np.ndarra
 def heading_frame(m: Motion) -> np.ndarray:
     """(T, 4, 4) body heading frame: origin at the pelvis, x forward (root yaw), z up."""
     R0 = m.rot[:, 0]
-    yaw = np.arctan2(R0[:, 1, 0], R0[:, 0, 0])
+    yaw = yaw_of(R0)
     return to_h(yaw_matrix(yaw), m.root)
 
 
@@ -198,7 +198,7 @@ def place_arm(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, side: Side
     sat = np.where(dist > a, a + b * np.tanh((dist - a) / b), dist)
     wrist_s = sh_p + v * (sat / np.maximum(dist, 1e-9))[:, None]
     close = np.linalg.norm(wrist_s - wrist_t, axis=-1) < 1e-3
-    yaw = np.arctan2(rot[:, 0, 1, 0], rot[:, 0, 0, 0])
+    yaw = yaw_of(rot[:, 0])
     ed = np.broadcast_to(ELBOW_DIR[side] if elbow_dir is None else np.asarray(elbow_dir, float), (T, 3))
     nat = (yaw_matrix(yaw) @ unit(ed)[..., None])[..., 0]
     sh = P[:, SHOULDER[side]]

@@ -13,7 +13,7 @@ from scenes.scene import SceneObject
 from trumans.actions import ActionInterval
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import forward_kinematics
-from ..motion import Motion
+from ..motion import Motion, yaw_of
 from ..poses import ease
 from .core import (
     PALM_GAP, WRIST, OutOfReach, Side, apply_h, base_arrays, check_pose, check_side, finish_motion, hand_frame,
@@ -106,7 +106,7 @@ def use_mouse(base: Motion, mouse: SceneObject, pose: np.ndarray, rng: np.random
     T = base.num_frames
     rot, root, off = base_arrays(base)
     if side is None:
-        yaw = np.arctan2(rot[0, 0, 1, 0], rot[0, 0, 0, 0])
+        yaw = yaw_of(rot[0, 0])
         rel = yaw_matrix(-yaw) @ (pose[:3, 3] - root[0])
         side = "left" if rel[1] > 0 else "right"
     check_side(side)

@@ -15,7 +15,7 @@ from trumans.actions import ActionInterval
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import forward_kinematics
 from ..legs import standing_state
-from ..motion import Motion
+from ..motion import Motion, yaw_of
 from ..poses import ease
 from .clearance import LEAN_LIMIT, lean_table, require_body_clear, solid_boxes
 from .core import (
@@ -86,7 +86,7 @@ def _stance_for(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray, hand_fn
     """Shared door / drawer stance search: facing the object's -x from its +x side."""
     offsets = np.asarray(offsets, dtype=np.float64)
     pose = check_pose(pose, "pose")
-    yaw = float(np.arctan2(pose[1, 0], pose[0, 0]) + np.pi)
+    yaw = float(yaw_of(pose) + np.pi)
     h_local = np.asarray(obj.meta["handle"], dtype=np.float64)
     if side is None:  # the hand on the handle's side of the object, as seen by the person facing it
         side = "right" if h_local[1] > 0 else "left"

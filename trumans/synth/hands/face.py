@@ -9,7 +9,7 @@ from scenes.scene import SceneObject
 from trumans.actions import ActionInterval
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
-from ..motion import Motion
+from ..motion import Motion, yaw_of
 from ..poses import ease, slerp_rot
 from .core import (
     ELBOW_DIR, SIGN, WRIST, actor_scale, base_arrays, finish_motion, hand_world, heading_frame, inv_h, place_arm,
@@ -53,7 +53,7 @@ def _to_face(base: Motion, hold: Hold, kind: str, rng: np.random.Generator, obj_
 def _face_frame(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Head positions (T, 3) and heading rotations (T, 3, 3)."""
     P, _ = forward_kinematics(rot, root, offsets)
-    yaw = np.arctan2(rot[:, 0, 1, 0], rot[:, 0, 0, 0])
+    yaw = yaw_of(rot[:, 0])
     return P[:, JOINT_INDEX["head"]], yaw_matrix(yaw)
 
 

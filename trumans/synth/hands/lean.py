@@ -7,6 +7,7 @@ import numpy as np
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 from trumans.ik.limb import limb_reach
 from ..legs import pelvis_height_limit, solve_legs
+from ..motion import yaw_of
 from .core import PLAN_FRAC, SHOULDER, OutOfReach, Side, actor_scale, rodrigues
 from .timing import ramp
 
@@ -22,7 +23,7 @@ def lean_pose(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, pitch: np.
     P, G = forward_kinematics(rot, root, offsets)
     ank = P[:, [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]]
     frot = G[:, [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]]
-    yaw = np.arctan2(rot[:, 0, 1, 0], rot[:, 0, 0, 0])
+    yaw = yaw_of(rot[:, 0])
     fwd = np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], -1)
     left = np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)], -1)
     rot[:, 0] = rodrigues(left, 0.55 * pitch) @ rot[:, 0]

@@ -17,7 +17,7 @@ from scenes.scene import SceneObject
 from trumans.actions import ActionInterval
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import forward_kinematics
-from ..motion import Motion
+from ..motion import Motion, yaw_of
 from ..poses import ease, slerp_rot
 from .core import (
     PALM_GAP, SHOULDER, SIGN, UP, WRIST, Side, actor_scale, apply_h, base_arrays, base_palm, check_pose, check_side,
@@ -227,7 +227,7 @@ def put_down(base: Motion, hold: Hold, target: np.ndarray, rng: np.random.Genera
     rot, root, off = base_arrays(base)
     if not exact_yaw:
         carried = heading_frame(base)[-1, :3, :3] @ hold.carry_rot @ hold.offset[:3, :3]
-        d_yaw = np.arctan2(carried[1, 0], carried[0, 0]) - np.arctan2(target[1, 0], target[0, 0])
+        d_yaw = yaw_of(carried) - yaw_of(target)
         target = target.copy()
         target[:3, :3] = yaw_matrix(d_yaw) @ target[:3, :3]
     Ht = target @ inv_h(hold.offset)  # hand transform that puts the object at the target

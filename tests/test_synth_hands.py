@@ -417,3 +417,22 @@ def test_put_down_keeps_carried_yaw_unless_exact():
     yaw = lambda p: np.arctan2(p[1, 0], p[0, 0])  # noqa: E731
     assert abs(np.angle(np.exp(1j * (yaw(end) - yaw(carried))))) < 1e-6  # as carried, not 2.5 rad
     assert np.allclose(end[:3, 2], [0, 0, 1], atol=1e-6)
+
+
+def test_phase_registry_covers_every_primitive():
+    """One registry times every hand primitive: each has its flexible phase, phases cover the base
+    exactly and in order, and a base under half the natural length is refused."""
+    from trumans.synth.hands.timing import FLEX, phases
+
+    assert set(hands.PHASES) == set(FLEX)
+    rng = np.random.default_rng(0)
+    for kind, spec in hands.PHASES.items():
+        assert FLEX[kind] in spec and all(0 < lo <= hi for lo, hi in spec.values())
+        T = hands.nominal_frames(kind, rng)
+        ph = phases(kind, T, rng, 30.0)
+        assert list(ph) == list(spec)
+        edges = [b for b in ph.values()]
+        assert edges[0][0] == 0 and edges[-1][1] == T - 1
+        assert all(a[1] == b[0] for a, b in zip(edges, edges[1:]))  # contiguous
+        with pytest.raises(ValueError, match="too short"):
+            phases(kind, max(2, T // 8), rng, 30.0)

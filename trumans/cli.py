@@ -56,7 +56,7 @@ class _Parser(argparse.ArgumentParser):
     one ``trumans: error:`` line) instead of printing usage and exiting."""
 
     def error(self, message: str):  # type: ignore[override]
-        raise UsageError(f"{self.prog}: {message} (see `{self.prog} --help`)")
+        raise UsageError(f"{message} (see `{self.prog} --help`)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -194,6 +194,7 @@ def _process(args: tuple[PipelineConfig, int, str, str, str]) -> dict:
         rec = {"key": key, "source": rel, "split": split, "frames": 0, "outputs": [], "error": "",
                "nothing_to_augment": str(e)}
     except (ValueError, OSError) as e:  # bad input in this source: reported, retried next run
+        (Path(cfg.out) / "records" / f"{stem}.json").unlink(missing_ok=True)  # an older record is stale now
         return {"key": key, "source": rel, "split": split, "frames": 0, "outputs": [],
                 "error": " ".join(str(e).split()) or type(e).__name__}
     record = Path(cfg.out) / "records" / f"{stem}.json"

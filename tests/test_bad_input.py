@@ -177,6 +177,8 @@ def test_bad_release_folders(tmp_path, capsys):
     np.save(names / "object_mat.npy", np.tile(np.eye(4), (40, 1, 1, 1)))
     (names / "object_names.json").write_text('{"a": 1}')
     _refused(capsys, ["data", "import", names, "--format", "trumans", "--out", out], "object_names.json")
+    pickled = _release(tmp_path / "pickled", joints=np.array([{"a": 1}], dtype=object))
+    _refused(capsys, ["data", "import", pickled, "--format", "trumans", "--out", out], "unpickling is refused")
     assert not out.exists()
 
 

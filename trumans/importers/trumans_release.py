@@ -65,7 +65,9 @@ def _load(folder: Path, name: str, required: bool = True) -> np.ndarray | None:
     try:
         return np.load(p, allow_pickle=False)
     except (ValueError, OSError, EOFError) as e:
-        raise ValueError(f"{p} is not a readable .npy array ({e}); re-download or re-export it") from e
+        # numpy's pickle message suggests unsafe loading: never; say what the file is instead
+        why = "it holds Python objects; unpickling is refused" if "pickle" in str(e) else str(e)
+        raise ValueError(f"{p} is not a readable .npy array ({why}); re-download or re-export it") from e
 
 
 def _read_names(path: Path, n: int) -> list[str]:

@@ -97,6 +97,7 @@ def _not_built(name: str, issue: str):
 def _usage(p: argparse.ArgumentParser):
     def run(args) -> int:
         p.print_help(sys.stderr)
+        print(f"trumans: error: `{p.prog}` needs a command; choose one of those listed above", file=sys.stderr)
         return 2
     return run
 

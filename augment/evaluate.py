@@ -25,12 +25,13 @@ import time
 
 import numpy as np
 
+from trumans.argtypes import int_in, positive_int
 from trumans.contacts.rule import FLOOR_NAME
 from trumans.metrics import bone_length_dev_mm, foot_skate_cm, joint_centre_inside_cm
 from trumans.skeleton import FEET
 
 from .core import AugmentConfig, augment_many, sequence_contacts
-from .pipeline import contacted_objects
+from .pipeline import MAX_VARIATIONS, contacted_objects
 from .variations import KINDS, sample_variation
 
 __all__ = ["add_arguments", "run", "evaluate_cases"]
@@ -41,9 +42,10 @@ _FEET = list(FEET)
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", default=None, help="dataset folder to evaluate on (default: a held-out synthetic set)")
     p.add_argument("--split", default="test", help="split of --data to use (default test)")
-    p.add_argument("--max-seqs", type=int, default=20, help="at most this many sequences of --data (default 20)")
-    p.add_argument("--cases", type=int, default=4, help="synthetic clips per contact kind (default 4)")
-    p.add_argument("--variations", type=int, default=2, help="variations per touched object (default 2)")
+    p.add_argument("--max-seqs", type=positive_int, default=20, help="at most this many sequences of --data (default 20)")
+    p.add_argument("--cases", type=positive_int, default=4, help="synthetic clips per contact kind (default 4)")
+    p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS), default=2,
+                   help="variations per touched object (default 2)")
     p.add_argument("--seed", type=int, default=0, help="random seed")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
@@ -174,6 +176,10 @@ def run(args: argparse.Namespace) -> int:
         from trumans.dataset import Dataset
         ds = Dataset(args.data)
         paths = ds.split(args.split)[: args.max_seqs]
+        if not paths:
+            counts = {s: len(ds.split(s)) for s in ds.split_names}
+            raise ValueError(f"split {args.split!r} of {args.data} holds no sequences ({counts}); choose a split "
+                             f"that has some with --split")
         cases = []
         libraries: dict = {}
         for sid in ds.scene_ids:
@@ -184,6 +190,9 @@ def run(args: argparse.Namespace) -> int:
             cases.append((p.stem, seq, ds.scene(seq.scene)))
         source = f"{args.data} split {args.split} ({len(cases)} sequences)"
     fig = evaluate_cases(cases, args.variations, rng, libraries)
+    if fig["outputs"] == 0 or fig["frames"] == 0:
+        raise ValueError(f"nothing to evaluate: no sequence of {source} touches an interactable object "
+                         f"(figures over zero outputs would read as perfect); use sequences with object contacts")
     fig["source"] = source
     if not args.json:
         for k, v in fig.items():

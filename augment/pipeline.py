@@ -5,13 +5,21 @@ original): ``sequences/<stem>__<object>_v<k>.npz``, ``scenes/<scene id>/`` (the 
 ``records/<stem>.json`` (one per source sequence, written last: its presence with a matching key
 marks the sequence done, so an interrupted run resumes), ``manifest.json`` (what changed: source,
 variation, contact offsets, figures per output) and ``index.json`` (splits mirror the sources').
-Sequences are processed in parallel by worker processes. The same seed gives the same outputs.
+Sequences are processed in parallel by worker processes (as many as there are sequences to do, at
+most ``workers``; they die with the parent). The same seed gives the same outputs.
+
+Resume: a record is reused only if its key matches: the settings, the sequence's position, its
+bytes, and the bytes of every scene folder of the source dataset (a changed mesh or pose anywhere
+can change the outputs: replacements come from all scenes). A source whose processing fails is not
+recorded (the next run retries it) and makes the run fail after the others are done. A source that
+touches no interactable object is recorded as having nothing to augment. The output folder is locked
+(one writer) and must be new, empty or this run's own (``DatasetWriter``).
 """
 from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing as mp
+import math
 import os
 import sys
 import time
@@ -24,7 +32,7 @@ import trimesh
 from scenes.io import save_scene
 from scenes.scene import Scene
 from trumans.contacts.rule import FLOOR_NAME, HOLD_THRESHOLD
-from trumans.dataset import Dataset, content_hash, write_index
+from trumans.dataset import Dataset, DatasetWriter, content_hash
 from trumans.metrics import joint_centre_inside_cm
 from trumans.sequence import Sequence, atomic_write, save_sequence
 
@@ -58,8 +66,14 @@ class PipelineConfig:
     tries: int = 4
 
     def __post_init__(self) -> None:
-        if self.variations < 1:
-            raise ValueError(f"variations must be >= 1, got {self.variations}")
+        if not 1 <= self.variations <= MAX_VARIATIONS:
+            raise ValueError(f"variations must be in [1, {MAX_VARIATIONS}] per touched object, got {self.variations}")
+        for name in ("window_s", "threshold", "max_penetration"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {v}")
+        if self.tries < 1:
+            raise ValueError(f"tries must be >= 1, got {self.tries}")
         bad = [k for k in self.kinds if k not in KINDS]
         if bad or not self.kinds:
             raise ValueError(f"kinds must be a non-empty subset of {KINDS}, got {self.kinds}")
@@ -68,12 +82,33 @@ class PipelineConfig:
         if not 0.0 <= self.max_unreachable <= 1.0:
             raise ValueError(f"max_unreachable must be a fraction in [0, 1], got {self.max_unreachable}")
 
-    def key(self, src: Path) -> str:
-        """Resume key of one source sequence: settings + the source file's bytes."""
-        h = hashlib.sha256(json.dumps({k: v for k, v in asdict(self).items() if k not in ("workers", "out")},
-                                      sort_keys=True).encode())
+    def settings(self) -> dict:
+        """What the outputs depend on (not ``out`` or ``workers``); ``data`` as an absolute path."""
+        d = {k: v for k, v in asdict(self).items() if k not in ("workers", "out")}
+        d["data"] = str(Path(self.data).resolve())
+        return d
+
+    def key(self, src: Path, index: int, scenes_digest: str) -> str:
+        """Resume key of one source sequence: settings, its position ``index`` (its random
+        stream), its bytes and ``scenes_digest`` (``scenes_digest(ds)``)."""
+        h = hashlib.sha256(json.dumps(self.settings(), sort_keys=True, default=list).encode())
+        h.update(f"|{index}|{scenes_digest}|".encode())
         h.update(src.read_bytes())
         return h.hexdigest()[:16]
+
+
+MAX_VARIATIONS = 50
+
+
+class NothingToAugment(ValueError):
+    """The sequence touches no interactable object."""
+
+
+def scenes_digest(ds: Dataset) -> str:
+    """SHA-256 of every scene folder's files (scene.json, meshes; not the occupancy cache)."""
+    files = sorted(str(p.relative_to(ds.root)) for sid in ds.scene_ids for p in ds.scene_dir(sid).rglob("*")
+                   if p.is_file() and p.name != "occupancy.npz" and not p.name.endswith(".tmp"))
+    return content_hash(ds.root, files)
 
 
 def contacted_objects(intervals, scene: Scene) -> list[str]:
@@ -104,8 +139,8 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
     sc = sequence_contacts(seq, scene, acfg)
     objs = contacted_objects(sc.intervals, scene)
     if not objs:
-        raise ValueError(f"sequence (scene {scene.name!r}) has no contact with any interactable object; "
-                         "nothing to augment")
+        raise NothingToAugment(f"sequence (scene {scene.name!r}) has no contact with any interactable object; "
+                               "nothing to augment")
     libs = {name: {k: m for k, m in library.get(scene.objects[name].category, {}).items()
                    if k != f"{scene.name}/{name}"} for name in objs}
     pen0 = {name: joint_centre_inside_cm(sc.joints, scene, [name]) for name in objs}
@@ -131,32 +166,33 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
     return [(name, k, done.get((name, k))) for name, k in slots]
 
 
-def _process(args: tuple[PipelineConfig, int, str, str]) -> dict:
-    cfg, idx, rel, split = args
+def _process(args: tuple[PipelineConfig, int, str, str, str]) -> dict:
+    """Augment one source; returns its record (written to records/ unless it failed)."""
+    cfg, idx, rel, split, key = args
     torch_threads()
-    ds = Dataset(cfg.data)
-    src = ds.root / rel
-    out = Path(cfg.out)
     stem = Path(rel).stem
-    record = out / "records" / f"{stem}.json"
-    key = cfg.key(src)
-    if record.is_file():
-        try:
-            rec = json.loads(record.read_text())
-            if rec.get("key") == key:
-                return rec
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            pass
+    try:
+        return _augment_source(cfg, idx, rel, split, key, stem)
+    except NothingToAugment as e:
+        rec = {"key": key, "source": rel, "split": split, "frames": 0, "outputs": [], "error": "",
+               "nothing_to_augment": str(e)}
+    except (ValueError, OSError) as e:  # bad input in this source: reported, retried next run
+        (Path(cfg.out) / "records" / f"{stem}.json").unlink(missing_ok=True)  # an older record is stale now
+        return {"key": key, "source": rel, "split": split, "frames": 0, "outputs": [],
+                "error": " ".join(str(e).split()) or type(e).__name__}
+    record = Path(cfg.out) / "records" / f"{stem}.json"
+    atomic_write(record, lambda tmp: Path(tmp).write_text(json.dumps(rec, indent=1)))
+    return rec
+
+
+def _augment_source(cfg: PipelineConfig, idx: int, rel: str, split: str, key: str, stem: str) -> dict:
+    ds = Dataset(cfg.data)
+    out = Path(cfg.out)
     seq = ds.load(rel)
     scene = ds.scene(seq.scene)
     rng = np.random.default_rng([cfg.seed, idx])
     items = []
-    try:
-        results = vary_sequence(seq, scene, cfg.variations, rng, _library(ds, _CACHE), cfg)
-    except ValueError as e:
-        results, err = [], str(e)
-    else:
-        err = ""
+    results = vary_sequence(seq, scene, cfg.variations, rng, _library(ds, _CACHE), cfg)
     for name, k, res in results:
         if res is None:
             items.append({"object": name, "k": k, "skipped": "every draw put a joint centre inside the changed object or left too many contacts unreachable"})
@@ -172,8 +208,23 @@ def _process(args: tuple[PipelineConfig, int, str, str]) -> dict:
         save_sequence(res.sequence, out / seq_rel)
         items.append({"object": name, "k": k, "sequence": seq_rel, "scene": sid, "scene_dir": f"scenes/{sid}",
                       "source_scene": scene.name, **res.report})
-    rec = {"key": key, "source": rel, "split": split, "frames": seq.num_frames, "outputs": items, "error": err}
-    atomic_write(record, lambda tmp: Path(tmp).write_text(json.dumps(rec, indent=1)))
+    rec = {"key": key, "source": rel, "split": split, "frames": seq.num_frames, "outputs": items, "error": ""}
+    atomic_write(out / "records" / f"{stem}.json", lambda tmp: Path(tmp).write_text(json.dumps(rec, indent=1)))
+    return rec
+
+
+def _done_record(out: Path, rel: str, key: str) -> dict | None:
+    """The record of a source finished by an earlier run with the same key (its outputs present)."""
+    path = out / "records" / f"{Path(rel).stem}.json"
+    try:
+        rec = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(rec, dict) or rec.get("key") != key or rec.get("error") or not isinstance(rec.get("outputs"), list):
+        return None
+    if not all(isinstance(o, dict) and ("sequence" not in o or (out / str(o["sequence"])).is_file()
+                                        and (out / str(o.get("scene_dir", ""))).is_dir()) for o in rec["outputs"]):
+        return None
     return rec
 
 
@@ -182,39 +233,57 @@ _CACHE: dict = {}
 
 def torch_threads() -> None:
     """One thread per worker process (the machine is shared)."""
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    try:
-        import torch
-        torch.set_num_threads(1)
-    except ImportError:  # torch is optional here
-        pass
+    from trumans.workers import one_thread
+
+    one_thread()
 
 
-def augment_dataset(cfg: PipelineConfig, progress: bool = True) -> dict:
-    """Run the pipeline (module doc); returns the summary written into manifest.json."""
+def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool = False) -> dict:
+    """Run the pipeline (module doc); returns the summary written into manifest.json. ``overwrite``
+    replaces another dataset or run in ``cfg.out``. Raises ValueError after writing the index and
+    manifest of what succeeded if some sources failed (they are retried by the next run)."""
     t0 = time.perf_counter()
     ds = Dataset(cfg.data)
+    out = Path(cfg.out)
+    if out.resolve() == ds.root.resolve() or out.resolve() in ds.root.resolve().parents:
+        raise ValueError(f"--out {out} is (or holds) the source dataset --data {cfg.data}; writing there would "
+                         f"replace its index; choose another --out")
     jobs = []
     for split in cfg.splits:
-        for i, p in enumerate(ds.split(split)):
+        for p in ds.split(split):
             jobs.append((cfg, len(jobs), str(p.relative_to(ds.root)), split))
     if not jobs:
-        raise ValueError(f"no sequences in splits {cfg.splits} of {cfg.data}")
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
-    workers = cfg.workers or os.cpu_count() or 1
-    recs: list[dict] = []
-    bar = _bar(len(jobs), progress)
-    if workers == 1:
-        for j in jobs:
-            recs.append(_process(j))
-            bar.update(1)
-    else:
-        with mp.get_context("spawn").Pool(workers, initializer=torch_threads) as pool:
-            for r in pool.imap(_process, jobs):
-                recs.append(r)
+        raise ValueError(f"no sequences in splits {list(cfg.splits)} of {cfg.data}; choose splits that hold some")
+    digest = scenes_digest(ds)
+    jobs = [(c, i, rel, split, cfg.key(ds.root / rel, i, digest)) for c, i, rel, split in jobs]
+    with DatasetWriter(out, "augment", cfg.settings(), overwrite=overwrite) as writer:
+        recs: list[dict | None] = [_done_record(out, rel, key) for _, _, rel, _, key in jobs]
+        todo = [j for j, r in zip(jobs, recs) if r is None]
+        workers = max(1, min(cfg.workers or os.cpu_count() or 1, len(todo)))
+        bar = _bar(len(jobs), progress)
+        bar.update(len(jobs) - len(todo))
+        fresh: list[dict] = []
+        if workers == 1:
+            for j in todo:
+                fresh.append(_process(j))
                 bar.update(1)
-    bar.close()
+        else:
+            from trumans.workers import worker_pool
+
+            with worker_pool(workers, "spawn") as pool:
+                for r in pool.imap(_process, todo):
+                    fresh.append(r)
+                    bar.update(1)
+        bar.close()
+        it = iter(fresh)
+        recs = [r if r is not None else next(it) for r in recs]
+        return _finish(cfg, ds, writer, recs, workers, time.perf_counter() - t0)
+
+
+def _finish(cfg: PipelineConfig, ds: Dataset, writer: DatasetWriter, recs: list[dict], workers: int,
+            seconds: float) -> dict:
+    """Index, manifest and summary of the records; raises if some sources failed."""
+    out = writer.root
     outputs = [dict(o, source=r["source"], split=r["split"]) for r in recs for o in r["outputs"] if "sequence" in o]
     splits: dict[str, list[str]] = {s: [] for s in cfg.splits}
     for o in outputs:
@@ -223,20 +292,19 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True) -> dict:
     files = [o["sequence"] for o in outputs]
     index = {"name": f"{ds.name}-augmented", "version": "1", "seed": cfg.seed, "fps": ds.fps,
              "vocabulary": ds.vocabulary, "splits": splits, "scenes": scenes,
-             "counts": {s: len(v) for s, v in splits.items()}, "hash": content_hash(out, files),
-             "source": {"name": ds.name, "hash": ds.hash}}
-    write_index(out, index)
+             "counts": {s: len(v) for s, v in splits.items()}, "source": {"name": ds.name, "hash": ds.hash}}
     # contact error weighted by each output's contact frames (a per-output mean would let a
     # handful of 3-frame contacts count as much as a 2000-frame sitting)
     cframes = np.array([o["contact_frames"] for o in outputs], np.float64)
     cerr = np.array([o["contact_err_cm"] for o in outputs], np.float64)
     unreachable = int(sum(o["unreachable_frames"] for o in outputs))
     frames_out = int(sum(int(o.get("frames", 0)) for o in outputs))
-    seconds = time.perf_counter() - t0
+    failed = [{"source": r["source"], "error": r["error"]} for r in recs if r["error"]]
     summary = {
         "sources": len(recs), "outputs": len(outputs),
+        "nothing_to_augment": sum(1 for r in recs if r.get("nothing_to_augment")),
         "skipped": sum(1 for r in recs for o in r["outputs"] if "skipped" in o),
-        "errors": [{"source": r["source"], "error": r["error"]} for r in recs if r["error"]],
+        "errors": failed,
         "frames_out": frames_out,
         "contact_frames": int(cframes.sum()),
         "contact_err_cm": float((cerr * cframes).sum() / cframes.sum()) if cframes.sum() else 0.0,
@@ -247,9 +315,28 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True) -> dict:
         "workers": workers,
         "config": asdict(cfg),
     }
+    if files:
+        summary["hash"] = writer.finish(index)
+    else:
+        (out / "index.json").unlink(missing_ok=True)  # an index of an earlier run would list nothing of this one
     manifest = {"summary": summary, "outputs": outputs}
     atomic_write(out / "manifest.json", lambda tmp: Path(tmp).write_text(json.dumps(manifest, indent=1)))
+    if failed:
+        raise SourcesFailed(summary, f"{len(failed)} of {len(recs)} source sequences failed (e.g. {failed[0]['source']}: "
+                                     f"{failed[0]['error'][:200]}); fix them and re-run the same command: finished "
+                                     f"sources resume, failed ones are retried (all failures in {out / 'manifest.json'})")
+    if not files:
+        raise ValueError(f"no output: none of the {len(recs)} source sequences touches an interactable object "
+                         f"that could be varied; nothing was augmented into {out}")
     return summary
+
+
+class SourcesFailed(ValueError):
+    """Some sources failed; ``summary`` holds the figures of the ones that did not."""
+
+    def __init__(self, summary: dict, message: str) -> None:
+        super().__init__(message)
+        self.summary = summary
 
 
 def _bar(n: int, on: bool):

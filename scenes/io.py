@@ -15,6 +15,7 @@ Vertices are stored as float32 (binary PLY); poses, hinge points and axes as flo
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -124,16 +125,33 @@ def save_scene(scene: Scene, folder: str | Path) -> None:
         (tmp / SCENE_FILE).write_text(text)
         if (folder / OCCUPANCY_FILE).is_file():
             shutil.copy2(folder / OCCUPANCY_FILE, tmp / OCCUPANCY_FILE)
-        if folder.exists():
-            old = folder.with_name(f".{folder.name}.old.{os.getpid()}")
-            os.replace(folder, old)
-            os.replace(tmp, folder)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, folder)
+        _swap_in(tmp, folder)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _swap_in(tmp: Path, folder: Path) -> None:
+    """Rename the finished folder ``tmp`` onto ``folder``, moving an existing one aside first.
+    Concurrent savers of one folder race here (one's folder appears between another's two renames):
+    each retries until its own rename lands, so every save completes and the last one wins."""
+    for attempt in range(1000):
+        old = tmp.with_name(f"{tmp.name[:-len('.tmp')]}.old{attempt}.tmp")  # swept as a temp if we die
+        try:
+            if folder.exists():
+                os.replace(folder, old)
+            os.replace(tmp, folder)
+            return
+        except FileNotFoundError:  # another saver moved ``folder`` away between our check and rename
+            continue
+        except OSError as e:
+            if e.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+                raise
+            continue  # another saver's folder appeared between our two renames
+        finally:
+            if old.exists():
+                shutil.rmtree(old, ignore_errors=True)
+    raise OSError(f"could not replace {folder}: other processes keep saving it")
 
 
 def _export(mesh: trimesh.Trimesh, path: Path) -> None:
@@ -143,10 +161,38 @@ def _export(mesh: trimesh.Trimesh, path: Path) -> None:
     path.write_bytes(m.export(file_type="ply", encoding="binary"))
 
 
-def _field(entry: dict, key: str, where: str):
-    if key not in entry:
-        raise ValueError(f"{where}: missing field {key!r}")
-    return entry[key]
+def _field(entry: dict, key: str, where: str, kind: type | tuple[type, ...] = str, default=...):
+    """entry[key], checked to be of ``kind`` (ValueError naming the field otherwise)."""
+    if key not in entry or entry[key] is None:
+        if default is ...:
+            raise ValueError(f"{where}: missing field {key!r}; repair scene.json or re-save the scene")
+        return default
+    v = entry[key]
+    if not isinstance(v, kind) or (isinstance(v, bool) and kind is not bool):
+        want = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise ValueError(f"{where}: field {key!r} must be {want}, got {type(v).__name__} {str(v)[:40]!r}; "
+                         f"repair scene.json or re-save the scene")
+    return v
+
+
+def _numbers(v, shape: tuple[int, ...], where: str, key: str) -> np.ndarray:
+    """A finite float64 array of ``shape`` from JSON numbers."""
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != shape or not np.all(np.isfinite(a)):
+        raise ValueError(f"{where}: {key} must be {'x'.join(map(str, shape))} finite numbers, got {str(v)[:60]}; "
+                         f"repair scene.json or re-save the scene")
+    return a
+
+
+def _entries(doc: dict, key: str, path: Path) -> list[dict]:
+    v = doc.get(key, [])
+    if not isinstance(v, list) or not all(isinstance(e, dict) for e in v):
+        raise ValueError(f"{path}: {key!r} must be a list of objects, got {str(v)[:60]}; repair scene.json "
+                         f"or re-save the scene")
+    return v
 
 
 def _load_mesh(folder: Path, rel: str, where: str) -> trimesh.Trimesh:
@@ -160,7 +206,8 @@ def _load_mesh(folder: Path, rel: str, where: str) -> trimesh.Trimesh:
 
 
 def load_scene(folder: str | Path) -> Scene:
-    """Read a scene folder written by ``save_scene`` (or by hand in the same format)."""
+    """Read a scene folder written by ``save_scene`` (or by hand in the same format); every field's
+    type is checked (ValueError naming the field and the fix)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"scene folder {folder} does not exist")
@@ -169,35 +216,33 @@ def load_scene(folder: str | Path) -> Scene:
         raise FileNotFoundError(f"{path} is missing; a scene folder needs a {SCENE_FILE}")
     try:
         doc = json.loads(path.read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{path} is not valid JSON: {e}") from e
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path} is not valid JSON ({e}); repair it or re-save the scene") from e
     if not isinstance(doc, dict) or doc.get("format", FORMAT) != FORMAT:
         raise ValueError(f"{path} is not a {FORMAT} file")
-    if int(doc.get("version", VERSION)) > VERSION:
-        raise ValueError(f"{path} has version {doc['version']}; this code reads up to {VERSION}")
+    version = _field(doc, "version", str(path), int, VERSION)
+    if version > VERSION:
+        raise ValueError(f"{path} has version {version}; this code reads up to {VERSION}")
     static = {}
-    for i, e in enumerate(doc.get("static", [])):
+    for i, e in enumerate(_entries(doc, "static", path)):
         where = f"{path} static[{i}]"
-        name = str(_field(e, "name", where))
+        name = _field(e, "name", where)
         static[name] = _load_mesh(folder, _field(e, "mesh", where), f"{where} ({name})")
     objects = {}
-    for i, e in enumerate(doc.get("objects", [])):
+    for i, e in enumerate(_entries(doc, "objects", path)):
         where = f"{path} objects[{i}]"
-        name = str(_field(e, "name", where))
+        name = _field(e, "name", where)
         where = f"{where} ({name})"
-        dof = e.get("dof", "static")
+        dof = _field(e, "dof", where, str, "static")
         if dof not in DOFS:
             raise ValueError(f"{where}: unknown dof {dof!r}; use one of {DOFS}")
-        pose = np.asarray(e.get("pose", np.eye(4).tolist()), dtype=np.float64)
-        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
-            raise ValueError(f"{where}: pose must be a finite 4x4 matrix, got shape {pose.shape}")
-        for key in ("hinge_point", "axis"):
-            v = e.get(key)
-            if v is not None and np.asarray(v, dtype=np.float64).shape != (3,):
-                raise ValueError(f"{where}: {key} must have 3 numbers, got {v}")
+        pose = _numbers(_field(e, "pose", where, list, np.eye(4).tolist()), (4, 4), where, "pose")
+        hinge = {k: (None if e.get(k) is None else _numbers(e[k], (3,), where, k)) for k in ("hinge_point", "axis")}
         objects[name] = SceneObject(
-            name=name, category=str(e.get("category", "")), mesh=_load_mesh(folder, _field(e, "mesh", where), where),
-            pose=pose, dof=dof, hinge_point=e.get("hinge_point"), axis=e.get("axis"),
-            dynamic=bool(e.get("dynamic", False)), meta=dict(e.get("meta", {})),
+            name=name, category=_field(e, "category", where, str, ""),
+            mesh=_load_mesh(folder, _field(e, "mesh", where), where),
+            pose=pose, dof=dof, hinge_point=hinge["hinge_point"], axis=hinge["axis"],
+            dynamic=_field(e, "dynamic", where, bool, False), meta=dict(_field(e, "meta", where, dict, {})),
         )
-    return Scene(name=str(doc.get("name", folder.name)), static=static, objects=objects, meta=dict(doc.get("meta", {})))
+    return Scene(name=_field(doc, "name", str(path), str, folder.name), static=static, objects=objects,
+                 meta=dict(_field(doc, "meta", str(path), dict, {})))

@@ -112,7 +112,8 @@ def _load(path: str | Path) -> tuple[OccupancyGrid, str | None]:
             files = set(z.files)
             arrays = {k: z[k] for k in ("grid", "origin", "voxel", "key") if k in files}
     except (zipfile.BadZipFile, OSError, EOFError, ValueError) as e:
-        raise ValueError(f"occupancy file {path} is corrupt ({e}); delete it and recompute") from e
+        why = "it holds Python objects; unpickling is refused" if "pickle" in str(e) else str(e)  # never advise unsafe loading
+        raise ValueError(f"occupancy file {path} is corrupt ({why}); delete it and recompute") from e
     missing = {"grid", "origin", "voxel"} - set(arrays)
     if missing:
         raise ValueError(f"occupancy file {path} lacks {sorted(missing)}; delete it and recompute")

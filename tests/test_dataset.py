@@ -87,7 +87,7 @@ def test_bad_lookups(tmp_path):
         ds.split("dev")
     with pytest.raises(IndexError, match="out of range"):
         ds.load(10)
-    with pytest.raises(KeyError, match="not in this dataset"):
+    with pytest.raises(ValueError, match="not in this dataset"):
         ds.scene_dir("nowhere")
     with pytest.raises(FileNotFoundError):
         ds.load("sequences/missing.npz")

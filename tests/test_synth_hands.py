@@ -8,7 +8,10 @@ import trimesh
 
 from scenes.scene import SceneObject
 from trumans.skeleton import JOINT_INDEX, bone_lengths, rest_offsets
-from trumans.synth import hands, hands_desk, hands_furniture as hf, locomotion, posture
+from trumans.contacts.rule import JOINT_RADIUS
+from trumans.synth import hands, locomotion, posture
+from trumans.synth.hands.clearance import ARM_JOINTS
+from trumans.synth.legs import standing_state
 from trumans.synth.motion import Motion, concat_motions
 from trumans.synth.vocab import SYNTH_ACTIONS
 
@@ -211,11 +214,11 @@ def test_door_opens_wide_with_the_hand_on_the_handle():
     rng = np.random.default_rng(11)
     d = door()
     closed = pose_xyz_yaw(2.0, 1.0, 0.0, np.pi / 2)
-    st = hf.door_stance(OFF, d, closed)
+    st = hands.door_stance(OFF, d, closed)
     assert 0.8 <= st.reach <= d.meta["max_angle"]  # a useful opening, not a crack
     angle = 0.9 * st.reach
-    m = hf.open_door(OFF, d, closed, angle, rng, st)
-    m2 = hf.close_door(OFF, d, closed, angle, rng, st)
+    m = hands.open_door(OFF, d, closed, angle, rng, st)
+    m2 = hands.close_door(OFF, d, closed, angle, rng, st)
     hinge = (closed @ np.r_[d.hinge_point, 1.0])[:3]
     for mm, a0, a1 in ((m, 0.0, angle), (m2, angle, 0.0)):
         J = check_motion(mm, joints=UPPER)  # stepping feet swing faster than 5 cm / frame
@@ -237,15 +240,15 @@ def test_door_opens_wide_with_the_hand_on_the_handle():
         assert np.linalg.norm(palm[g] - handle[g], axis=1).max() < 0.05
         # Starts and ends in the canonical standing states of the path's two ends.
         for f, pos in ((0, st.pos if a0 == 0 else st.at(angle)), (-1, st.pos if a1 == 0 else st.at(angle))):
-            r0, p0 = locomotion.standing_state(OFF, pos, st.yaw)
+            r0, p0 = standing_state(OFF, pos, st.yaw)
             np.testing.assert_allclose(mm.root[f], p0, atol=1e-9)
             np.testing.assert_allclose(mm.rot[f], r0, atol=1e-9)
         # The body (arms aside) keeps clear of the leaf's box at every frame.
-        body = [j for j in range(24) if j not in hf._ARMS]
+        body = [j for j in range(24) if j not in ARM_JOINTS]
         loc = np.einsum("tij,tkj->tki", np.linalg.inv(tr)[:, :3, :3], J[:, body]) + np.linalg.inv(tr)[:, None, :3, 3]
         lo, hi = d.mesh.bounds
         gap = np.linalg.norm(np.maximum(np.maximum(lo - loc, loc - hi), 0.0), axis=-1)
-        assert (gap > hf.JOINT_RADIUS[body] - 0.015).all()
+        assert (gap > JOINT_RADIUS[body] - 0.015).all()
         # Feet planted while the hand is on the handle except for the short steps (flat contact).
         ank = J[:, [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]]
         for f in range(2):
@@ -256,7 +259,7 @@ def test_door_opens_wide_with_the_hand_on_the_handle():
     # The person steps back while pulling: the opened door stands where the person stood.
     assert np.linalg.norm(st.open_pos - st.pos) > 0.2
     with pytest.raises(ValueError, match="door angle"):
-        hf.open_door(OFF, d, closed, st.reach + 0.1, rng, st)
+        hands.open_door(OFF, d, closed, st.reach + 0.1, rng, st)
 
 
 @pytest.mark.parametrize("z", [0.3, 0.6])
@@ -264,10 +267,10 @@ def test_drawer_travel_limits_and_hand_on_handle(z):
     rng = np.random.default_rng(5)
     dr = drawer()
     closed = pose_xyz_yaw(-1.0, 0.5, z, 0.4)
-    st = hf.drawer_stance(OFF, dr, closed)
+    st = hands.drawer_stance(OFF, dr, closed)
     assert 0.0 < st.reach <= dr.meta["max_travel"]
     frames = int(1.3 * hands.nominal_frames("open_drawer", rng))
-    m = hf.open_drawer(locomotion.stand(OFF, st.pos, st.yaw, frames, rng), dr, closed, st.reach, rng, side=st.side)
+    m = hands.open_drawer(locomotion.stand(OFF, st.pos, st.yaw, frames, rng), dr, closed, st.reach, rng, side=st.side)
     J = check_motion(m)
     tr = m.objects[dr.name]
     rel = np.linalg.inv(closed) @ tr
@@ -279,7 +282,7 @@ def test_drawer_travel_limits_and_hand_on_handle(z):
     handle = (tr @ np.r_[dr.meta["handle"], 1.0])[:, :3]
     palm = hands.palm_points(J)[:, 0 if st.side == "left" else 1]
     assert np.linalg.norm(palm[g] - handle[g], axis=1).max() < 0.03
-    m2 = hf.close_drawer(locomotion.stand(OFF, st.pos, st.yaw, frames, rng), dr, closed, st.reach, rng, side=st.side)
+    m2 = hands.close_drawer(locomotion.stand(OFF, st.pos, st.yaw, frames, rng), dr, closed, st.reach, rng, side=st.side)
     check_motion(m2)
     assert abs((np.linalg.inv(closed) @ m2.objects[dr.name][-1])[0, 3]) < 1e-9
 
@@ -298,7 +301,7 @@ def test_typing(seated):
     kb = keyboard()
     pose = pose_xyz_yaw(0.32, 0.0, 0.74, 0.0)
     base = posture.sit(OFF, seat, yaw, stand, hands.nominal_frames("type", rng), rng)
-    m = hands_desk.type_keyboard(base, kb, pose, rng)
+    m = hands.type_keyboard(base, kb, pose, rng)
     J = check_motion(m)
     assert np.allclose(m.objects[kb.name], pose)
     pts = np.array([(pose @ np.r_[p, 1.0])[:3] for p in kb.meta["press_points"]])
@@ -318,7 +321,7 @@ def test_use_mouse_stays_on_desk_and_follows_hand(seated):
     ms = mouse()
     pose = pose_xyz_yaw(0.32, 0.33, 0.74, 0.0)  # facing -x, the sitter's right is +y
     base = posture.sit(OFF, seat, yaw, stand, hands.nominal_frames("use_mouse", rng), rng)
-    m = hands_desk.use_mouse(base, ms, pose, rng)
+    m = hands.use_mouse(base, ms, pose, rng)
     check_motion(m)
     g = m.grasp[hands.WRIST["right"]]
     assert g.sum() > 30
@@ -337,7 +340,7 @@ def test_push_pull_chair(kind):
     ch = chair()
     pose = pose_xyz_yaw(0.5, 0.5, 0.0, 0.7)
     dist = 0.6
-    m = (hf.push if kind == "push" else hf.pull)(OFF, ch, pose, dist, rng)
+    m = (hands.push if kind == "push" else hands.pull)(OFF, ch, pose, dist, rng)
     J = check_motion(m, joints=UPPER)
     tr = m.objects[ch.name]
     assert np.allclose(tr[0], pose)
@@ -346,7 +349,7 @@ def test_push_pull_chair(kind):
     assert abs(np.linalg.norm(move) - dist) < 1e-6
     face = pose[:3, 0]  # person behind the backrest faces the chair's +x
     assert np.dot(move, face) * (1 if kind == "push" else -1) > 0.99 * dist
-    pos, yaw = hf.push_stance(OFF, ch, pose)
+    pos, yaw = hands.push_stance(OFF, ch, pose)
     assert np.allclose(m.root[0, :2], pos, atol=1e-6)
     handles = np.asarray(ch.meta["push_handles"])
     P = hands.palm_points(J)
@@ -376,8 +379,9 @@ def test_bad_inputs_and_determinism():
     with pytest.raises(ValueError, match="4, 4"):
         hands.pick_up(base, obj, np.eye(3), "right", rng)
     with pytest.raises(ValueError, match="door angle"):
-        st = hf.DoorStance(pos=np.array([0.5, 0.3]), yaw=np.pi, side="right", reach=1.0, open_pos=np.array([1.0, 0.3]))
-        hf.open_door(OFF, door(), np.eye(4), 2.0, rng, st)
+        st = hands.DoorStance(pos=np.array([0.5, 0.3]), yaw=np.pi, side="right", reach=1.0,
+                              open_pos=np.array([1.0, 0.3]))
+        hands.open_door(OFF, door(), np.eye(4), 2.0, rng, st)
     with pytest.raises(ValueError, match="unknown primitive"):
         hands.nominal_frames("juggle", rng)
     a, _ = hands.pick_up(base, obj, pose, "right", np.random.default_rng(1))
@@ -413,3 +417,22 @@ def test_put_down_keeps_carried_yaw_unless_exact():
     yaw = lambda p: np.arctan2(p[1, 0], p[0, 0])  # noqa: E731
     assert abs(np.angle(np.exp(1j * (yaw(end) - yaw(carried))))) < 1e-6  # as carried, not 2.5 rad
     assert np.allclose(end[:3, 2], [0, 0, 1], atol=1e-6)
+
+
+def test_phase_registry_covers_every_primitive():
+    """One registry times every hand primitive: each has its flexible phase, phases cover the base
+    exactly and in order, and a base under half the natural length is refused."""
+    from trumans.synth.hands.timing import FLEX, phases
+
+    assert set(hands.PHASES) == set(FLEX)
+    rng = np.random.default_rng(0)
+    for kind, spec in hands.PHASES.items():
+        assert FLEX[kind] in spec and all(0 < lo <= hi for lo, hi in spec.values())
+        T = hands.nominal_frames(kind, rng)
+        ph = phases(kind, T, rng, 30.0)
+        assert list(ph) == list(spec)
+        edges = [b for b in ph.values()]
+        assert edges[0][0] == 0 and edges[-1][1] == T - 1
+        assert all(a[1] == b[0] for a, b in zip(edges, edges[1:]))  # contiguous
+        with pytest.raises(ValueError, match="too short"):
+            phases(kind, max(2, T // 8), rng, 30.0)

@@ -8,7 +8,8 @@ from trumans.rotations import euler_to_matrix
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import bone_lengths, forward_kinematics, heading, rest_offsets
 from trumans.ik.limb import LIMBS, limb_reach, set_global_rotation, solve_limb
-from trumans.synth.locomotion import foot_places, stand, standing_state, turn, walk
+from trumans.synth.legs import foot_places, standing_state
+from trumans.synth.locomotion import stand, turn, walk
 from trumans.synth.motion import Motion, concat_motions
 from trumans.synth.poses import POSES, blend_into, ease, keyframe_track, pose, slerp_rot
 from trumans.synth.posture import (
@@ -369,3 +370,30 @@ def test_blend_into_removes_a_jump():
     assert np.linalg.norm(np.diff(j, axis=0), axis=2).max() < 0.05
     np.testing.assert_array_equal(out.rot[15:], b.rot[15:])
     assert not out.foot_contact[:5].any()
+
+
+def test_reversed_motion_and_heading():
+    """Motion.reversed plays frames, object tracks and grasp flags backwards under one label;
+    yaw_of inverts yaw_matrix (rotations and 4x4 poses)."""
+    from trumans.rotations import yaw_matrix
+    from trumans.synth.motion import yaw_of
+
+    rng = np.random.default_rng(0)
+    off = rest_offsets(1.0)
+    m = walk(np.array([[0.0, 0.0], [1.0, 0.5]]), off, rng)
+    T = m.num_frames
+    m.objects["box"] = np.broadcast_to(np.eye(4), (T, 4, 4)).copy()
+    m.objects["box"][:, 0, 3] = np.arange(T)
+    m.grasp[20] = np.arange(T) < 5
+    r = m.reversed("walk_back")
+    np.testing.assert_array_equal(r.rot, m.rot[::-1])
+    np.testing.assert_array_equal(r.root, m.root[::-1])
+    np.testing.assert_array_equal(r.foot_contact, m.foot_contact[::-1])
+    np.testing.assert_array_equal(r.objects["box"][:, 0, 3], np.arange(T)[::-1])
+    assert r.grasp[20][-5:].all() and not r.grasp[20][:-5].any()
+    assert [(a.name, a.start, a.end) for a in r.actions] == [("walk_back", 0, T - 1)]
+    yaws = np.array([-3.0, -1.2, 0.0, 0.4, 3.1])
+    np.testing.assert_allclose(yaw_of(yaw_matrix(yaws)), yaws, atol=1e-12)
+    H = np.broadcast_to(np.eye(4), (5, 4, 4)).copy()
+    H[:, :3, :3] = yaw_matrix(yaws) @ euler_to_matrix(np.array([0.0, 0.3, 0.0]), "ZYX")  # pitched: heading kept
+    np.testing.assert_allclose(yaw_of(H), yaws, atol=1e-12)

@@ -13,32 +13,35 @@ from trumans.skeleton import forward_kinematics
 from trumans import metrics
 from trumans.synth import posture
 from trumans.synth.locomotion import foot_places
-from trumans.synth import script as S
-from trumans.synth.motion import concat_motions
+from trumans.synth.activities import ACTIVITIES
+from trumans.synth.activity_furniture import MIN_DOOR_ANGLE
+from trumans.synth.moves import MAX_PENETRATION, idle
+from trumans.synth.room import RoomContext
+from trumans.synth.take import Skip, TakeState, draw_actor
 
 
-def _context(tmp_path, seed: int, furniture: list[str], size=(5.0, 5.0)) -> S.RoomContext:
+def _context(tmp_path, seed: int, furniture: list[str], size=(5.0, 5.0)) -> RoomContext:
     scene = make_room(seed, size=size, furniture=furniture)
     save_scene(scene, tmp_path)
-    return S.RoomContext.build(scene, scene_occupancy(scene, tmp_path), 30.0)
+    return RoomContext.build(scene, scene_occupancy(scene, tmp_path), 30.0)
 
 
-def _perform(ctx: S.RoomContext, activity: str, name: str, seed: int) -> S._State | None:
+def _perform(ctx: RoomContext, activity: str, name: str, seed: int) -> TakeState | None:
     """Run one activity from a random walkable spot; None when it was skipped as infeasible."""
     rng = np.random.default_rng(seed)
     cells = np.argwhere(ctx.plans[0].walkable)
-    st = S._State(offsets=S.draw_actor(rng), speed=1.1, pos=ctx.plans[0].centers(cells[rng.integers(len(cells))]),
-                  yaw=float(rng.uniform(-np.pi, np.pi)),
-                  poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
-    st.append(S._idle(ctx, st, rng))
+    st = TakeState(offsets=draw_actor(rng), speed=1.1, pos=ctx.plans[0].centers(cells[rng.integers(len(cells))]),
+                   yaw=float(rng.uniform(-np.pi, np.pi)),
+                   poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
+    st.append(idle(ctx, st, rng))
     try:
-        S.ACTIVITIES[activity][1](ctx, st, rng, name)
-    except S.Skip:
+        ACTIVITIES[activity].run(ctx, st, rng, name)
+    except Skip:
         return None
     return st
 
 
-def _labelled(st: S._State, label: str) -> np.ndarray:
+def _labelled(st: TakeState, label: str) -> np.ndarray:
     """Frames (of the concatenated parts) of the parts labelled ``label``."""
     out, t = [], 0
     for p in st.parts:
@@ -60,7 +63,7 @@ def test_lying_on_a_bed_or_sofa_happens_on_its_surface(tmp_path, kind):
         names = [p.actions[0].name for p in st.parts]
         i = names.index("sit_down")
         assert names[i:i + 5] == ["sit_down", "lie_down", "lie", "get_up", "stand_up"]
-        m = concat_motions(st.parts)
+        m = st.motion()
         joints, G = forward_kinematics(m.rot, m.root, m.offsets)
         lie = _labelled(st, "lie")
         pel = joints[lie, J["pelvis"]]
@@ -76,11 +79,11 @@ def test_lying_on_a_bed_or_sofa_happens_on_its_surface(tmp_path, kind):
         # Nothing goes deep into the furniture over the whole activity (lying down, getting up).
         res = ctx.contacts.query(joints, {})
         pen = contact_rule(joints, res, global_rot=G).penetration
-        assert pen.max() < S.MAX_PENETRATION + 1e-6
+        assert pen.max() < MAX_PENETRATION + 1e-6
 
 
 def test_short_sofa_is_lain_on_with_the_knees_up():
-    off = S.draw_actor(np.random.default_rng(0))
+    off = draw_actor(np.random.default_rng(0))
     head, feet = posture.lying_extent(off)
     length = head + feet - 0.2  # 20 cm too short to lie straight
     shift, reach = posture.fit_lying(off, length)
@@ -106,15 +109,29 @@ def test_door_is_pulled_open_wide_with_the_hand_on_the_handle(tmp_path):
     for st in done:
         names = [p.actions[0].name for p in st.parts]
         assert "open_door" in names and "close_door" in names
-        m = concat_motions(st.parts)
-        tr = S._object_tracks(ctx, m, {n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})[door.name]
+        tr = st.object_tracks(ctx)[door.name]
         rel = np.linalg.inv(door.pose) @ tr
         ang = np.arctan2(rel[:, 1, 0], rel[:, 0, 0]) * door.meta["open_sign"]
-        assert ang.max() >= S.MIN_DOOR_ANGLE - 1e-6  # a useful opening
+        assert ang.max() >= MIN_DOOR_ANGLE - 1e-6  # a useful opening
         assert abs(ang[-1]) < 1e-9  # closed again
-        take = S._finish(ctx, st, {n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
+        take = st.finish(ctx)
         assert len(take.grasp_gaps) > 30 and take.grasp_gaps.max() < 0.03  # the palm stays on the handle
-        assert take.penetration.max() < S.MAX_PENETRATION + 1e-6
+        assert take.penetration.max() < MAX_PENETRATION + 1e-6
+    # A failed activity is rolled back: appending the door opening again moves the door, restoring
+    # the snapshot puts the state (parts, frames, position, heading, object poses, grasps) back.
+    st = done[0]
+    opening = next(p for p in st.parts if p.actions[0].name == "open_door")
+    before = st.snapshot()
+    n, frames, pos, yaw, grasped = len(st.parts), st.frames, st.pos.copy(), st.yaw, len(st.grasped)
+    closed = st.poses[door.name].copy()
+    st.append(opening, {w: door.name for w in opening.grasp})
+    assert st.frames == frames + opening.num_frames and len(st.grasped) == grasped + 1
+    assert not np.allclose(st.poses[door.name], closed)  # left open
+    st.restore(before)
+    assert (len(st.parts), st.frames, st.yaw, len(st.grasped)) == (n, frames, yaw, grasped)
+    np.testing.assert_array_equal(st.pos, pos)
+    np.testing.assert_array_equal(st.poses[door.name], closed)
+    assert st.motion().num_frames == frames
 
 
 def test_turns_and_walks_keep_floor_contacts_planted(tmp_path):
@@ -122,15 +139,15 @@ def test_turns_and_walks_keep_floor_contacts_planted(tmp_path):
     stays far below the 2 cm target for a take of walks and turns in a room."""
     ctx = _context(tmp_path, 1, ["table"], size=(6.0, 6.0))
     rng = np.random.default_rng(2)
-    st = S._State(offsets=S.draw_actor(rng), speed=1.2, pos=np.array([1.5, 1.5]), yaw=0.0,
-                  poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
-    st.append(S._idle(ctx, st, rng))
+    st = TakeState(offsets=draw_actor(rng), speed=1.2, pos=np.array([1.5, 1.5]), yaw=0.0,
+                   poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
+    st.append(idle(ctx, st, rng))
     for _ in range(6):
         try:
-            S.ACTIVITIES["wander"][1](ctx, st, rng, "")
-        except S.Skip:
+            ACTIVITIES["wander"].run(ctx, st, rng, "")
+        except Skip:
             continue
-    take = S._finish(ctx, st, {n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
+    take = st.finish(ctx)
     names = {a.name for p in st.parts for a in p.actions}
     assert {"walk", "turn"} <= names
     feet = take.sequence.joints[:, [J["left_foot"], J["right_foot"]]]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from trumans.cli import main as cli_main
+from trumans.dataset import write_index
 from trumans.sequence import ObjectTrack, Sequence, save_sequence
 from trumans.skeleton import REST_JOINTS
 
@@ -24,7 +25,8 @@ def _dataset(tmp_path):
     grid[60:70, 40:60, :40] = True
     (tmp_path / "scenes" / "room_a").mkdir(parents=True)
     np.savez(tmp_path / "scenes" / "room_a" / "occupancy.npz", grid=grid, origin=np.array([-1.0, -1.0, 0.01]), voxel=np.asarray(0.02))
-    (tmp_path / "index.json").write_text(json.dumps({"scenes": {"room_a": "scenes/room_a"}, "splits": {}}))
+    write_index(tmp_path, {"name": "toy", "version": 1, "fps": 30.0, "vocabulary": [],
+                           "scenes": {"room_a": "scenes/room_a"}, "splits": {"train": ["sequences/a.npz"]}})
     return tmp_path / "sequences" / "a.npz"
 
 

@@ -4,6 +4,14 @@ Each subcommand lives in the package that owns it, as a module with
 ``add_arguments(parser: argparse.ArgumentParser) -> None`` and ``run(args) -> int``.
 Modules are imported lazily, so ``trumans`` itself never imports train/sample/augment at
 import time. A command whose module is not built yet says so and exits with status 2.
+
+Errors (``console_main``), one channel for every command:
+- expected failures (bad arguments, missing or corrupt files, bad values, a locked output folder,
+  disk errors): one line ``trumans: error: <what is wrong and how to fix it>``, exit status 2;
+- anything else is a bug: one line ``trumans: error: unexpected <Type>: <message>; this is a bug,
+  run with TRUMANS_DEBUG=1 and report it``, exit status 1;
+- Ctrl-C: ``trumans: interrupted``, exit status 130.
+``TRUMANS_DEBUG=1`` re-raises instead (full traceback).
 """
 from __future__ import annotations
 
@@ -39,8 +47,20 @@ def _load(module: str):
         raise
 
 
+class UsageError(ValueError):
+    """A command line that argparse rejects (unknown option, bad value, missing argument)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a bad command line raises ``UsageError`` (printed by ``console_main`` as
+    one ``trumans: error:`` line) instead of printing usage and exiting."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{message} (see `{self.prog} --help`)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="trumans", description="Human-scene interaction motion framework.")
+    parser = _Parser(prog="trumans", description="Human-scene interaction motion framework.")
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"trumans {__version__}")
@@ -68,7 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _not_built(name: str, issue: str):
     def run(args) -> int:
-        print(f"trumans {name}: not built yet (tracked in {issue}).", file=sys.stderr)
+        print(f"trumans: error: `trumans {name}` is not built yet (tracked in {issue}); "
+              f"see `trumans --help` for the commands that are", file=sys.stderr)
         return 2
     return run
 
@@ -76,6 +97,7 @@ def _not_built(name: str, issue: str):
 def _usage(p: argparse.ArgumentParser):
     def run(args) -> int:
         p.print_help(sys.stderr)
+        print(f"trumans: error: `{p.prog}` needs a command; choose one of those listed above", file=sys.stderr)
         return 2
     return run
 
@@ -85,17 +107,39 @@ def main(argv: list[str] | None = None) -> int:
     return int(args._run(args) or 0)
 
 
+def _expected() -> tuple[type[BaseException], ...]:
+    from .io_lock import FolderLocked
+
+    # ValueError covers bad values, UsageError, JSON and Unicode decoding; OSError covers missing /
+    # unreadable files, full disks and permissions
+    return (ValueError, OSError, FolderLocked)
+
+
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split()) or type(e).__name__
+    return text
+
+
 def console_main(argv: list[str] | None = None) -> int:
-    """The console script: ``main`` with bad-input errors (missing files, bad values) printed as
-    one line, ``trumans: error: <message>``, and exit status 2 instead of a traceback (set
-    TRUMANS_DEBUG=1 for the traceback). ``main`` itself lets them propagate (for callers and tests)."""
+    """The console script: ``main`` with every failure printed as one ``trumans: error:`` line
+    (module doc): exit status 2 for bad input, 1 for a bug, 130 for Ctrl-C. TRUMANS_DEBUG=1 shows
+    the traceback instead. ``main`` itself lets exceptions propagate (for callers and tests)."""
     try:
         return main(argv)
-    except (FileNotFoundError, NotADirectoryError, IsADirectoryError, ValueError) as e:
+    except KeyboardInterrupt:
         if os.environ.get("TRUMANS_DEBUG"):
             raise
-        print(f"trumans: error: {e}", file=sys.stderr)
-        return 2
+        print("trumans: interrupted (an interrupted build or augmentation resumes when re-run)", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 - the one error channel
+        if os.environ.get("TRUMANS_DEBUG"):
+            raise
+        if isinstance(e, _expected()):
+            print(f"trumans: error: {_one_line(e)}", file=sys.stderr)
+            return 2
+        print(f"trumans: error: unexpected {type(e).__name__}: {_one_line(e)}; this is a bug, "
+              f"run with TRUMANS_DEBUG=1 and report it", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-from pathlib import Path
+import math
+import shutil
+from pathlib import Path, PurePosixPath
 
 from scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 
 from .sequence import Sequence, atomic_write, load_sequence
 
-__all__ = ["INDEX_FILE", "SPLITS", "Dataset", "write_index", "content_hash"]
+__all__ = ["INDEX_FILE", "SPLITS", "Dataset", "DatasetWriter", "load_index", "write_index", "content_hash"]
 
 INDEX_FILE = "index.json"
 SPLITS: tuple[str, ...] = ("train", "val", "test")
@@ -50,6 +52,62 @@ def write_index(root: str | Path, index: dict) -> Path:
     return path
 
 
+def _bad(path: Path, what: str) -> ValueError:
+    return ValueError(f"{path}: {what}; repair the file or rebuild the dataset")
+
+
+def _rel_path(path: Path, field: str, p: object) -> str:
+    """A path inside the dataset folder: relative, no '..'."""
+    if not isinstance(p, str) or not p:
+        raise _bad(path, f"{field} must hold relative paths (text), got {p!r}")
+    parts = PurePosixPath(p).parts
+    if PurePosixPath(p).is_absolute() or ".." in parts:
+        raise _bad(path, f"{field} path {p!r} leaves the dataset folder; paths must be relative and inside it")
+    return p
+
+
+def load_index(root: str | Path) -> dict:
+    """Read and type-check ``root/index.json``: name (text), fps (positive number), vocabulary
+    (list of text), splits (split -> list of relative sequence paths), scenes (id -> relative
+    folder). Raises FileNotFoundError / ValueError naming the field and the fix."""
+    root = Path(root)
+    path = root / INDEX_FILE
+    if not root.is_dir():
+        raise FileNotFoundError(f"dataset folder {root} does not exist; build one with `trumans data synth --out {root}`")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist; {root} is not a dataset folder "
+                                f"(build one with `trumans data synth --out DIR`)")
+    try:
+        index = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path} is not valid JSON ({e}); rebuild the dataset") from e
+    if not isinstance(index, dict):
+        raise ValueError(f"{path} must hold a JSON object, got {type(index).__name__}; rebuild the dataset")
+    missing = [k for k in _REQUIRED if k not in index]
+    if missing:
+        raise ValueError(f"{path} lacks {missing}; rebuild the dataset")
+    if not isinstance(index["name"], str):
+        raise _bad(path, f"'name' must be text, got {index['name']!r}")
+    fps = index["fps"]
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not (math.isfinite(fps) and fps > 0):
+        raise _bad(path, f"'fps' must be a positive number, got {fps!r}")
+    vocab = index["vocabulary"]
+    if not isinstance(vocab, list) or not all(isinstance(v, str) for v in vocab):
+        raise _bad(path, f"'vocabulary' must be a list of action names (text), got {str(vocab)[:80]}")
+    splits = index["splits"]
+    if not isinstance(splits, dict) or not all(isinstance(v, list) for v in splits.values()):
+        raise _bad(path, "'splits' must map split names to lists of sequence paths")
+    for name, files in splits.items():
+        for p in files:
+            _rel_path(path, f"'splits'/{name}", p)
+    scenes = index["scenes"]
+    if not isinstance(scenes, dict):
+        raise _bad(path, f"'scenes' must map scene ids to folders, got {type(scenes).__name__}")
+    for sid, d in scenes.items():
+        _rel_path(path, f"'scenes'/{sid}", d)
+    return index
+
+
 class Dataset:
     """Read access to a dataset folder.
 
@@ -60,29 +118,9 @@ class Dataset:
 
     def __init__(self, root: str | Path) -> None:
         self.root = Path(root)
-        path = self.root / INDEX_FILE
-        if not self.root.is_dir():
-            raise FileNotFoundError(f"dataset folder {self.root} does not exist; build one with `trumans data synth --out {self.root}`")
-        if not path.is_file():
-            raise FileNotFoundError(f"{path} does not exist; {self.root} is not a dataset folder "
-                                    f"(build one with `trumans data synth --out DIR`)")
-        try:
-            index = json.loads(path.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise ValueError(f"{path} is not valid JSON ({e}); rebuild the dataset") from e
-        if not isinstance(index, dict):
-            raise ValueError(f"{path} must hold a JSON object, got {type(index).__name__}")
-        missing = [k for k in _REQUIRED if k not in index]
-        if missing:
-            raise ValueError(f"{path} lacks {missing}; rebuild the dataset")
-        splits = index["splits"]
-        if not isinstance(splits, dict) or not all(isinstance(v, list) for v in splits.values()):
-            raise ValueError(f"{path}: 'splits' must map split names to lists of sequence paths")
-        if not isinstance(index["vocabulary"], list) or not isinstance(index["scenes"], dict):
-            raise ValueError(f"{path}: 'vocabulary' must be a list and 'scenes' an object")
-        self.index = index
+        self.index = load_index(self.root)
         absent = [p for p in self.files if not p.is_file()]
-        absent += [self.root / d for d in index["scenes"].values() if not (self.root / d).is_dir()]
+        absent += [self.root / d for d in self.index["scenes"].values() if not (self.root / d).is_dir()]
         if absent:
             shown = ", ".join(str(a) for a in absent[:5]) + (" ..." if len(absent) > 5 else "")
             raise FileNotFoundError(f"dataset {self.root} lists {len(absent)} missing file(s)/folder(s): {shown}; "
@@ -142,8 +180,8 @@ class Dataset:
     def scene_dir(self, scene_id: str) -> Path:
         """The scene folder (scene.json + meshes + occupancy.npz) of ``scene_id``."""
         if scene_id not in self.index["scenes"]:
-            raise KeyError(f"scene {scene_id!r} is not in this dataset; it has {len(self.index['scenes'])} "
-                           f"scenes, e.g. {self.scene_ids[:3]}")
+            raise ValueError(f"scene {scene_id!r} is not in this dataset ({self.root}); it has {len(self.index['scenes'])} "
+                           f"scenes, e.g. {self.scene_ids[:3]}; the sequence names a scene its index lacks")
         return self.root / self.index["scenes"][scene_id]
 
     def occupancy(self, scene_id: str) -> OccupancyGrid:
@@ -155,3 +193,115 @@ class Dataset:
         from scenes.io import load_scene
 
         return load_scene(self.scene_dir(scene_id))
+
+
+CLAIM_FILE = ".trumans-output.json"
+# what a writer may remove under --overwrite: the outputs of synth, augment and the importers
+_OUTPUT_NAMES = (INDEX_FILE, "manifest.json", "summary.json", "summary.png", "sequences", "scenes", "records",
+                 "rooms", CLAIM_FILE)
+
+
+class DatasetWriter:
+    """The one writer of a dataset folder (synth, augment, importers).
+
+    ``with DatasetWriter(root, command, settings, overwrite) as w:`` takes the folder's lock
+    (``trumans.io_lock.FolderLock``: a second writer is refused), then claims the folder:
+    a new or empty folder, or one claimed by the same command with the same ``settings``
+    (a resume), is accepted; a folder holding other data (another dataset's ``index.json``, the
+    output of other settings, unrelated files) is refused unless ``overwrite``, which first
+    removes the previous outputs (``index.json``, ``sequences/``, ``scenes/``, ...; nothing else).
+    Stale temp files of killed writers are swept. ``save_occupancy`` writes a scene grid through
+    ``OccupancyGrid``; ``finish(index)`` adds the content hash and writes ``index.json``.
+    Call it after every input is validated: a refused run changes nothing on disk."""
+
+    def __init__(self, root: str | Path, command: str, settings: dict, overwrite: bool = False) -> None:
+        self.root = Path(root)
+        self.command = command
+        self.settings = json.loads(json.dumps(settings, sort_keys=True, default=str))
+        self.overwrite = overwrite
+        self._lock = None
+        self.resumed = False
+        self.swept = 0
+
+    def __enter__(self) -> "DatasetWriter":
+        from .io_lock import LOCK_FILE, FolderLock, sweep_temp_files
+
+        if self.root.exists() and not self.root.is_dir():
+            raise NotADirectoryError(f"{self.root} is a file; give --out a folder (new or empty)")
+        existed = self.root.is_dir()
+        self._lock = FolderLock(self.root, f"trumans {self.command}").acquire()
+        try:
+            content = sorted(p.name for p in self.root.iterdir() if p.name != LOCK_FILE) if existed else []
+            refusal = self._refusal(content)
+            if refusal and not self.overwrite:
+                raise FileExistsError(f"{self.root} {refusal}; pass --overwrite to replace it, or choose "
+                                      f"another --out")
+            if refusal:
+                for name in _OUTPUT_NAMES:
+                    p = self.root / name
+                    if p.is_dir() and not p.is_symlink():
+                        shutil.rmtree(p)
+                    elif p.exists() or p.is_symlink():
+                        p.unlink()
+            self.resumed = bool(content) and not refusal
+            self.swept = sweep_temp_files(self.root)
+            claim = {"command": self.command, "settings": self.settings}
+            atomic_write(self.root / CLAIM_FILE, lambda tmp: Path(tmp).write_text(json.dumps(claim, indent=1)))
+        except BaseException:
+            self._lock.release()
+            self._lock = None
+            if not existed:
+                shutil.rmtree(self.root, ignore_errors=True)
+            raise
+        return self
+
+    def _refusal(self, content: list[str]) -> str:
+        """Why the folder is not ours to write ('' if it is)."""
+        if not content:
+            return ""
+        claim_path = self.root / CLAIM_FILE
+        if claim_path.is_file():
+            try:
+                claim = json.loads(claim_path.read_text())
+            except (ValueError, OSError):
+                claim = None
+            if not isinstance(claim, dict):
+                return f"holds an unreadable {CLAIM_FILE}"
+            if claim.get("command") != self.command:
+                return f"holds the output of `trumans {claim.get('command')}`"
+            if claim.get("settings") != self.settings:
+                old = claim.get("settings") if isinstance(claim.get("settings"), dict) else {}
+                diff = [f"{k}: {old.get(k)!r} -> {self.settings.get(k)!r}"
+                        for k in sorted(set(old) | set(self.settings)) if old.get(k) != self.settings.get(k)]
+                return (f"holds the output of `trumans {self.command}` with other settings "
+                        f"({'; '.join(diff)[:300]}); re-run with the same settings to resume it")
+            return ""
+        if INDEX_FILE in content:
+            try:
+                name = json.loads((self.root / INDEX_FILE).read_text()).get("name", "?")
+            except (ValueError, OSError, AttributeError):
+                name = "?"
+            return f"holds another dataset ({name!r}) that this run would overwrite"
+        shown = ", ".join(content[:4]) + (" ..." if len(content) > 4 else "")
+        return f"is not empty ({shown}) and holds no trumans output"
+
+    def __exit__(self, *exc) -> None:
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+
+    def save_occupancy(self, scene_id: str, grid: OccupancyGrid) -> str:
+        """Write ``scenes/<scene_id>/occupancy.npz``; returns the scene folder relative to the root."""
+        rel = f"scenes/{scene_id}"
+        grid.save(self.root / rel / OCCUPANCY_FILE)
+        return rel
+
+    def finish(self, index: dict) -> str:
+        """Hash the listed sequences, write ``index.json`` (``index`` gains ``hash``); returns the hash."""
+        files = [p for s in index.get("splits", {}).values() for p in s]
+        if not files:
+            raise ValueError(f"no sequences to write into {self.root}; the inputs hold no usable motion")
+        index["hash"] = content_hash(self.root, files)
+        write_index(self.root, index)
+        load_index(self.root)  # what we wrote must read back
+        return index["hash"]

@@ -83,8 +83,10 @@ class Sequence:
 
 
 def save_sequence(seq: Sequence, path: str | Path) -> None:
-    """Write ``seq`` to ``path`` (.npz, uncompressed, atomically)."""
+    """Write ``seq`` to ``path`` (.npz, uncompressed, atomically). A sequence needs >= 1 frame."""
     seq.validate()
+    if seq.num_frames == 0:
+        raise ValueError(f"sequence for {path} has no frames; a sequence needs at least one")
     arrays: dict[str, np.ndarray] = {
         "joints": seq.joints.astype(np.float32),
         "fps": np.asarray(seq.fps, dtype=np.float32),
@@ -130,6 +132,21 @@ def load_sequence(path: str | Path) -> Sequence:
         raise ValueError(f"{path} is not a readable sequence .npz ({why}); re-create or re-export it") from e
     if "joints" not in data or "fps" not in data:
         raise ValueError(f"{path} lacks 'joints' and/or 'fps'; it is not a trumans sequence file")
+    for k, v in data.items():  # every array is numeric, bool or text (object arrays were refused above)
+        if v.dtype.kind not in "biufU":
+            raise ValueError(f"{path}: '{k}' has dtype {v.dtype}; re-create or re-export the sequence")
+    for k in ("joints", "rotations", "root_pos", "actions") + tuple(x for x in data if x.startswith("objects/")
+                                                                    and not x.endswith("/category")):
+        if k in data and data[k].dtype.kind not in "biuf":
+            raise ValueError(f"{path}: '{k}' must be numeric, got dtype {data[k].dtype}; re-create or re-export it")
+    if data["fps"].size != 1 or data["fps"].dtype.kind not in "iuf":
+        raise ValueError(f"{path}: 'fps' must be one number, got shape {data['fps'].shape} dtype {data['fps'].dtype}")
+    if data["joints"].ndim != 3 or data["joints"].shape[0] == 0:
+        raise ValueError(f"{path}: 'joints' must be (T, 24, 3) with T >= 1 frames, got {data['joints'].shape}; "
+                         f"re-create or re-export the sequence")
+    for k in ("scene", "action_names"):
+        if k in data and data[k].dtype.kind != "U":
+            raise ValueError(f"{path}: '{k}' must be text, got dtype {data[k].dtype}")
     objects: dict[str, ObjectTrack] = {}
     for k in data:
         if k.startswith("objects/") and k.endswith("/pose"):
@@ -141,15 +158,18 @@ def load_sequence(path: str | Path) -> Sequence:
                 imu_rot=data.get(pre + "imu_rot"),
                 imu_acc=data.get(pre + "imu_acc"),
             )
-    return Sequence(
-        joints=data["joints"],
-        fps=float(data["fps"]),
-        rotations=data.get("rotations"),
-        root_pos=data.get("root_pos"),
-        actions=data.get("actions"),
-        action_names=[str(s) for s in data.get("action_names", [])],
-        contacts=data.get("contacts"),
-        scene=str(data.get("scene", "")),
-        objects=objects,
-        extra={k[len("extra/"):]: v for k, v in data.items() if k.startswith("extra/")},
-    )
+    try:
+        return Sequence(
+            joints=data["joints"],
+            fps=float(data["fps"].reshape(())),
+            rotations=data.get("rotations"),
+            root_pos=data.get("root_pos"),
+            actions=data.get("actions"),
+            action_names=[str(s) for s in data.get("action_names", [])],
+            contacts=data.get("contacts"),
+            scene=str(data.get("scene", "")),
+            objects=objects,
+            extra={k[len("extra/"):]: v for k, v in data.items() if k.startswith("extra/")},
+        )
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from e

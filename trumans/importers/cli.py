@@ -8,18 +8,24 @@ from pathlib import Path
 
 import numpy as np
 
-from trumans.sequence import Sequence, atomic_write, save_sequence
+from trumans.argtypes import positive_float
+from trumans.dataset import DatasetWriter
+from trumans.sequence import Sequence, save_sequence
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("src", nargs="+", help="a TRUMANS release folder, or one or more .bvh files")
     p.add_argument("--format", choices=["trumans", "bvh"], required=True, help="layout of SRC")
-    p.add_argument("--out", required=True, help="dataset folder to write (sequences/, scenes/, index.json)")
+    p.add_argument("--out", required=True, help="dataset folder to write (sequences/, scenes/, index.json); "
+                                                "a folder holding other data is refused unless --overwrite")
+    p.add_argument("--overwrite", action="store_true", help="replace the dataset already in --out")
     p.add_argument("--action-names", help="TRUMANS: JSON list or text file (one per line) naming the label columns")
-    p.add_argument("--joint-map", help="BVH: JSON object {our_joint_name: bvh_joint_name} extending the default map")
-    p.add_argument("--unit-scale", type=float, help="BVH: metres per file unit (default: guessed from the skeleton size)")
+    p.add_argument("--joint-map", help="BVH: JSON object {our_joint_name: bvh_joint_name} extending the default "
+                                       "map, inline or in a .json file")
+    p.add_argument("--unit-scale", type=positive_float,
+                   help="BVH: metres per file unit (default: guessed from the skeleton size)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="BVH: up axis of the file (default y)")
-    p.add_argument("--fps", type=float, help="resample to this frame rate (default: keep the file's)")
+    p.add_argument("--fps", type=positive_float, help="resample to this frame rate (default: keep the file's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the train/val/test split")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
 
@@ -27,14 +33,40 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _read_names(path: str | None) -> list[str] | None:
     if path is None:
         return None
-    text = Path(path).read_text()
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"--action-names file {p} does not exist; give a JSON list or a text file "
+                                f"with one action name per line")
+    text = p.read_text()
     try:
         names = json.loads(text)
     except json.JSONDecodeError:
         names = [ln.strip() for ln in text.splitlines() if ln.strip()]
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        raise ValueError(f"{path} must hold a JSON list of strings or one name per line")
+        raise ValueError(f"--action-names {path} must hold a JSON list of strings or one name per line")
     return names
+
+
+def _read_joint_map(arg: str | None) -> dict[str, str] | None:
+    """--joint-map: inline JSON (starts with '{') or a JSON file holding an object of strings."""
+    if arg is None:
+        return None
+    if arg.lstrip().startswith("{"):
+        text, where = arg, "inline --joint-map"
+    else:
+        p = Path(arg)
+        if not p.is_file():
+            raise FileNotFoundError(f"--joint-map {arg!r} is neither inline JSON nor an existing file; give "
+                                    f"'{{\"pelvis\": \"Hips\"}}' or a .json file")
+        text, where = p.read_text(), f"--joint-map file {p}"
+    try:
+        jm = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{where} is not valid JSON ({e}); give an object like {{\"pelvis\": \"Hips\"}}") from e
+    if not isinstance(jm, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in jm.items()):
+        raise ValueError(f"{where} must be a JSON object of joint names {{our_joint: bvh_joint}}, got "
+                         f"{str(jm)[:60]}")
+    return jm
 
 
 def split_by_group(groups: list[str], seed: int, fracs: tuple[float, float] = (0.8, 0.1)) -> list[str]:
@@ -49,21 +81,13 @@ def split_by_group(groups: list[str], seed: int, fracs: tuple[float, float] = (0
     return [which[g] for g in groups]
 
 
-def write_dataset(out: Path, sequences: list[tuple[str, Sequence]], scene_grids: dict, name: str, seed: int) -> dict:
-    """Write sequences + occupancy-only scenes + index.json; returns the index."""
-    from trumans.sequence import atomic_write as _aw
-
-    out.mkdir(parents=True, exist_ok=True)
-    scenes_index = {}
-    for sid, g in scene_grids.items():
-        folder = out / "scenes" / sid
-        folder.mkdir(parents=True, exist_ok=True)
-
-        def _w(tmp: str, g=g) -> None:
-            with open(tmp, "wb") as f:
-                np.savez(f, grid=g.grid, origin=np.asarray(g.origin, dtype=np.float64), voxel=np.asarray(g.voxel))
-        _aw(folder / "occupancy.npz", _w)
-        scenes_index[sid] = f"scenes/{sid}"
+def write_dataset(writer: DatasetWriter, sequences: list[tuple[str, Sequence]], scene_grids: dict,
+                  name: str, seed: int) -> dict:
+    """Write sequences + occupancy-only scenes + the hashed index.json through ``writer``; returns the index."""
+    if not sequences:
+        raise ValueError("the source holds no sequences; there is nothing to import")
+    out = writer.root
+    scenes_index = {sid: writer.save_occupancy(sid, g) for sid, g in scene_grids.items()}
     rels = []
     for stem, seq in sequences:
         rel = f"sequences/{stem}.npz"
@@ -75,40 +99,52 @@ def write_dataset(out: Path, sequences: list[tuple[str, Sequence]], scene_grids:
     splits = {"train": [], "val": [], "test": []}
     for rel, s in zip(rels, split_by_group(groups, seed)):
         splits[s].append(rel)
-    vocab = sequences[0][1].action_names if sequences else []
     index = {
-        "name": name, "version": 1, "seed": seed,
-        "fps": float(sequences[0][1].fps) if sequences else 0.0,
-        "vocabulary": list(vocab), "splits": splits, "scenes": scenes_index,
+        "name": name, "version": 1, "seed": seed, "fps": float(sequences[0][1].fps),
+        "vocabulary": list(sequences[0][1].action_names), "splits": splits, "scenes": scenes_index,
         "counts": {"sequences": len(rels), "frames": int(sum(s.num_frames for _, s in sequences))},
     }
-    atomic_write(out / "index.json", lambda tmp: Path(tmp).write_text(json.dumps(index, indent=1)))
+    writer.finish(index)
     return index
 
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    settings = {"format": args.format, "src": [str(Path(p).resolve()) for p in args.src], "seed": args.seed,
+                "action_names": args.action_names, "joint_map": args.joint_map, "unit_scale": args.unit_scale,
+                "up": args.up, "fps": args.fps}
+    # read and check everything first: a refused import leaves --out untouched
     if args.format == "trumans":
         from .trumans_release import read_release
 
         if len(args.src) != 1:
-            raise SystemExit("--format trumans takes exactly one release folder")
+            raise ValueError(f"--format trumans takes exactly one release folder, got {len(args.src)}: "
+                             f"{' '.join(args.src)[:200]}; import the folders one at a time")
         rel = read_release(args.src[0], action_names=_read_names(args.action_names))
         seqs = rel.sequences
         if args.fps:
             from trumans.resample import resample_sequence
             seqs = [resample_sequence(s, args.fps) for s in seqs]
         named = [(f"trumans_{i:05d}", s) for i, s in enumerate(seqs)]
-        index = write_dataset(out, named, rel.scenes, name=f"trumans-import:{Path(args.src[0]).name}", seed=args.seed)
+        grids, name = rel.scenes, f"trumans-import:{Path(args.src[0]).name}"
     else:
         from trumans.bvh import import_bvh
 
-        joint_map = json.loads(Path(args.joint_map).read_text()) if args.joint_map else None
+        joint_map = _read_joint_map(args.joint_map)
         named = []
         for src in args.src:
             seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps)
             named.append((Path(src).stem, seq))
-        index = write_dataset(out, named, {}, name="bvh-import", seed=args.seed)
+        stems = [s for s, _ in named]
+        if len(set(stems)) != len(stems):
+            raise ValueError(f"BVH files with the same name would overwrite each other: "
+                             f"{sorted({s for s in stems if stems.count(s) > 1})}; rename them")
+        grids, name = {}, "bvh-import"
+    if out.resolve() in [Path(p).resolve() for p in args.src] or any(out.resolve() in Path(p).resolve().parents
+                                                                     for p in args.src):
+        raise ValueError(f"--out {out} is (or holds) the import source; choose another folder")
+    with DatasetWriter(out, "data import", settings, overwrite=args.overwrite) as writer:
+        index = write_dataset(writer, named, grids, name=name, seed=args.seed)
     summary = {"sequences": index["counts"]["sequences"], "frames": index["counts"]["frames"],
                "scenes": len(index["scenes"]), "out": str(out)}
     print(f"imported {summary['sequences']} sequences ({summary['frames']} frames) into {out}", file=sys.stderr)

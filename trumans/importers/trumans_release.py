@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.occupancy import OccupancyGrid
 from trumans.sequence import ObjectTrack, Sequence
 
 __all__ = ["Y_UP_TO_Z_UP", "TrumansRelease", "read_release", "release_grid_to_z_up", "RELEASE_GRID_BOUNDS"]
@@ -35,21 +36,12 @@ RELEASE_FPS = 30.0
 
 
 @dataclass
-class SceneGrid:
-    """A z-up occupancy grid: grid (Nx, Ny, Nz) bool, origin = centre of voxel (0,0,0), voxel in m."""
-
-    grid: np.ndarray
-    origin: np.ndarray
-    voxel: float
-
-
-@dataclass
 class TrumansRelease:
     sequences: list[Sequence]
-    scenes: dict[str, SceneGrid]
+    scenes: dict[str, OccupancyGrid]
 
 
-def release_grid_to_z_up(grid_yup: np.ndarray) -> SceneGrid:
+def release_grid_to_z_up(grid_yup: np.ndarray) -> OccupancyGrid:
     """(300, 100, 400) y-up grid [ix, iy(up), iz] -> z-up grid [ix, jy, kz] with y' = -z, z' = y."""
     if grid_yup.ndim != 3:
         raise ValueError(f"a release scene grid must be 3D, got shape {grid_yup.shape}")
@@ -61,7 +53,7 @@ def release_grid_to_z_up(grid_yup: np.ndarray) -> SceneGrid:
     v = float(voxel_yup[0])
     # z-up min corner: x_min, -z_max, y_min.
     lo = np.array([RELEASE_GRID_BOUNDS[0, 0], -RELEASE_GRID_BOUNDS[1, 2], RELEASE_GRID_BOUNDS[0, 1]])
-    return SceneGrid(grid=np.ascontiguousarray(grid), origin=lo + 0.5 * v, voxel=v)
+    return OccupancyGrid(grid=np.ascontiguousarray(grid), origin=lo + 0.5 * v, voxel=v)
 
 
 def _load(folder: Path, name: str, required: bool = True) -> np.ndarray | None:
@@ -73,7 +65,20 @@ def _load(folder: Path, name: str, required: bool = True) -> np.ndarray | None:
     try:
         return np.load(p, allow_pickle=False)
     except (ValueError, OSError, EOFError) as e:
-        raise ValueError(f"{p} is not a readable .npy array ({e}); re-download or re-export it") from e
+        # numpy's pickle message suggests unsafe loading: never; say what the file is instead
+        why = "it holds Python objects; unpickling is refused" if "pickle" in str(e) else str(e)
+        raise ValueError(f"{p} is not a readable .npy array ({why}); re-download or re-export it") from e
+
+
+def _read_names(path: Path, n: int) -> list[str]:
+    try:
+        names = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path} is not valid JSON ({e}); it must list the {n} object names") from e
+    if not isinstance(names, list) or len(names) != n or not all(isinstance(x, str) and x and "/" not in x
+                                                                   for x in names):
+        raise ValueError(f"{path} must be a JSON list of {n} object names (text without '/'), got {str(names)[:60]}")
+    return names
 
 
 def _segments(n: int, idx_start: np.ndarray | None, scene_flag: np.ndarray | None) -> list[tuple[int, int]]:
@@ -106,6 +111,8 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
     if not np.isfinite(joints).all():
         raise ValueError("human_joints.npy contains NaN or inf")
     n = joints.shape[0]
+    if n == 0:
+        raise ValueError(f"{folder / 'human_joints.npy'} holds 0 frames; there is nothing to import")
     actions = _load(folder, "action_label.npy", required=False)
     if actions is not None:
         if actions.ndim != 2 or actions.shape[0] != n:
@@ -115,8 +122,12 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
         if len(action_names) != actions.shape[1]:
             raise ValueError(f"{len(action_names)} action names given for {actions.shape[1]} label columns")
     scene_flag = _load(folder, "scene_flag.npy", required=False)
-    if scene_flag is not None and scene_flag.shape != (n,):
-        raise ValueError(f"scene_flag.npy must be ({n},), got {scene_flag.shape}")
+    if scene_flag is not None:
+        if scene_flag.shape != (n,) or scene_flag.dtype.kind not in "iu":
+            raise ValueError(f"scene_flag.npy must be ({n},) integers, got {scene_flag.shape} {scene_flag.dtype}")
+        if scene_flag.min() < 0:
+            raise ValueError(f"scene_flag.npy holds {int(scene_flag.min())} at frame {int(np.argmin(scene_flag))}; "
+                             f"scene indices must be >= 0 (they index the sorted files of Scene/)")
     scene_files = sorted((folder / "Scene").glob("*.npy")) if (folder / "Scene").is_dir() else []
     scenes = {}
     for f in scene_files:
@@ -135,7 +146,7 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
             raise ValueError(f"object_flag.npy must be ({n}, N_obj) and object_mat.npy ({n}, K, 4, 4); "
                              f"got {obj_flag.shape} and {obj_mat.shape}")
         names_file = folder / "object_names.json"
-        obj_names = (json.loads(names_file.read_text()) if names_file.is_file()
+        obj_names = (_read_names(names_file, obj_flag.shape[1]) if names_file.is_file()
                      else [f"object_{i:02d}" for i in range(obj_flag.shape[1])])
 
     C = Y_UP_TO_Z_UP

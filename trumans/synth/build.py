@@ -12,7 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import multiprocessing as mp
 import os
 import sys
 import time
@@ -21,9 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from trumans.dataset import SPLITS, content_hash, write_index
+from trumans.dataset import SPLITS, DatasetWriter
 from trumans.sequence import atomic_write, save_sequence
 from trumans import metrics
+from trumans.workers import worker_pool
 from .vocab import SYNTH_ACTIONS
 
 __all__ = ["SynthConfig", "build_dataset", "room_ids", "split_rooms", "DATASET_NAME", "DATASET_VERSION"]
@@ -185,8 +185,11 @@ def _init_worker() -> None:
         pass
 
 
-def build_dataset(cfg: SynthConfig, progress: bool = True) -> dict:
+def build_dataset(cfg: SynthConfig, progress: bool = True, overwrite: bool = False) -> dict:
     """Build (or resume) the dataset of ``cfg``; returns the summary figures (also in summary.json).
+    The folder is locked while building and must be new, empty or a build of the same settings
+    (``trumans.dataset.DatasetWriter``; ``overwrite`` replaces what it holds). Workers die with
+    the builder (kill -9 leaves no orphan writing); rerunning resumes from the finished rooms.
 
     Summary: sequences, frames, hours, rooms, action_frames (per action), frames_per_s (frames
     generated in this run per wall-clock second), bone_length_dev_mm, foot_skate_cm,
@@ -194,8 +197,15 @@ def build_dataset(cfg: SynthConfig, progress: bool = True) -> dict:
     activities (per scripted activity: performed / skipped as infeasible), hash."""
     from tqdm import tqdm
 
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
+    settings = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items() if k not in ("out", "workers")}
+    with DatasetWriter(cfg.out, "data synth", settings, overwrite=overwrite) as writer:
+        return _build(cfg, writer, progress)
+
+
+def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
+    from tqdm import tqdm
+
+    out = writer.root
     t0 = time.perf_counter()
     workers = cfg.workers or os.cpu_count() or 1
     jobs = [(cfg, i) for i in range(cfg.rooms)]
@@ -207,7 +217,7 @@ def build_dataset(cfg: SynthConfig, progress: bool = True) -> dict:
             records.append(_build_room(job))
             bar.update(1)
     else:
-        with mp.get_context("fork").Pool(min(workers, cfg.rooms), initializer=_init_worker) as pool:
+        with worker_pool(min(workers, cfg.rooms), "fork") as pool:
             for rec in pool.imap_unordered(_build_room, jobs):
                 records.append(rec)
                 bar.update(1)
@@ -263,7 +273,6 @@ def build_dataset(cfg: SynthConfig, progress: bool = True) -> dict:
                        "frames": sum(by_room[rid]["frames"] for rid in splits_rooms[s])} for s in SPLITS},
         "resumed_rooms": sum(1 for r in records if r.get("resumed")),
     }
-    digest = content_hash(out, files)
     index = {
         "name": DATASET_NAME, "version": DATASET_VERSION, "seed": cfg.seed, "fps": FPS,
         "vocabulary": list(SYNTH_ACTIONS), "splits": splits,
@@ -273,10 +282,8 @@ def build_dataset(cfg: SynthConfig, progress: bool = True) -> dict:
                    "action_frames": action_frames, "scene_categories": categories},
         "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()
                    if k not in ("out", "workers")},
-        "hash": digest,
     }
-    write_index(out, index)
-    summary["hash"] = digest
+    summary["hash"] = writer.finish(index)
 
     def _write(tmp: str) -> None:
         with open(tmp, "w") as f:

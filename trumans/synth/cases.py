@@ -18,7 +18,7 @@ from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, yaw_matrix
 from trumans.sequence import Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics, rest_offsets
 from trumans.ik.limb import solve_limb
-from trumans.synth.locomotion import foot_places, solve_legs, standing_state
+from trumans.synth.legs import foot_places, solve_legs, standing_state
 from trumans.synth.poses import ease, pose, slerp_rot
 
 __all__ = ["CASE_KINDS", "make_case", "make_cases", "replacement_library"]

@@ -3,28 +3,26 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+
+from trumans.argtypes import nonneg_int, positive_float, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, help="dataset folder to write (scenes/, sequences/, index.json); "
-                                                "an interrupted build in the same folder resumes")
-    p.add_argument("--hours", type=float, default=2.0, help="hours of motion at 30 fps (default 2)")
-    p.add_argument("--rooms", type=int, default=50, help="number of procedural rooms (default 50)")
+    p.add_argument("--out", required=True, help="dataset folder to write (scenes/, sequences/, index.json): new, "
+                                                "empty, or an interrupted build of the same settings (it resumes)")
+    p.add_argument("--overwrite", action="store_true", help="replace the dataset already in --out")
+    p.add_argument("--hours", type=positive_float, default=2.0, help="hours of motion at 30 fps (default 2)")
+    p.add_argument("--rooms", type=positive_int, default=50, help="number of procedural rooms (default 50)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same data)")
-    p.add_argument("--workers", type=int, default=0, help="worker processes, rooms in parallel (default: CPU count)")
+    p.add_argument("--workers", type=nonneg_int, default=0, help="worker processes, rooms in parallel (default: CPU count)")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
 
 
 def run(args: argparse.Namespace) -> int:
     from .build import SynthConfig, build_dataset
 
-    try:
-        cfg = SynthConfig(out=args.out, hours=args.hours, rooms=args.rooms, seed=args.seed, workers=args.workers)
-    except ValueError as e:
-        print(f"trumans data synth: {e}", file=sys.stderr)
-        return 2
-    summary = build_dataset(cfg, progress=True)
+    cfg = SynthConfig(out=args.out, hours=args.hours, rooms=args.rooms, seed=args.seed, workers=args.workers)
+    summary = build_dataset(cfg, progress=True, overwrite=args.overwrite)
     if args.json:
         print(json.dumps(summary))
     else:

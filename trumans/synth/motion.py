@@ -12,7 +12,13 @@ from trumans.actions import ActionInterval
 from trumans.rotations import matrix_to_6d
 from trumans.skeleton import NUM_JOINTS, forward_kinematics
 
-__all__ = ["Motion", "concat_motions"]
+__all__ = ["Motion", "concat_motions", "yaw_of"]
+
+
+def yaw_of(R: np.ndarray) -> np.ndarray:
+    """Heading (rad) of rotations (..., 3, 3) or poses (..., 4, 4): the angle of their x axis
+    projected on the ground plane, from world +x towards +y (the inverse of ``yaw_matrix``)."""
+    return np.arctan2(R[..., 1, 0], R[..., 0, 0])
 
 
 @dataclass
@@ -56,6 +62,15 @@ class Motion:
     def global_rot(self) -> np.ndarray:
         """(T, 24, 3, 3) global joint rotations."""
         return forward_kinematics(self.rot, self.root, self.offsets)[1]
+
+    def reversed(self, label: str) -> "Motion":
+        """This motion played backwards, labelled ``label`` on every frame; object tracks and grasp
+        flags are reversed with it."""
+        return Motion(rot=self.rot[::-1].copy(), root=self.root[::-1].copy(), offsets=self.offsets, fps=self.fps,
+                      foot_contact=self.foot_contact[::-1].copy(),
+                      actions=[ActionInterval(label, 0, self.num_frames - 1)],
+                      objects={k: v[::-1].copy() for k, v in self.objects.items()},
+                      grasp={k: v[::-1].copy() for k, v in self.grasp.items()})
 
     def rotations_6d(self) -> np.ndarray:
         """(T, 24, 6) float32 local 6D rotations (first two columns)."""

@@ -26,7 +26,7 @@ from trumans.contacts.rule import JOINT_RADIUS
 from trumans.rotations import euler_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
 from trumans.ik.limb import limb_reach
-from .locomotion import _rest_ankle_rel, foot_places, pelvis_height_limit, solve_legs, standing_state
+from .legs import foot_places, pelvis_height_limit, rest_ankle_rel, solve_legs, standing_state
 from .motion import Motion
 from .poses import POSES, ease, pose, slerp_poses, slerp_rot
 
@@ -135,7 +135,7 @@ def lying_state(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float,
                              f"(min_leg_reach), got {leg_reach}")
         axis = np.array([np.cos(lie_yaw), np.sin(lie_yaw), 0.0])
         P, _ = forward_kinematics(rot[None], root[None], offsets)
-        z0 = offsets[0, 2] + _rest_ankle_rel(offsets)[0, 2]  # ankle height of a flat foot
+        z0 = offsets[0, 2] + rest_ankle_rel(offsets)[0, 2]  # ankle height of a flat foot
         feet = np.empty((1, 2, 3))
         for k, h in enumerate(_HIPS):
             lateral = P[0, h] - root - ((P[0, h] - root) @ axis) * axis
@@ -189,8 +189,14 @@ def fit_lying(offsets: np.ndarray, length: float, head_margin: float = 0.03,
     return float(shift), float(min(reach, 0.85 * straight))
 
 
-def _breathing(rot: np.ndarray, rng: np.random.Generator, fps: float, amp: float, env: np.ndarray) -> np.ndarray:
-    T = rot.shape[0]
+def _breathing(rot0: np.ndarray, frames: int, rng: np.random.Generator, fps: float, amp: float) -> np.ndarray:
+    """(frames, 24, 3, 3): the resting state rot0 (24, 3, 3) breathing (spine pitch of amplitude ``amp``
+    rad) with slow head turns, eased in and out (starts and ends exactly at rot0)."""
+    if frames < 1:
+        raise ValueError(f"frames must be >= 1, got {frames}")
+    T = int(frames)
+    rot = np.repeat(rot0[None], T, axis=0)
+    env = _envelope(T, fps)
     t = np.arange(T) / fps
     b = np.sin(2 * np.pi * rng.uniform(0.2, 0.3) * t + rng.uniform(0, 2 * np.pi)) * env
     head = 0.06 * np.sin(2 * np.pi * rng.uniform(0.03, 0.08) * t + rng.uniform(0, 2 * np.pi)) * env
@@ -249,11 +255,9 @@ def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos:
     """Seated idle for ``frames`` frames (breathing, small head turns), starting and ending exactly in
     ``seated_state(offsets, seat_center, sit_yaw, stand_pos)``; feet planted. Label 'sit'."""
     offsets = _offsets(offsets)
-    if frames < 1:
-        raise ValueError(f"frames must be >= 1, got {frames}")
     rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
-    T = int(frames)
-    rot = _breathing(np.repeat(rot0[None], T, axis=0), rng, fps, 0.015, _envelope(T, fps))
+    rot = _breathing(rot0, frames, rng, fps, 0.015)
+    T = len(rot)
     root = np.repeat(root0[None], T, axis=0)
     feet = np.repeat(foot_places(offsets, stand_pos, sit_yaw)[None], T, axis=0)
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=np.broadcast_to(yaw_matrix(sit_yaw), (T, 2, 3, 3)),
@@ -262,16 +266,11 @@ def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos:
                   actions=[ActionInterval("sit", 0, T - 1)])
 
 
-def _reverse(m: Motion, label: str) -> Motion:
-    return Motion(rot=m.rot[::-1].copy(), root=m.root[::-1].copy(), offsets=m.offsets, fps=m.fps,
-                  foot_contact=m.foot_contact[::-1].copy(), actions=[ActionInterval(label, 0, m.num_frames - 1)])
-
-
 def stand_up(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
              rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
     """Stand up from ``seated_state`` to ``standing_state(offsets, stand_pos, sit_yaw)`` (a sit-down
     played backwards, with its own timing from ``rng``); feet planted. Label 'stand_up'."""
-    return _reverse(sit_down(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing), "stand_up")
+    return sit_down(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing).reversed("stand_up")
 
 
 def _knee_dirs(P: np.ndarray) -> np.ndarray:
@@ -341,11 +340,9 @@ def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int
     exactly in ``lying_state(offsets, lie_center, lie_yaw, leg_reach)``. Label 'lie'. With the knees
     up (``leg_reach``) the feet stay planted on the surface (``foot_contact`` set)."""
     offsets = _offsets(offsets)
-    if frames < 1:
-        raise ValueError(f"frames must be >= 1, got {frames}")
     rot0, root0 = lying_state(offsets, lie_center, lie_yaw, leg_reach)
-    T = int(frames)
-    rot = _breathing(np.repeat(rot0[None], T, axis=0), rng, fps, 0.012, _envelope(T, fps))
+    rot = _breathing(rot0, frames, rng, fps, 0.012)
+    T = len(rot)
     return Motion(rot=rot, root=np.repeat(root0[None], T, axis=0), offsets=offsets, fps=fps,
                   foot_contact=np.full((T, 2), leg_reach is not None), actions=[ActionInterval("lie", 0, T - 1)])
 
@@ -355,5 +352,5 @@ def get_up(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_cen
            leg_reach: float | None = None) -> Motion:
     """From ``lying_state`` back to sitting on the edge (``seated_state``): a lie-down played backwards
     with its own timing from ``rng``. Label 'get_up'."""
-    return _reverse(lie_down(offsets, lie_center, lie_yaw, seat_center, rng, sit_yaw=sit_yaw,
-                             stand_pos=stand_pos, fps=fps, leg_reach=leg_reach), "get_up")
+    return lie_down(offsets, lie_center, lie_yaw, seat_center, rng, sit_yaw=sit_yaw, stand_pos=stand_pos, fps=fps,
+                    leg_reach=leg_reach).reversed("get_up")

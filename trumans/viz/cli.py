@@ -9,7 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
+from trumans.argtypes import positive_int
+from trumans.dataset import INDEX_FILE, load_index
 from trumans.sequence import load_sequence
+
 from .render import SceneView, render_animation, render_topdown
 
 if TYPE_CHECKING:
@@ -22,8 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help="output prefix (default: next to the first sequence)")
     p.add_argument("--format", choices=["gif", "mp4"], default="gif", help="animation format (default gif)")
     p.add_argument("--camera", choices=["fixed", "follow"], default="fixed", help="fixed camera or follow the body")
-    p.add_argument("--stride", type=int, default=3, help="render every N-th frame (default 3)")
-    p.add_argument("--max-frames", type=int, default=300, help="render at most this many frames (default 300)")
+    p.add_argument("--stride", type=positive_int, default=3, help="render every N-th frame (default 3)")
+    p.add_argument("--max-frames", type=positive_int, default=300, help="render at most this many frames (default 300)")
     p.add_argument("--no-animation", action="store_true", help="only write the top-down PNG")
     p.add_argument("--seed", type=int, default=0, help="unused (rendering is deterministic); accepted for uniformity")
     p.add_argument("--json", action="store_true", help="print the written paths as JSON on the last line")
@@ -40,9 +44,8 @@ def find_scene_dir(seq_path: Path, scene_field: str, explicit: str | None) -> Pa
     if scene_field and Path(scene_field).is_dir():
         return Path(scene_field)
     for root in (seq_path.parent, seq_path.parent.parent):
-        idx = root / "index.json"
-        if idx.is_file() and scene_field:
-            scenes = json.loads(idx.read_text()).get("scenes", {})
+        if (root / INDEX_FILE).is_file() and scene_field:
+            scenes = load_index(root)["scenes"]
             if scene_field in scenes and (root / scenes[scene_field]).is_dir():
                 return root / scenes[scene_field]
     return None
@@ -67,17 +70,15 @@ def load_scene_view(folder: Path | None) -> SceneView | None:
         view = scene_view(load_scene(folder))
         static, dynamic = view.static, view.dynamic
     grid = origin = voxel = None
-    if (folder / "occupancy.npz").is_file():
-        with np.load(folder / "occupancy.npz", allow_pickle=False) as z:
-            grid, origin, voxel = z["grid"].astype(bool), z["origin"], float(z["voxel"])
+    if (folder / OCCUPANCY_FILE).is_file():
+        occ = OccupancyGrid.load(folder / OCCUPANCY_FILE)
+        grid, origin, voxel = occ.grid, occ.origin, occ.voxel
     return SceneView(static=static, dynamic=dynamic, grid=grid, origin=origin, voxel=voxel)
 
 
 def run(args: argparse.Namespace) -> int:
     paths = [Path(p) for p in args.seq]
     seqs = [load_sequence(p) for p in paths]
-    if args.max_frames < 1:
-        raise SystemExit("--max-frames must be >= 1")
     # each sequence in its own scene (an augmented sequence lives in its changed scene)
     scenes = [load_scene_view(find_scene_dir(p, s.scene, args.scene)) for p, s in zip(paths, seqs)]
     scene = scenes[0]

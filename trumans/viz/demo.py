@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from trumans.cli import main as cli_main
+from trumans.cli import console_main as cli_main
 
 
 def main(argv: list[str] | None = None) -> int:

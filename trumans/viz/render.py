@@ -6,6 +6,8 @@ moving objects and the camera limits change.
 """
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -167,8 +169,14 @@ def render_animation(
     def _write(tmp: str) -> None:
         if out.suffix == ".gif":
             imageio.mimsave(tmp, images, format="GIF", duration=1000.0 / rate, loop=0)
-        else:
-            imageio.mimsave(tmp, images, format="FFMPEG", fps=rate, codec="libx264", macro_block_size=1)
+        else:  # ffmpeg picks the container from the file name: write "<tmp>.mp4", then move it onto tmp
+            named = tmp + ".mp4"
+            try:
+                imageio.mimsave(named, images, format="FFMPEG", fps=rate, codec="libx264", macro_block_size=1)
+                os.replace(named, tmp)
+            finally:
+                if os.path.exists(named):
+                    os.unlink(named)
 
     atomic_write(out, _write)
     return out

@@ -1,0 +1,558 @@
+"""Survey of bad inputs over the `trumans` commands (issue 13): run each case through
+``trumans.cli.console_main`` in-process and count how it ends.
+
+Outcomes: ``clean`` (exit 2, exactly one ``trumans: error:`` line that names what the case
+requires, no traceback), ``unclear`` (the one channel, but the message does not name the problem),
+``other`` (another prefix, no message, or exit 1 via SystemExit), ``bug-line`` (the one-line "this
+is a bug" report of an unexpected exception), ``traceback`` (an exception escapes), ``silent``
+(exit 0, or a wrong result, where the case must fail or behave otherwise), ``ok`` (a case whose
+right answer is to succeed, and it did). Usage::
+
+    python benchmarks/bad_input_survey.py [--work /tmp/survey] [--only PREFIX]
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+from trumans.cli import console_main  # noqa: E402
+
+BVH = ROOT / "tests" / "data" / "cmu_131_01_start_walk_stop_first480.bvh"
+
+
+class Hang(Exception):
+    pass
+
+
+def _alarm(*_):
+    raise Hang()
+
+
+def call(argv: list[str], timeout: int = 60) -> tuple[int | str, str, str]:
+    """(exit status or 'exception:<type>' / 'hang', stdout, stderr) of one in-process run."""
+    out, err = io.StringIO(), io.StringIO()
+    signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(timeout)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            rc: int | str = console_main([str(a) for a in argv])
+    except Hang:
+        rc = "hang"
+    except SystemExit as e:
+        if isinstance(e.code, str):
+            err.write(e.code + "\n")
+            rc = 1
+        else:
+            rc = int(e.code or 0)
+    except BaseException as e:  # noqa: BLE001 - counting what escapes is the point
+        rc = f"exception:{type(e).__name__}"
+        err.write(f"Traceback: {type(e).__name__}: {e}\n")
+    finally:
+        signal.alarm(0)
+    return rc, out.getvalue(), err.getvalue()
+
+
+def classify_error(rc, err: str, must: tuple[str, ...]) -> str:
+    if rc == "hang":
+        return "silent"
+    if isinstance(rc, str):
+        return "traceback"
+    if rc == 0:
+        return "silent"
+    lines = [ln for ln in err.splitlines() if ln.startswith("trumans: error:")]
+    if "Traceback" in err:
+        return "traceback"
+    if len(lines) != 1 or rc != 2:
+        if len(lines) == 1 and "this is a bug" in lines[0]:
+            return "bug-line"
+        return "other"
+    if "this is a bug" in lines[0]:
+        return "bug-line"
+    low = lines[0].lower()
+    if not all(m.lower() in low for m in must):
+        return "unclear"
+    return "clean"
+
+
+# --------------------------------------------------------------------------- fixtures
+
+
+def _synth(path: Path, seed: int = 0) -> None:
+    rc, _, err = call(["data", "synth", "--out", path, "--hours", "0.01", "--rooms", "1", "--seed", seed,
+                       "--workers", "1", "--json"], timeout=300)
+    if rc != 0:
+        raise RuntimeError(f"fixture synth failed: {err[-2000:]}")
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    if dst.exists():
+        shutil.rmtree(dst)
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _edit_index(root: Path, fn) -> Path:
+    idx = json.loads((root / "index.json").read_text())
+    fn(idx)
+    (root / "index.json").write_text(json.dumps(idx))
+    return root
+
+
+def _edit_scene(root: Path, fn) -> Path:
+    scene_dir = next((root / "scenes").iterdir())
+    doc = json.loads((scene_dir / "scene.json").read_text())
+    fn(doc)
+    (scene_dir / "scene.json").write_text(json.dumps(doc))
+    return root
+
+
+def _release(folder: Path, n: int = 40, scene_flag=None, joints=None) -> Path:
+    from trumans.importers.trumans_release import Y_UP_TO_Z_UP
+    from trumans.skeleton import REST_JOINTS
+
+    folder.mkdir(parents=True, exist_ok=True)
+    zup = REST_JOINTS[None] + np.linspace(0, 1, n)[:, None, None] * np.array([1.0, 0.5, 0.0])
+    np.save(folder / "human_joints.npy", (zup @ Y_UP_TO_Z_UP).astype(np.float32) if joints is None else joints)
+    if scene_flag is not None:
+        np.save(folder / "scene_flag.npy", np.asarray(scene_flag))
+        (folder / "Scene").mkdir(exist_ok=True)
+        for k in range(2):
+            np.save(folder / "Scene" / f"scene_{k}.npy", np.zeros((30, 10, 40), bool))
+    return folder
+
+
+def _zero_length(path: Path) -> Path:
+    np.savez(path, joints=np.zeros((0, 24, 3), np.float32), fps=np.float32(30), scene=np.asarray(""))
+    return path
+
+
+def _snapshot(root: Path) -> dict[str, int]:
+    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
+
+
+# --------------------------------------------------------------------------- cases
+
+
+def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]:
+    """[(name, thunk -> outcome)]; each thunk builds its own inputs under ``w``."""
+    cases: list[tuple[str, object]] = []
+
+    def err(name: str, argv_fn, *must: str, timeout: int = 60) -> None:
+        def thunk():
+            rc, _, e = call(argv_fn(), timeout)
+            return classify_error(rc, e, must), e.strip().splitlines()[-1:] if e.strip() else [f"rc={rc}"]
+        cases.append((name, thunk))
+
+    def custom(name: str, fn) -> None:
+        cases.append((name, fn))
+
+    seq0 = next((base / "sequences").glob("*.npz"))
+    D = lambda tag: _copy(base, w / tag)  # noqa: E731
+
+    # ---- data synth
+    err("synth --hours 0", lambda: ["data", "synth", "--out", w / "s_h0", "--hours", "0"], "hours")
+    err("synth --hours nan", lambda: ["data", "synth", "--out", w / "s_hn", "--hours", "nan"], "hours")
+    err("synth --hours -1", lambda: ["data", "synth", "--out", w / "s_hm", "--hours", "-1"], "hours")
+    err("synth --rooms 0", lambda: ["data", "synth", "--out", w / "s_r0", "--rooms", "0"], "rooms")
+    err("synth --workers -1", lambda: ["data", "synth", "--out", w / "s_w", "--workers", "-1", "--hours", "0.01",
+                                       "--rooms", "1"], "workers")
+    err("synth --hours abc", lambda: ["data", "synth", "--out", w / "s_ha", "--hours", "abc"], "--hours")
+
+    def synth_out_is_file():
+        f = w / "afile"
+        f.write_text("x")
+        rc, _, e = call(["data", "synth", "--out", f, "--hours", "0.01", "--rooms", "1", "--workers", "1"])
+        return classify_error(rc, e, (str(f),)), e.strip().splitlines()[-1:]
+    custom("synth --out is a file", synth_out_is_file)
+
+    def synth_into_foreign(tag, make):
+        def thunk():
+            d = w / tag
+            make(d)
+            before = (d / "index.json").read_bytes()
+            rc, _, e = call(["data", "synth", "--out", d, "--hours", "0.01", "--rooms", "1", "--workers", "1"],
+                            timeout=300)
+            changed = (d / "index.json").read_bytes() != before
+            if rc == 0 or changed:
+                return "silent", [f"rc={rc} index changed={changed}"]
+            return classify_error(rc, e, ("--overwrite",)), e.strip().splitlines()[-1:]
+        return thunk
+    custom("synth into another dataset (import)", synth_into_foreign(
+        "s_foreign", lambda d: call(["data", "import", BVH, "--format", "bvh", "--out", d])))
+    custom("synth into a synth of another seed", synth_into_foreign(
+        "s_seed", lambda d: call(["data", "synth", "--out", d, "--hours", "0.01", "--rooms", "1", "--seed", "7",
+                                  "--workers", "1"], timeout=300)))
+
+    # ---- data import
+    err("import: release folder missing", lambda: ["data", "import", w / "nope", "--format", "trumans", "--out",
+                                                   w / "i1"], "nope")
+    err("import --format trumans two folders", lambda: ["data", "import", w, w, "--format", "trumans", "--out",
+                                                        w / "i2"], "one")
+    err("import --joint-map inline long JSON", lambda: [
+        "data", "import", BVH, "--format", "bvh", "--out", w / "i3", "--joint-map",
+        json.dumps({f"j{i:03d}": f"Bone{i:03d}" for i in range(40)})], "joint")
+    def inline_map():  # valid inline JSON: must be accepted (it was read as a file name)
+        rc, _, e = call(["data", "import", BVH, "--format", "bvh", "--out", w / "i3b", "--joint-map",
+                         '{"pelvis": "Hips"}'])
+        return ("ok" if rc == 0 else "unclear" if rc == 2 else classify_error(rc, e, ())), e.strip().splitlines()[-1:]
+    custom("import --joint-map inline short JSON", inline_map)
+
+    def bad_map_file(text):
+        def fn():
+            p = w / f"map{abs(hash(text)) % 1000}.json"
+            p.write_text(text)
+            return ["data", "import", BVH, "--format", "bvh", "--out", w / "i4", "--joint-map", p]
+        return fn
+    err("import --joint-map file bad JSON", bad_map_file("{pelvis: "), "joint")
+    err("import --joint-map JSON list", bad_map_file('["pelvis"]'), "joint")
+    err("import --joint-map unknown joint", bad_map_file('{"tail": "Hips"}'), "tail")
+    err("import bvh missing", lambda: ["data", "import", w / "nope.bvh", "--format", "bvh", "--out", w / "i5"],
+        "nope.bvh")
+
+    def garbage_bvh():
+        p = w / "garbage.bvh"
+        p.write_bytes(b"\x00\x01garbage")
+        return ["data", "import", p, "--format", "bvh", "--out", w / "i6"]
+    err("import garbage bvh", garbage_bvh, "garbage.bvh")
+    for val in ("0", "nan", "-1"):
+        err(f"import --unit-scale {val}", lambda v=val: ["data", "import", BVH, "--format", "bvh", "--out", w / "i7",
+                                                          "--unit-scale", v], "unit")
+        err(f"import --fps {val}", lambda v=val: ["data", "import", BVH, "--format", "bvh", "--out", w / "i8",
+                                                   "--fps", v], "fps")
+    err("import --action-names missing", lambda: ["data", "import", _release(w / "rel_ok"), "--format", "trumans",
+                                                  "--out", w / "i9", "--action-names", w / "nope.txt"], "nope.txt")
+
+    def import_over_dataset():
+        d = D("i_over")
+        before = _snapshot(d)
+        rc, _, e = call(["data", "import", BVH, "--format", "bvh", "--out", d])
+        changed = _snapshot(d) != before
+        if rc == 0 or changed:
+            return "silent", [f"rc={rc} changed={changed}"]
+        return classify_error(rc, e, ("--overwrite",)), e.strip().splitlines()[-1:]
+    custom("import into an existing dataset", import_over_dataset)
+
+    def import_zero_frames():
+        rel = _release(w / "rel0", joints=np.zeros((0, 24, 3), np.float32))
+        rc, _, e = call(["data", "import", rel, "--format", "trumans", "--out", w / "i10"])
+        if rc == 0:
+            return "silent", ["rc=0 (empty dataset written)"]
+        return classify_error(rc, e, ("frame",)), e.strip().splitlines()[-1:]
+    custom("import release with 0 frames", import_zero_frames)
+
+    def import_flag_negative():
+        rel = _release(w / "rel_neg", scene_flag=[-1] * 20 + [0] * 20)
+        rc, _, e = call(["data", "import", rel, "--format", "trumans", "--out", w / "i11"])
+        if rc == 0:
+            return "silent", ["rc=0 (scene -1 mapped to the last scene)"]
+        return classify_error(rc, e, ("scene_flag",)), e.strip().splitlines()[-1:]
+    custom("import scene_flag -1", import_flag_negative)
+    err("import human_joints wrong shape", lambda: ["data", "import", _release(
+        w / "rel_shape", joints=np.zeros((5, 22, 3), np.float32)), "--format", "trumans", "--out", w / "i12"],
+        "human_joints")
+
+    def rel_pickled():
+        rel = _release(w / "rel_pk", joints=np.array([{"a": 1}], dtype=object))
+        return ["data", "import", rel, "--format", "trumans", "--out", w / "i13"]
+    err("import human_joints pickled", rel_pickled, "human_joints")
+
+    def rel_truncated():
+        rel = _release(w / "rel_tr")
+        b = (rel / "human_joints.npy").read_bytes()
+        (rel / "human_joints.npy").write_bytes(b[: len(b) // 2])
+        return ["data", "import", rel, "--format", "trumans", "--out", w / "i14"]
+    err("import human_joints truncated", rel_truncated, "human_joints")
+
+    def rel_names():
+        rel = _release(w / "rel_names")
+        np.save(rel / "object_flag.npy", np.zeros((40, 1), np.int64))
+        np.save(rel / "object_mat.npy", np.tile(np.eye(4), (40, 1, 1, 1)))
+        (rel / "object_names.json").write_text('{"a": 1}')
+        return ["data", "import", rel, "--format", "trumans", "--out", w / "i15"]
+    err("import object_names.json not a list", rel_names, "object_names")
+
+    def rel_idx():
+        rel = _release(w / "rel_idx")
+        np.save(rel / "idx_start.npy", np.array([0, -5]))
+        return ["data", "import", rel, "--format", "trumans", "--out", w / "i16"]
+    err("import idx_start negative", rel_idx, "idx_start")
+
+    # ---- view
+    err("view missing sequence", lambda: ["view", w / "nope.npz"], "nope.npz")
+    err("view --max-frames 0", lambda: ["view", seq0, "--max-frames", "0", "--out", w / "v1"], "--max-frames")
+    err("view --stride 0", lambda: ["view", seq0, "--stride", "0", "--out", w / "v2"], "--stride")
+    err("view --stride -1", lambda: ["view", seq0, "--stride", "-1", "--out", w / "v3"], "--stride")
+    err("view --scene missing", lambda: ["view", seq0, "--scene", w / "noscene", "--out", w / "v4"], "noscene")
+
+    def view_in(tag, mutate, *must):
+        def fn():
+            d = D(tag)
+            mutate(d)
+            return ["view", next((d / "sequences").glob("*.npz")), "--no-animation", "--out", w / f"{tag}_out"]
+        err(f"view: {tag}", fn, *must)
+
+    def trunc_occ(d):
+        p = next((d / "scenes").iterdir()) / "occupancy.npz"
+        p.write_bytes(p.read_bytes()[:1000])
+    view_in("truncated occupancy.npz", trunc_occ, "occupancy")
+    view_in("scene.json objects is a string", lambda d: _edit_scene(d, lambda s: s.update(objects="abc")),
+            "objects")
+    view_in("scene.json static entry is a number", lambda d: _edit_scene(d, lambda s: s.update(static=[1])),
+            "static")
+    view_in("scene.json pose is a string", lambda d: _edit_scene(
+        d, lambda s: s["objects"][0].update(pose="eye")), "pose")
+    view_in("scene.json meta is a list", lambda d: _edit_scene(d, lambda s: s.update(meta=[1, 2])), "meta")
+    view_in("scene.json dynamic is a string", lambda d: _edit_scene(
+        d, lambda s: s["objects"][0].update(dynamic="no")), "dynamic")
+    view_in("scene.json mesh is a number", lambda d: _edit_scene(
+        d, lambda s: s["objects"][0].update(mesh=5)), "mesh")
+    view_in("index.json scenes value is a number", lambda d: _edit_index(
+        d, lambda i: i["scenes"].update({k: 5 for k in i["scenes"]})), "scenes")
+    view_in("index.json is not JSON", lambda d: (d / "index.json").write_text("{oops"), "index.json")
+
+    def zero_seq():
+        return ["view", _zero_length(w / "zero.npz"), "--out", w / "v5"]
+    err("view zero-length sequence", zero_seq, "frame")
+
+    def str_joints():
+        p = w / "strj.npz"
+        np.savez(p, joints=np.array([["a"] * 3] * 24).reshape(1, 24, 3), fps=np.float32(30))
+        return ["view", p, "--out", w / "v6"]
+    err("view joints are strings", str_joints, "joints")
+
+    def fps_vec():
+        p = w / "fpsv.npz"
+        np.savez(p, joints=np.zeros((3, 24, 3), np.float32), fps=np.array([30.0, 30.0]))
+        return ["view", p, "--out", w / "v7"]
+    err("view fps is a vector", fps_vec, "fps")
+
+    def trunc_seq():
+        p = w / "trunc.npz"
+        p.write_bytes(seq0.read_bytes()[:500])
+        return ["view", p, "--out", w / "v8"]
+    err("view truncated sequence", trunc_seq, "trunc.npz")
+
+    # ---- augment
+    def aug(tag_out, *extra, data=None):
+        return lambda: ["augment", "--data", data or aug_base, "--out", w / tag_out, "--workers", "1",
+                        "--variations", "1", *extra]
+    for flag, val, must in (("--window", "nan", "window"), ("--window", "0", "window"), ("--threshold", "nan", "threshold"),
+                            ("--threshold", "-0.5", "threshold"), ("--variations", "0", "variations"),
+                            ("--workers", "-1", "workers"), ("--max-unreachable", "2", "unreachable"),
+                            ("--max-unreachable", "nan", "unreachable"), ("--splits", "dev", "dev")):
+        err(f"augment {flag} {val}", lambda f=flag, v=val: aug(f"a_{f}_{v}")() + [f, v], must)
+    err("augment --variations 100000", lambda: aug("a_var")() + ["--variations", "100000"], "variations",
+        timeout=40)
+    err("augment --data missing", lambda: ["augment", "--data", w / "nodata", "--out", w / "a1"], "nodata")
+
+    def aug_self():
+        d = D("a_self")
+        before = _snapshot(d)
+        rc, _, e = call(["augment", "--data", d, "--out", d, "--workers", "1", "--variations", "1"], 120)
+        changed = _snapshot(d) != before
+        if rc == 0 or changed:
+            return "silent", [f"rc={rc} changed={changed}"]
+        return classify_error(rc, e, ("--out",)), e.strip().splitlines()[-1:]
+    custom("augment --out = --data", aug_self)
+
+    def aug_foreign():
+        d = D("a_foreign")
+        before = _snapshot(d)
+        rc, _, e = call(["augment", "--data", aug_base, "--out", d, "--workers", "1", "--variations", "1"], 120)
+        changed = _snapshot(d) != before
+        if rc == 0 or changed:
+            return "silent", [f"rc={rc} changed={changed}"]
+        return classify_error(rc, e, ("--overwrite",)), e.strip().splitlines()[-1:]
+    custom("augment --out holds another dataset", aug_foreign)
+
+    def bad_data(tag, mutate, *must):
+        def fn():
+            d = D(tag)
+            mutate(d)
+            return ["augment", "--data", d, "--out", w / f"{tag}_out", "--workers", "1", "--variations", "1"]
+        err(f"augment data: {tag}", fn, *must)
+    bad_data("index splits hold numbers", lambda d: _edit_index(d, lambda i: i["splits"].update(train=[1, 2])),
+             "splits")
+    bad_data("index splits hold a string", lambda d: _edit_index(d, lambda i: i["splits"].update(train="x.npz")),
+             "splits")
+    bad_data("index fps is text", lambda d: _edit_index(d, lambda i: i.update(fps="abc")), "fps")
+    bad_data("index fps is 0", lambda d: _edit_index(d, lambda i: i.update(fps=0)), "fps")
+    bad_data("index vocabulary holds numbers", lambda d: _edit_index(d, lambda i: i.update(vocabulary=[1, 2])),
+             "vocabulary")
+    bad_data("index scenes value is a number", lambda d: _edit_index(
+        d, lambda i: i["scenes"].update({k: 5 for k in i["scenes"]})), "scenes")
+    bad_data("index is a list", lambda d: (d / "index.json").write_text("[1, 2]"), "index.json")
+    bad_data("index path escapes the folder", lambda d: _edit_index(
+        d, lambda i: i["splits"].update(train=["../../etc/hostname"])), "..")
+
+    def zero_in_ds(d):
+        p = next((d / "sequences").glob("*.npz"))
+        z = dict(np.load(p, allow_pickle=False))
+        for k, v in z.items():
+            if v.ndim and v.shape[0] == z["joints"].shape[0] and k != "action_names":
+                z[k] = v[:0]
+        np.savez(p, **z)
+    bad_data("zero-length sequence", zero_in_ds, "frame")
+    bad_data("truncated sequence", lambda d: (lambda p: p.write_bytes(p.read_bytes()[:300]))(
+        next((d / "sequences").glob("*.npz"))), ".npz")
+    bad_data("scene.json objects is a string", lambda d: _edit_scene(d, lambda s: s.update(objects="abc")),
+             "objects")
+    bad_data("scene.json pose wrong shape", lambda d: _edit_scene(
+        d, lambda s: s["objects"][0].update(pose=[1, 2, 3])), "pose")
+    bad_data("scene mesh file truncated", lambda d: (lambda p: p.write_bytes(p.read_bytes()[:100]))(
+        next(next((d / "scenes").iterdir()).glob("objects/*.ply"))), ".ply")
+
+    def stale_scene():
+        d = D("a_stale")
+        out = w / "a_stale_out"
+        rc1, _, e1 = call(["augment", "--data", d, "--out", out, "--workers", "1", "--variations", "1"], 300)
+        if rc1 != 0:
+            return "traceback" if "Traceback" in e1 else "other", e1.strip().splitlines()[-1:]
+        first = {p.name: p.read_bytes() for p in (out / "sequences").glob("*.npz")}
+        # move every object of the source scene by 5 cm: the outputs depend on it
+        _edit_scene(d, lambda s: [o["pose"][0].__setitem__(3, o["pose"][0][3] + 0.05) for o in s["objects"]])
+        rc2, _, e2 = call(["augment", "--data", d, "--out", out, "--workers", "1", "--variations", "1"], 300)
+        second = {p.name: p.read_bytes() for p in (out / "sequences").glob("*.npz")}
+        if rc2 == 0 and first == second:
+            return "silent", ["rerun after a scene change returned the old outputs"]
+        return ("ok" if rc2 == 0 else classify_error(rc2, e2, ())), [f"rc={rc2} outputs changed"]
+    custom("augment resume after the scene changed", stale_scene)
+
+    def failed_then_fixed():
+        d = D("a_fail")
+        out = w / "a_fail_out"
+        keep = json.loads((next((d / "scenes").iterdir()) / "scene.json").read_text())
+        # move every object 50 m away: no contact with any interactable object -> the source fails
+        _edit_scene(d, lambda s: [o["pose"][0].__setitem__(3, o["pose"][0][3] + 50) for o in s["objects"]])
+        rc1, _, e1 = call(["augment", "--data", d, "--out", out, "--workers", "1", "--variations", "1"], 300)
+        (next((d / "scenes").iterdir()) / "scene.json").write_text(json.dumps(keep))
+        rc2, _, e2 = call(["augment", "--data", d, "--out", out, "--workers", "1", "--variations", "1"], 300)
+        n2 = len(list((out / "sequences").glob("*.npz"))) if (out / "sequences").is_dir() else 0
+        notes = [f"first run rc={rc1}; after the fix rc={rc2}, outputs={n2}"]
+        if n2 == 0:
+            return "silent", notes
+        return "ok", notes
+    custom("augment source without contact, redone after the scene is fixed", failed_then_fixed)
+
+    def broken_source():
+        d = D("a_broken")
+        out = w / "a_broken_out"
+        mesh = next(next((d / "scenes").iterdir()).glob("objects/*.ply"))
+        keep = mesh.read_bytes()
+        mesh.write_bytes(b"ply\nformat garbage\n")
+        rc1, o1, e1 = call(["augment", "--data", d, "--out", out, "--workers", "1", "--variations", "1"], 300)
+        mesh.write_bytes(keep)
+        rc2, _, e2 = call(["augment", "--data", d, "--out", out, "--workers", "1", "--variations", "1"], 300)
+        n2 = len(list((out / "sequences").glob("*.npz"))) if (out / "sequences").is_dir() else 0
+        notes = [f"broken run rc={rc1}; after the fix rc={rc2}, outputs={n2}"]
+        if rc1 == 0 or n2 == 0 or rc2 != 0:
+            return "silent", notes
+        return classify_error(rc1, e1, ("failed",)), e1.strip().splitlines()[-1:]
+    custom("augment source that fails: exit status, retried after fix", broken_source)
+
+    def workers_cap():
+        rc, out, e = call(["augment", "--data", aug_base, "--out", w / "a_cap", "--workers", "12",
+                           "--variations", "1", "--json"], 300)
+        if rc != 0:
+            return classify_error(rc, e, ()), e.strip().splitlines()[-1:]
+        n = json.loads(out.strip().splitlines()[-1])["workers"]
+        return ("silent" if n > 1 else "ok"), [f"workers used: {n} for 1 source"]
+    custom("augment --workers 12 for one sequence", workers_cap)
+
+    def two_writers():
+        out = w / "a_two"
+        env = dict(os.environ, OMP_NUM_THREADS="1")
+        cmd = [sys.executable, "-m", "trumans", "augment", "--data", str(aug_base), "--out", str(out),
+               "--workers", "1", "--variations", "2"]
+        p1 = subprocess.Popen(cmd + ["--seed", "0"], cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
+        t0 = time.time()
+        while not out.exists() and time.time() - t0 < 60:
+            time.sleep(0.05)
+        p2 = subprocess.run(cmd + ["--seed", "1"], cwd=ROOT, env=env, stderr=subprocess.PIPE, text=True)
+        p1.wait()
+        if p2.returncode == 0:
+            return "silent", ["second writer exit 0 (mixed dataset)"]
+        last = p2.stderr.strip().splitlines()[-1:]
+        # refused by the lock (first still running) or by the claim (first done): both name the conflict
+        out_ = classify_error(p2.returncode, p2.stderr, ())
+        if out_ == "clean" and not any(k in last[0] for k in ("being written", "other settings")):
+            out_ = "unclear"
+        return out_, last
+    custom("augment: two writers into one folder", two_writers)
+
+    # ---- eval augment
+    err("eval augment over zero sequences", lambda: ["eval", "augment", "--data", base, "--split", "val"], "val")
+    err("eval augment --max-seqs 0", lambda: ["eval", "augment", "--data", base, "--max-seqs", "0",
+                                              "--split", "train"], "--max-seqs")
+    err("eval augment --variations 0", lambda: ["eval", "augment", "--data", base, "--variations", "0",
+                                                "--split", "train"], "variations")
+    err("eval augment --cases 0", lambda: ["eval", "augment", "--cases", "0"], "cases")
+    err("eval augment --split dev", lambda: ["eval", "augment", "--data", base, "--split", "dev"], "dev")
+
+    # ---- other commands (the error channel only)
+    err("eval local-query --voxel nan", lambda: ["eval", "local-query", "--voxel", "nan", "--runs", "1"], "voxel")
+    err("eval local-query --batch 0", lambda: ["eval", "local-query", "--batch", "0"], "batch")
+    err("eval train missing checkpoint", lambda: ["eval", "train", w / "nope.pt"], "nope.pt")
+
+    def garbage_pt():
+        p = w / "garbage.pt"
+        p.write_bytes(b"garbage")
+        return ["eval", "train", p]
+    err("eval train garbage checkpoint", garbage_pt, "garbage.pt")
+    err("train --data missing", lambda: ["train", "--data", w / "nodata", "--out", w / "t1", "--steps", "1"],
+        "nodata")
+    err("train --config missing", lambda: ["train", "--config", w / "none.toml", "--data", base, "--out", w / "t2"],
+        "none.toml")
+    err("train --ablate bogus", lambda: ["train", "--ablate", "bogus", "--data", base, "--out", w / "t3"], "bogus")
+    err("unknown command", lambda: ["frobnicate"], "frobnicate")
+    err("not built: sample", lambda: ["sample"], "not built")
+    err("augment --variations abc", lambda: aug("a_abc")() + ["--variations", "abc"], "--variations")
+    return cases
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--work", default="/tmp/trumans_survey")
+    p.add_argument("--only", default="", help="run the cases whose name starts with this")
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args()
+    w = Path(a.work)
+    if w.exists():
+        shutil.rmtree(w)
+    w.mkdir(parents=True)
+    base = w / "_base"
+    _synth(base)
+    aug_base = base
+    counts: dict[str, int] = {}
+    rows = []
+    for name, thunk in build_cases(w, base, aug_base):
+        if not name.startswith(a.only):
+            continue
+        try:
+            outcome, note = thunk()
+        except Exception as e:  # a fixture step failed: count it as what it is
+            outcome, note = "traceback", [f"{type(e).__name__}: {e}"]
+        counts[outcome] = counts.get(outcome, 0) + 1
+        rows.append({"case": name, "outcome": outcome, "note": (note or [""])[-1][:220]})
+        print(f"{outcome:>9}  {name:<48} {rows[-1]['note']}", flush=True)
+    print(json.dumps({"cases": len(rows), "counts": counts}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -101,6 +101,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta", type=float, default=0.0, help="DDIM eta (0 deterministic, 1 ancestral)")
     p.add_argument("--guidance", type=float, nargs=2, default=(1.0, 1.0), metavar=("SCENE", "ACTION"),
                    help="classifier-free guidance scales (default 1 1)")
+    p.add_argument("--goal-guidance", type=float, default=20.0,
+                   help="spatial guidance step pulling the body onto each episode's goal (0 = inpainting only)")
+    p.add_argument("--goal-iters", type=int, default=3, help="guidance updates per denoising step (default 3)")
     p.add_argument("--max-seconds", type=float, default=600.0, help="give up when the plan is not done by then")
     p.add_argument("--device", default="cpu", help="torch device (cpu, cuda, cuda:1)")
     p.add_argument("--seed", type=int, default=0)
@@ -170,7 +173,8 @@ def run(args: argparse.Namespace) -> int:
         plan = replace(plan, start=tuple(_xy(args.start, 2, "--start")) if args.start else plan.start,
                        heading=args.heading if args.heading is not None else plan.heading)
     validate_plan(plan, sc.scene, ckpt.vocabulary)
-    config = SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1])
+    config = SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
+                           goal_guidance=args.goal_guidance, goal_iters=args.goal_iters)
     sampler = EpisodeSampler(ckpt, sc.grids, config, device=str(device))
     start = np.asarray(plan.start, np.float64) if plan.start is not None else sc.free_point()
     if not sc.walkmap.query(start[None])[0]:

@@ -18,6 +18,7 @@ import torch
 
 from scenes.scene_grids import SceneGrids
 from trumans.model.checkpoint import Checkpoint
+from trumans.model.diffusion import respaced_timesteps
 from trumans.model.conditions import EpisodeCondition, episode_condition, episode_scene_grids, subgoal_to_canonical
 from trumans.model.episodes import PELVIS, FeatureLayout, canonicalize, uncanonicalize
 from trumans.model.masks import joint_goal_mask, pelvis_goal_mask, transition_mask
@@ -41,20 +42,26 @@ class Goal:
 class SamplerConfig:
     """steps: denoising steps (respaced DDIM when < T); eta: DDIM noise (0 = deterministic);
     scene_scale / action_scale: classifier-free guidance scales (1 = plain conditional);
-    naive: recompute the condition embeddings at every step (the reference sampler)."""
+    naive: recompute the condition embeddings at every step (the reference sampler);
+    goal_guidance: step size of the spatial guidance that pulls the predicted body onto its goal
+    (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step."""
 
     steps: int = 20
     eta: float = 0.0
     scene_scale: float = 1.0
     action_scale: float = 1.0
     naive: bool = False
+    goal_guidance: float = 0.0
+    goal_iters: int = 1
 
     def __post_init__(self) -> None:
         if self.steps < 1:
             raise ValueError(f"steps must be >= 1, got {self.steps}")
         if not self.eta >= 0:
             raise ValueError(f"eta must be >= 0, got {self.eta}")
-        for name in ("scene_scale", "action_scale"):
+        if self.goal_iters < 1:
+            raise ValueError(f"goal_iters must be >= 1, got {self.goal_iters}")
+        for name in ("scene_scale", "action_scale", "goal_guidance"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v}")
@@ -129,7 +136,7 @@ class EpisodeSampler:
         x = torch.from_numpy(self.norm.normalize(feats)).to(self.device)
         return x, torch.stack(masks).to(self.device)
 
-    @torch.inference_mode()
+    @torch.no_grad()
     def episode(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal],
                 object_poses: dict | None = None, generator: torch.Generator | None = None,
                 attach_pelvis: bool = True) -> np.ndarray:
@@ -150,14 +157,63 @@ class EpisodeSampler:
         scene = torch.from_numpy(grid).to(self.device)
         acts = torch.as_tensor(cond.actions, dtype=torch.float32, device=self.device)
         emb = self._conditions(scene, acts)
-        x0 = self.diffusion.sample(self._model_fn(emb), (B, self.L, self.layout.dim), mask=mask, given=x_given,
-                                   num_steps=self.config.steps, eta=self.config.eta, generator=generator,
-                                   device=self.device)
+        if self.config.goal_guidance > 0:
+            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, self._goal_targets(cond, goals), generator)
+        else:
+            x0 = self.diffusion.sample(self._model_fn(emb), (B, self.L, self.layout.dim), mask=mask, given=x_given,
+                                       num_steps=self.config.steps, eta=self.config.eta, generator=generator,
+                                       device=self.device)
         feats = self.norm.denormalize(x0.cpu().numpy())
         cj, _ = self.layout.unpack(feats)
         world = uncanonicalize(cj, cond.origin, cond.yaw)
         world[:, : self.k] = context
         return _attach_pinned_pelvis(world, goals) if attach_pelvis else world
+
+    def _goal_targets(self, cond: EpisodeCondition, goals: list[Goal]) -> list[tuple[int, list[int], torch.Tensor]]:
+        """Per sample: (frame, feature columns, canonical target) of what the guidance pulls: the
+        hip midpoint's x, y at the last frame onto a pelvis goal, or the goal joint onto its point."""
+        out = []
+        for b, g in enumerate(goals):
+            if g.joint == "pelvis":
+                cols = self.layout.position_index("left_hip", (0, 1)) + self.layout.position_index("right_hip", (0, 1))
+                target = cond.subgoal_canonical()[b, :2]
+                out.append((self.L - 1, cols, torch.as_tensor(np.concatenate([target, target]), dtype=torch.float32)))
+            else:
+                local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
+                out.append((g.frame % self.L, self.layout.position_index(g.joint), torch.as_tensor(local, dtype=torch.float32)))
+        return out
+
+    def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, targets, generator) -> torch.Tensor:
+        """Respaced DDIM (``GaussianDiffusion.step``) with spatial guidance (OmniControl, Xie et al.
+        2024, "spatial guidance"): a sparse inpainted goal (2 of L x F entries) is weakly followed, so
+        after each step x_{t-1} moves against the gradient of the squared distance (m^2) between the
+        body's predicted x0 at the goal frame and the goal: x_{t-1} <- x_{t-1} - s grad_{x_t}."""
+        d = self.diffusion
+        B, L, F = given.shape
+        mean = torch.as_tensor(self.norm.mean, dtype=torch.float32)
+        std = torch.as_tensor(self.norm.std, dtype=torch.float32)
+        x = torch.randn((B, L, F), generator=generator, dtype=torch.float32).to(self.device)
+        ts = respaced_timesteps(d.steps, self.config.steps).tolist()
+        for i, t_i in enumerate(ts):
+            x = torch.where(mask, given, x)
+            t = torch.full((B,), t_i, dtype=torch.long, device=x.device)
+            grad = torch.zeros_like(x)
+            with torch.enable_grad():
+                for it in range(self.config.goal_iters):
+                    xg = (x - grad).detach().requires_grad_(True)
+                    out = model_fn(xg, t, mask=mask)
+                    x0_hat, _ = d.x0_and_eps(out, t, xg)
+                    loss = xg.new_zeros(())
+                    for b, (f, cols, target) in enumerate(targets):
+                        pred = x0_hat[b, f, cols] * std[cols] + mean[cols]
+                        loss = loss + ((pred - target) ** 2).sum()
+                    g, = torch.autograd.grad(loss, xg)
+                    grad = grad + self.config.goal_guidance * g
+            x, _ = d.step(out.detach(), t, xg.detach(), t_prev=ts[i + 1] if i + 1 < len(ts) else -1,
+                          eta=self.config.eta, generator=generator)
+            if i + 1 < len(ts):
+                x = x - grad
+        return torch.where(mask, given, x)
 
     def _conditions(self, scene: torch.Tensor, actions: torch.Tensor) -> dict:
         """Condition embeddings once per episode (or the raw conditions for the naive sampler)."""

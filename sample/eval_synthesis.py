@@ -31,6 +31,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
     p.add_argument("--steps", type=int, default=20, help="denoising steps of the fast sampler")
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
+    p.add_argument("--goal-guidance", type=float, default=20.0, help="spatial goal guidance of the fast sampler")
+    p.add_argument("--goal-iters", type=int, default=3)
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
     p.add_argument("--data", default=None, help="dataset whose test split is the real reference for fid "
@@ -52,7 +54,8 @@ def _plans(sc, seed: int):
     return plan_from_dict(d, name=f"eval_{seed}")
 
 
-def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None) -> dict:
+def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
+             guidance: tuple[float, int] = (20.0, 3)) -> dict:
     import torch
 
     from trumans.model.checkpoint import load_checkpoint
@@ -69,7 +72,8 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
         plan = _plans(sc, seed * 1000 + r)
-        sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps))
+        sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
+                                                               goal_iters=guidance[1]))
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
         results.append(res)
@@ -89,7 +93,8 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     if naive_episodes > 0:
         sc, plan, res = first
         naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True))
-        fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps))
+        fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
+                                                            goal_iters=guidance[1]))
         t = {}
         for name, s in (("fast", fast), ("naive", naive)):
             t0 = time.perf_counter()
@@ -152,12 +157,13 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")
     if args.steps < 1 or args.naive_episodes < 0:
         raise ValueError("--steps must be >= 1 and --naive-episodes >= 0")
+    guidance = (args.goal_guidance, args.goal_iters)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data)
+                    args.data, guidance)
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
-        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data)
+        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

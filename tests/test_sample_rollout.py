@@ -153,3 +153,21 @@ def test_external_mesh_as_scene_is_cached_and_sampled(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(FileNotFoundError, match="no scene.json"):
         load_sample_scene(str(tmp_path / "empty"))
+
+
+def test_goal_guidance_pulls_the_body_onto_its_goal(open_room):
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint(2)
+    ctx = start_context(ck, np.array([1.0, 1.0]), 0.0)
+    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    goal = Goal((1.9, 1.3))
+    hips = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
+    errs = []
+    for g in (0.0, 20.0):
+        s = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=6, goal_guidance=g, goal_iters=3))
+        out = s.episode(ctx, labels, [goal], generator=torch.Generator().manual_seed(0))
+        errs.append(np.linalg.norm(out[0, -1, hips, :2].mean(0) - goal.point))
+        np.testing.assert_allclose(out[0, :2], ctx[0], atol=1e-5)  # the context stays exact
+    assert errs[1] < 0.5 * errs[0], errs
+    with pytest.raises(ValueError, match="goal_iters"):
+        SamplerConfig(goal_iters=0)

@@ -15,7 +15,7 @@ import sys
 # (command path, module, one-line help, issue that builds it)
 COMMANDS: list[tuple[tuple[str, ...], str, str, str]] = [
     (("data", "synth"), "trumans.synth.cli", "build the embedded synthetic HSI dataset", "#2"),
-    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release or BVH data into the dataset format", "#2"),
+    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release, BVH or FBX data into the dataset format", "#2"),
     (("augment",), "augment.cli", "contact-preserving CCD-IK augmentation of a dataset", "#3"),
     (("train",), "train.cli", "train the generator (or filter / contact model) from a config", "#4"),
     (("sample",), "sample.cli", "sample a long motion in a scene from a plan", "sampling issue"),

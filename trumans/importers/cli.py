@@ -1,4 +1,4 @@
-"""`trumans data import`: bring a TRUMANS release folder or BVH files into the dataset format."""
+"""`trumans data import`: bring a TRUMANS release folder, BVH or FBX files into the dataset format."""
 from __future__ import annotations
 
 import argparse
@@ -12,13 +12,19 @@ from trumans.sequence import Sequence, atomic_write, save_sequence
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("src", nargs="+", help="a TRUMANS release folder, or one or more .bvh files")
-    p.add_argument("--format", choices=["trumans", "bvh"], required=True, help="layout of SRC")
+    p.add_argument("src", nargs="+", help="a TRUMANS release folder, or one or more .bvh / .fbx files")
+    p.add_argument("--format", choices=["trumans", "bvh", "fbx"], required=True, help="layout of SRC")
     p.add_argument("--out", required=True, help="dataset folder to write (sequences/, scenes/, index.json)")
     p.add_argument("--action-names", help="TRUMANS: JSON list or text file (one per line) naming the label columns")
-    p.add_argument("--joint-map", help="BVH: JSON object {our_joint_name: bvh_joint_name} extending the default map")
-    p.add_argument("--unit-scale", type=float, help="BVH: metres per file unit (default: guessed from the skeleton size)")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="BVH: up axis of the file (default y)")
+    p.add_argument("--joint-map", help="BVH/FBX: JSON file {our_joint_name: their_joint_name} overriding the map")
+    p.add_argument("--skeleton", default="auto", choices=["auto", "daz", "cmu_mb", "candidates"],
+                   help="BVH/FBX: built-in joint map (default auto: detected; candidates: the name lists)")
+    p.add_argument("--unit-scale", type=float, help="BVH/FBX: metres per file unit (default: BVH guessed from the "
+                   "skeleton size, FBX from its UnitScaleFactor)")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="BVH: up axis of the file (default y; FBX files say)")
+    p.add_argument("--feet-on-floor", action="store_true",
+                   help="BVH/FBX: move each motion vertically so its feet stand on z = 0 (without it, feet "
+                        "more than 10 cm off the floor are reported)")
     p.add_argument("--fps", type=float, help="resample to this frame rate (default: keep the file's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the train/val/test split")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
@@ -102,13 +108,20 @@ def run(args: argparse.Namespace) -> int:
         index = write_dataset(out, named, rel.scenes, name=f"trumans-import:{Path(args.src[0]).name}", seed=args.seed)
     else:
         from trumans.bvh import import_bvh
+        from trumans.importers.fbx import import_fbx
 
         joint_map = json.loads(Path(args.joint_map).read_text()) if args.joint_map else None
+        skeleton = None if args.skeleton == "candidates" else args.skeleton
         named = []
         for src in args.src:
-            seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps)
+            if args.format == "bvh":
+                seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps,
+                                 skeleton=skeleton, feet_on_floor=args.feet_on_floor)
+            else:
+                seq = import_fbx(src, joint_map=joint_map, unit_scale=args.unit_scale, fps=args.fps,
+                                 skeleton=skeleton, feet_on_floor=args.feet_on_floor)
             named.append((Path(src).stem, seq))
-        index = write_dataset(out, named, {}, name="bvh-import", seed=args.seed)
+        index = write_dataset(out, named, {}, name=f"{args.format}-import", seed=args.seed)
     summary = {"sequences": index["counts"]["sequences"], "frames": index["counts"]["frames"],
                "scenes": len(index["scenes"]), "out": str(out)}
     print(f"imported {summary['sequences']} sequences ({summary['frames']} frames) into {out}", file=sys.stderr)

@@ -26,6 +26,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str, str]] = [
     (("eval", "train"), "train.evaluate", "recompute a checkpoint's validation loss", "#4"),
     (("eval", "refine"), "sample.eval_refine", "HOI-filter benchmark figures", "HOI-filter issue"),
     (("eval", "contacts"), "sample.eval_contacts", "contact-prediction benchmark figures", "tracker issue"),
+    (("eval", "realism"), "trumans.realism_cli", "realism statistics of a dataset against real mocap", "#9"),
     (("eval", "local-query"), "scenes.bench_local_query", "local occupancy query benchmark", "#2"),
 ]
 

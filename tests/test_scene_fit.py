@@ -51,7 +51,7 @@ def test_seat_under_the_seated_pelvis(seat, yaw):
 def test_no_seat_when_standing_or_on_the_floor():
     stand = np.repeat(REST_JOINTS[None], 90, 0)
     assert fit_seats(stand, label_states(stand, 30.0)) == []
-    floor = seated_body(seat=0.05)  # hips 15 cm up: sitting on the floor
+    floor = seated_body(seat=0.08)  # hips 18 cm up: sitting on the floor
     assert fit_seats(floor, np.full(len(floor), SIT)) == []
 
 

@@ -25,7 +25,7 @@ SEAT_BELOW_HIP_M = 0.10  # hip joint centres sit this far above the seat surface
 SEAT_BEHIND_HIP_M = 0.12
 SEAT_THIGH_SHARE = 0.75
 SEAT_SIDE_M = 0.10
-MIN_SEAT_M = 0.15  # lower "seats" are the floor
+MIN_SEAT_M = 0.20  # lower "seats" are the floor (or a crouch)
 BED_MIN_HEIGHT_M = 0.30
 BED_BELOW_BODY_M = 0.08
 

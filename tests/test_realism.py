@@ -158,3 +158,19 @@ def test_load_corpus_errors(tmp_path):
         load_corpus(tmp_path / "none.npz")
     with pytest.raises(ValueError, match="split must be"):
         load_corpus(split="val")
+
+
+def test_cli_eval_realism(tmp_path, capsys):
+    from trumans.cli import main
+    from trumans.importers.cli import write_dataset
+    from trumans.sequence import Sequence
+
+    seqs = [(f"w{c}", Sequence(joints=walker(cadence=c).astype(np.float32), fps=FPS)) for c in (100, 110, 120)]
+    write_dataset(tmp_path / "ds", seqs, {}, name="walkers", seed=0)
+    assert main(["eval", "realism", str(tmp_path / "ds"), "--reference", str(tmp_path / "ds"), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert rep["dataset_clips"] == 3 and rep["reference_clips"] == 3
+    assert rep["statistics"]["cadence"]["dataset"] == pytest.approx(110, rel=0.06)
+    assert rep["fraction_inside"] == 1.0  # a dataset is inside its own range
+    with pytest.raises(FileNotFoundError, match="not a dataset folder"):
+        main(["eval", "realism", str(tmp_path / "none"), "--reference", str(tmp_path / "ds")])

@@ -85,3 +85,17 @@ def test_seats_for_real_seated_clips():
             assert mesh.contains(pel[None])[0], clip.name
             n += 1
     assert n >= 5
+
+
+def test_contacts_with_the_fitted_scene():
+    from trumans.contacts.rule import FLOOR_NAME
+    from trumans.scene_fit import fitted_contacts
+
+    j = seated_body(seat=0.47)
+    scene, contact, objects = fitted_contacts(j, label_states(j, 30.0))
+    assert list(scene.objects) == ["seat_0"]
+    objects = np.array(objects)
+    for joint in ("left_hip", "right_hip"):  # the thighs rest on the seat
+        assert contact[:, J[joint]].all() and (objects[:, J[joint]] == "seat_0").all()
+    assert contact[:, J["left_foot"]].all() and (objects[:, J["left_foot"]] == FLOOR_NAME).all()
+    assert not contact[:, J["head"]].any()

@@ -14,10 +14,8 @@ Conventions owned here:
 """
 from __future__ import annotations
 
-import logging
 import re
 import warnings
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -32,8 +30,6 @@ from .sequence import Sequence, atomic_write
 from .skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, children
 
 __all__ = ["BvhData", "read_bvh", "write_bvh", "import_bvh", "DEFAULT_JOINT_MAP", "map_joints", "Y_UP_FROM_Z_UP"]
-
-log = logging.getLogger(__name__)
 
 # (X, Y, Z)_bvh = C @ (x, y, z)_ours : left, up, forward (det +1, a cyclic permutation).
 Y_UP_FROM_Z_UP: np.ndarray = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])

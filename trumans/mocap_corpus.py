@@ -2,10 +2,11 @@
 
 Each clip is converted once (``scripts/build_mocap_corpus.py``) from the raw CMU files: imported
 through ``trumans.importers.fbx`` / ``trumans.bvh`` with the Daz / CMU joint maps, the converter's
-synthetic T-pose first frame dropped, resampled to 30 fps (cubic spline), feet put on the floor, and labelled per
-frame with ``trumans.motion_labels``. Joints are stored losslessly to 0.1 mm: quantised to int
-(1e-4 m), the first frame and first velocity as int32, the rest as int16 second differences
-(zlib-compressed), so the corpus is a few MB. Clips of the held-out CMU subjects (``split ==
+synthetic T-pose first frame dropped, resampled to 30 fps (cubic spline; 120 fps sources
+low-passed first), feet put on the floor, and labelled per frame with ``trumans.motion_labels``.
+Joints are stored losslessly to 0.1 mm: quantised to int (1e-4 m), the first frame and first
+velocity as int32, the rest as int16 second differences (zlib-compressed), so the corpus is a
+few MB. Clips of the held-out CMU subjects (``split ==
 "test"``) are the reference of ``trumans eval realism`` and are not used for tuning.
 """
 from __future__ import annotations
@@ -131,6 +132,7 @@ def convert_clip(path: str | Path, name: str, description: str = "", fps: float 
     from .importers import fbx
     from .importers.joint_maps import guess_unit_scale, place_on_floor, retarget_joints
     from scipy.interpolate import CubicSpline
+    from scipy.ndimage import gaussian_filter1d
 
     from .resample import resample_times
     from .sequence import Sequence
@@ -160,6 +162,8 @@ def convert_clip(path: str | Path, name: str, description: str = "", fps: float 
     else:
         raise ValueError(f"{path}: expected a .fbx or .bvh file")
     joints = drop_tpose_frame(retarget_joints(names, P))
+    if src_fps > 1.5 * fps:  # anti-aliasing before downsampling (120 fps BVH): Gaussian, sigma 0.5 output frames
+        joints = gaussian_filter1d(joints, sigma=0.5 * src_fps / fps, axis=0, mode="nearest")
     # cubic-spline resampling: linear interpolation of 24 fps keys would put a kink (a jerk spike)
     # at every source key
     t_out = resample_times(len(joints), src_fps, fps)

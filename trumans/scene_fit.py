@@ -14,12 +14,12 @@ import numpy as np
 import trimesh
 
 from scenes.furniture import yaw_pose
-from scenes.scene import SceneObject
+from scenes.scene import Scene, SceneObject
 
 from .motion_labels import MOTION_STATES, segments
 from .skeleton import JOINT_INDEX as J
 
-__all__ = ["fit_seats", "fit_beds", "SEAT_BELOW_HIP_M"]
+__all__ = ["fit_seats", "fit_beds", "fit_scene", "fitted_contacts", "SEAT_BELOW_HIP_M"]
 
 SEAT_BELOW_HIP_M = 0.10  # hip joint centres sit this far above the seat surface (soft tissue + pelvis)
 SEAT_BEHIND_HIP_M = 0.12
@@ -94,3 +94,21 @@ def fit_beds(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_seco
         out.append(_box_object(f"bed_{len(out)}", "bed", float(centre[0]), float(centre[1]), yaw, length, 0.9,
                                height, meta))
     return out
+
+
+def fit_scene(joints: np.ndarray, states: np.ndarray, name: str = "fitted", fps: float = 30.0) -> Scene:
+    """A scene for a real clip: the fitted seats and beds (the floor z = 0 is implicit)."""
+    objects = fit_seats(joints, states, fps) + fit_beds(joints, states, fps)
+    return Scene(name=name, objects={o.name: o for o in objects}, meta={"fitted_to_motion": True})
+
+
+def fitted_contacts(joints: np.ndarray, states: np.ndarray, fps: float = 30.0) -> tuple[Scene, np.ndarray, list[str]]:
+    """The fitted scene, per-joint contacts (T, 24) bool by the TRUMANS rule
+    (``trumans.contacts.rule.joint_contacts``, floor included) and the contact object of each
+    joint-frame (T, 24) names ("" = none)."""
+    from .contacts.rule import ContactScene, joint_contacts
+
+    scene = fit_scene(joints, states, fps=fps)
+    res = joint_contacts(np.asarray(joints, np.float64), ContactScene(scene))
+    names = np.array(list(res.names) + [""])
+    return scene, res.contact, names[res.object_index].tolist()

@@ -18,7 +18,6 @@ import dataclasses
 import logging
 import warnings
 from collections.abc import Mapping
-from typing import Literal
 
 import numpy as np
 

@@ -233,7 +233,7 @@ def test_unmappable_joint_names(small_bvh):
     for ours, theirs in renames.items():
         text = text.replace(f"JOINT {ours}\n", f"JOINT {theirs}\n").replace(f"ROOT {ours}\n", f"ROOT {theirs}\n")
     p = _corrupt(small_bvh, text, "renamed.bvh")
-    with pytest.raises(ValueError, match=r"not found.*pass joint_map=\{our_name: bvh_name\}.*bone00") as err:
+    with pytest.raises(ValueError, match=r"not found.*pass joint_map=\{our_name: their_name\}.*bone00") as err:
         import_bvh(p)
     assert "pelvis" in str(err.value)
     # the fix the message suggests works: an explicit joint_map gives the original motion back
@@ -244,7 +244,7 @@ def test_unmappable_joint_names(small_bvh):
 def test_joint_map_with_unknown_names(small_bvh):
     with pytest.raises(ValueError, match=r"joint_map keys \['elbow_l'\] are not our joints.*left_elbow"):
         import_bvh(small_bvh, joint_map={"elbow_l": "left_elbow"})
-    with pytest.raises(ValueError, match=r"joint_map values .*'NoSuchJoint'.*not joints of the BVH; it has: .*left_elbow"):
+    with pytest.raises(ValueError, match=r"joint_map values .*'NoSuchJoint'.*not joints of the skeleton; it has: .*left_elbow"):
         import_bvh(small_bvh, joint_map={"left_elbow": "NoSuchJoint"})
     with pytest.raises(TypeError, match="joint_map must be a dict"):
         import_bvh(small_bvh, joint_map="left_elbow")

@@ -14,10 +14,8 @@ Conventions owned here:
 """
 from __future__ import annotations
 
-import logging
 import re
 import warnings
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -25,14 +23,13 @@ from typing import Literal
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .ik.fit import fit_error, fit_rotations
+from .importers.joint_maps import (DEFAULT_JOINT_MAP, guess_unit_scale, map_joints, place_on_floor,
+                                   retarget_joints, sequence_from_joints)
 from .rotations import matrix_to_6d
 from .sequence import Sequence, atomic_write
-from .skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, REST_JOINTS, children
+from .skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, children
 
 __all__ = ["BvhData", "read_bvh", "write_bvh", "import_bvh", "DEFAULT_JOINT_MAP", "map_joints", "Y_UP_FROM_Z_UP"]
-
-log = logging.getLogger(__name__)
 
 # (X, Y, Z)_bvh = C @ (x, y, z)_ours : left, up, forward (det +1, a cyclic permutation).
 Y_UP_FROM_Z_UP: np.ndarray = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
@@ -333,122 +330,6 @@ def _depth_first() -> list[int]:
 
 # ----------------------------------------------------------------------------------------- import
 
-# Our joint -> candidate BVH names, first present (and not yet taken) wins. Covers our own export,
-# the CMU "3dsMax-friendly" conversion (LeftHip/LeftKnee/LeftAnkle/LeftToe, lowerback/Chest/Chest2,
-# LeftCollar/LeftShoulder/LeftElbow/LeftWrist, LFingers), the CMU/Mixamo style (LeftUpLeg/LeftLeg/
-# LeftFoot/LeftToeBase, Spine/Spine1/Spine2, LeftShoulder = clavicle, LeftArm/LeftForeArm/LeftHand)
-# and a few others. Joints resolve in this order, so "LeftShoulder" is the upper arm only where no
-# "LeftArm" exists. Extend it with ``import_bvh(joint_map={our_name: bvh_name})``.
-DEFAULT_JOINT_MAP: dict[str, list[str]] = {
-    "pelvis": ["pelvis", "Hips", "hip", "Hip", "Pelvis", "Root"],
-    "left_hip": ["left_hip", "LeftHip", "LeftUpLeg", "LeftThigh", "LThigh", "lThigh"],
-    "right_hip": ["right_hip", "RightHip", "RightUpLeg", "RightThigh", "RThigh", "rThigh"],
-    "left_knee": ["left_knee", "LeftKnee", "LeftLeg", "LeftShin", "LeftLowLeg", "LShin", "lShin"],
-    "right_knee": ["right_knee", "RightKnee", "RightLeg", "RightShin", "RightLowLeg", "RShin", "rShin"],
-    "left_ankle": ["left_ankle", "LeftAnkle", "LeftFoot", "LFoot", "lFoot"],
-    "right_ankle": ["right_ankle", "RightAnkle", "RightFoot", "RFoot", "rFoot"],
-    "left_foot": ["left_foot", "LeftToe", "LeftToeBase", "LeftToes", "LToe", "lToe"],
-    "right_foot": ["right_foot", "RightToe", "RightToeBase", "RightToes", "RToe", "rToe"],
-    "spine1": ["spine1", "lowerback", "Spine", "LowerBack", "Abdomen", "abdomen"],
-    "spine2": ["spine2", "Chest", "Spine1", "Spine2", "chest"],
-    "spine3": ["spine3", "Chest2", "Spine2", "Spine3", "UpperChest", "upperback"],
-    "neck": ["neck", "Neck", "Neck1", "neck1"],
-    "head": ["head", "Head"],
-    "left_shoulder": ["left_shoulder", "LeftArm", "LeftUpArm", "LeftUpperArm", "LShldr", "lShldr", "LeftShoulder"],
-    "right_shoulder": ["right_shoulder", "RightArm", "RightUpArm", "RightUpperArm", "RShldr", "rShldr", "RightShoulder"],
-    "left_collar": ["left_collar", "LeftCollar", "LeftClavicle", "LCollar", "lCollar", "LeftShoulder"],
-    "right_collar": ["right_collar", "RightCollar", "RightClavicle", "RCollar", "rCollar", "RightShoulder"],
-    "left_elbow": ["left_elbow", "LeftElbow", "LeftForeArm", "LeftLowArm", "LForeArm", "lForeArm"],
-    "right_elbow": ["right_elbow", "RightElbow", "RightForeArm", "RightLowArm", "RForeArm", "rForeArm"],
-    "left_wrist": ["left_wrist", "LeftWrist", "LeftHand", "LHand", "lHand"],
-    "right_wrist": ["right_wrist", "RightWrist", "RightHand", "RHand", "rHand"],
-    "left_index1": ["left_index1", "LeftHandIndex1", "LeftFingerBase", "LeftInHandIndex", "LFingers"],
-    "right_index1": ["right_index1", "RightHandIndex1", "RightFingerBase", "RightInHandIndex", "RFingers"],
-}
-# Resolution order: upper arms before clavicles (see above), then the rest.
-_RESOLVE_ORDER = ["left_shoulder", "right_shoulder"] + [n for n in JOINT_NAMES if n not in ("left_shoulder", "right_shoulder")]
-# Joints that may be synthesised when absent or degenerate (sitting on their parent), between the
-# (parent, nearest present chain descendant), or (index1) from the wrist along the forearm.
-_CHAIN_NEXT = {"spine1": "spine2", "spine2": "spine3", "spine3": "neck", "neck": "head",
-               "left_collar": "left_shoulder", "right_collar": "right_shoulder"}
-_DEGENERATE_M = 0.01  # a mapped joint closer than this (median) to its mapped parent is re-synthesised
-_KNOWN_UNITS = {"metres": 1.0, "centimetres": 0.01, "millimetres": 0.001, "inches": 0.0254,
-                "CMU units (1/0.0564444 m)": 0.0564444}
-
-
-def map_joints(names: list[str], joint_map: dict[str, str] | None = None) -> dict[str, int | None]:
-    """Our joint name -> index of the BVH joint it comes from (None = to be synthesised).
-
-    ``joint_map`` ({our_name: bvh_name}) overrides the defaults; unknown names on either side raise."""
-    if joint_map is not None and not isinstance(joint_map, Mapping):
-        raise TypeError(f"joint_map must be a dict {{our_joint_name: bvh_joint_name}}, got {type(joint_map).__name__} "
-                        f"{joint_map!r}")
-    user = dict(joint_map or {})
-    bad_ours = [k for k in user if k not in JOINT_INDEX]
-    if bad_ours:
-        raise ValueError(f"joint_map keys {bad_ours} are not our joints; use names from trumans.skeleton.JOINT_NAMES: "
-                         f"{', '.join(JOINT_NAMES)}")
-    bad_theirs = {k: v for k, v in user.items() if v not in names}
-    if bad_theirs:
-        raise ValueError(f"joint_map values {bad_theirs} are not joints of the BVH; it has: {', '.join(names)}")
-    out: dict[str, int | None] = {}
-    taken = {v for v in user.values()}
-    for ours in _RESOLVE_ORDER:
-        if ours in user:
-            out[ours] = names.index(user[ours])
-            continue
-        out[ours] = None
-        for cand in DEFAULT_JOINT_MAP[ours]:
-            if cand in names and cand not in taken:
-                out[ours] = names.index(cand)
-                taken.add(cand)
-                break
-    missing = [n for n, v in out.items() if v is None and n not in _CHAIN_NEXT and not n.endswith("_index1")]
-    if missing:
-        raise ValueError(f"BVH joints for {missing} not found (tried {[DEFAULT_JOINT_MAP[m] for m in missing]}); "
-                         f"pass joint_map={{our_name: bvh_name}}. The BVH has: {', '.join(names)}")
-    return {n: out[n] for n in JOINT_NAMES}
-
-
-def _synthesise(P: np.ndarray, have: np.ndarray) -> np.ndarray:
-    """Fill joints with have[j] False in P (T, 24, 3): chain joints by interpolating between their
-    parent and the nearest present chain descendant at the rest pose's arc-length fraction; index1
-    from the wrist along the forearm direction at the rest length ratio."""
-    P = P.copy()
-    have = have.copy()
-    rest_len = np.linalg.norm(REST_JOINTS - REST_JOINTS[np.maximum(PARENTS, 0)], axis=-1)
-    for j in range(NUM_JOINTS):
-        if have[j]:
-            continue
-        name = JOINT_NAMES[j]
-        p = PARENTS[j]
-        if name.endswith("_index1"):
-            e = PARENTS[p]
-            ratio = rest_len[j] / rest_len[p]
-            P[:, j] = P[:, p] + (P[:, p] - P[:, e]) * ratio
-        else:
-            chain, k = [j], JOINT_INDEX[_CHAIN_NEXT[name]]
-            while not have[k]:
-                chain.append(k)
-                k = JOINT_INDEX[_CHAIN_NEXT[JOINT_NAMES[k]]]
-            arcs = np.cumsum([rest_len[c] for c in chain] + [rest_len[k]])
-            P[:, j] = P[:, p] + (P[:, k] - P[:, p]) * (arcs[0] / arcs[-1])
-        have[j] = True
-    return P
-
-
-def _guess_unit_scale(height: float) -> float:
-    """Metres per file unit: the common unit that makes the standing height closest to 1.7 m."""
-    if not height > 0:
-        raise ValueError("cannot guess the BVH units from a zero-height skeleton; pass unit_scale")
-    name, s = min(_KNOWN_UNITS.items(), key=lambda kv: abs(np.log(height * kv[1] / 1.7)))
-    if not 0.8 <= height * s <= 2.6:
-        raise ValueError(f"cannot guess the BVH units (skeleton height {height:.3g} file units); pass unit_scale "
-                         "(metres per file unit)")
-    log.info("BVH units guessed as %s (skeleton height %.2f m)", name, height * s)
-    return s
-
-
 def import_bvh(
     path: str | Path,
     joint_map: dict[str, str] | None = None,
@@ -456,19 +337,24 @@ def import_bvh(
     up: Literal["y", "z"] = "y",
     fps: float | None = None,
     refine_steps: int = 30,
+    skeleton: str | None = "auto",
+    feet_on_floor: bool = False,
 ) -> Sequence:
     """Read a BVH of any skeleton as a trumans Sequence (24 joints, metres, z-up, rotations + root_pos).
 
-    joint_map: {our_joint_name: bvh_joint_name} overriding ``DEFAULT_JOINT_MAP``; absent collars /
+    joint_map: {our_joint_name: bvh_joint_name} overriding the skeleton map; skeleton: a built-in
+    map of ``trumans.importers.joint_maps.SKELETON_MAPS`` ("daz", "cmu_mb"), "auto" (detected) or
+    None (the ``DEFAULT_JOINT_MAP`` candidates); End Sites are joints ``<joint>_end``. Absent collars /
     spine joints (or ones sitting on their parent) are interpolated along the chain and absent
     index1 joints are placed beyond the wrist along the forearm. unit_scale: metres per file unit
     (None: guessed from the skeleton's height among m / cm / mm / inch / CMU units). up: the file's
     up axis ('y': ``(x, y, z)_ours = (Z, X, Y)_file``, the inverse of ``write_bvh``). fps: resample
-    to this rate (None keeps the file's). Files whose skeleton is exactly ours (``write_bvh``)
-    keep their rotations; others are fitted with ``trumans.ik.fit.fit_rotations``, and the fit's
-    error (m) is stored in ``extra["ik_error_mean"]`` / ``extra["ik_error_max"]``. The rest offsets
-    (24, 3) m that the rotations go with are ``extra["offsets"]``:
-    ``forward_kinematics(rotations, root_pos, extra["offsets"])`` gives the joints."""
+    to this rate (None keeps the file's). feet_on_floor: move the motion vertically so the feet
+    stand on z = 0 (without it, feet more than 10 cm off the floor raise a warning). Files whose
+    skeleton is exactly ours (``write_bvh``) keep their rotations; others are fitted with
+    ``trumans.ik.fit.fit_rotations``, and the fit's error (m) is stored in ``extra["ik_error_mean"]``
+    / ``extra["ik_error_max"]``. The rest offsets (24, 3) m that the rotations go with are
+    ``extra["offsets"]``: ``forward_kinematics(rotations, root_pos, extra["offsets"])`` gives the joints."""
     if up not in ("y", "z"):
         raise ValueError(f"up must be 'y' or 'z', got {up!r}")
     if unit_scale is not None and not (np.isfinite(unit_scale) and unit_scale > 0):
@@ -478,8 +364,12 @@ def import_bvh(
     bvh = read_bvh(path)
     if bvh.num_frames == 0:
         raise ValueError(f"{path} holds no frames")
-    src = map_joints(bvh.names, joint_map)
     Pw, Gw = bvh.forward_kinematics()
+    ends = sorted(bvh.end_sites)
+    names = bvh.names + [f"{bvh.names[j]}_end" for j in ends]
+    if ends:  # End Sites as joints "<joint>_end"
+        E = np.stack([Pw[:, j] + Gw[:, j] @ bvh.end_sites[j] for j in ends], axis=1)
+        Pw = np.concatenate([Pw, E], axis=1)
     # file axes -> ours: y-up files use (x, y, z) = (Z, X, Y); z-up files are taken as they are
     C = Y_UP_FROM_Z_UP.T if up == "y" else np.eye(3)
     Pw = Pw @ C.T
@@ -487,41 +377,21 @@ def import_bvh(
         rest, _ = BvhData(bvh.names, bvh.parents, bvh.offsets, [[] for _ in bvh.names],
                           np.zeros((1, 0)), 1.0).forward_kinematics()
         pts = np.concatenate([rest[0], [rest[0, j] + e for j, e in bvh.end_sites.items()]]) @ C.T
-        height = float(np.ptp(pts[:, 2]))
-        unit_scale = _guess_unit_scale(height)
+        unit_scale = guess_unit_scale(float(np.ptp(pts[:, 2])))
     Pw = Pw * unit_scale
-    T = bvh.num_frames
-    P = np.zeros((T, NUM_JOINTS, 3))
-    have = np.zeros(NUM_JOINTS, bool)
-    for j, name in enumerate(JOINT_NAMES):
-        if src[name] is not None:
-            P[:, j] = Pw[:, src[name]]
-            have[j] = True
-    for j, name in enumerate(JOINT_NAMES):  # mapped but sitting on the parent (e.g. CMU collars)
-        if have[j] and (name in _CHAIN_NEXT) and have[PARENTS[j]] and (
-                joint_map is None or name not in joint_map):
-            if np.median(np.linalg.norm(P[:, j] - P[:, PARENTS[j]], axis=-1)) < _DEGENERATE_M:
-                have[j] = False
-    P = _synthesise(P, have)
-    rotations = root_pos = None
-    extra: dict[str, np.ndarray] = {}
-    ours = len(bvh.names) == NUM_JOINTS and all(v is not None for v in src.values()) and all(
+    P = retarget_joints(names, Pw, joint_map, skeleton)
+    src = map_joints(names, joint_map, skeleton)
+    ours = len(bvh.names) == NUM_JOINTS and all(v is not None and v < len(bvh.names) for v in src.values()) and all(
         bvh.parents[src[n]] == src[JOINT_NAMES[PARENTS[j]]] for j, n in enumerate(JOINT_NAMES) if j > 0)
     if ours:  # our own export: keep the file's rotations exactly
         rot = C @ Gw[:, [src[n] for n in JOINT_NAMES]] @ C.T  # global, our axes
         rot[:, 1:] = np.swapaxes(rot[:, PARENTS[1:]], -1, -2) @ rot[:, 1:]  # global -> local
-        rotations, root_pos = matrix_to_6d(rot).astype(np.float32), P[:, 0].astype(np.float32)
         off = np.asarray(bvh.offsets, np.float64)[[src[n] for n in JOINT_NAMES]] @ C.T * unit_scale
-        extra["offsets"] = off.astype(np.float32)
-    seq = Sequence(joints=P.astype(np.float32), fps=bvh.fps, rotations=rotations, root_pos=root_pos, extra=extra)
-    if fps is not None and abs(fps - bvh.fps) > 1e-6:
-        from .resample import resample_sequence
-        seq = resample_sequence(seq, fps)
-    if seq.rotations is None:
-        R, root, off = fit_rotations(seq.joints, refine_steps=refine_steps)
-        err = fit_error(seq.joints, R, root, off)
-        extra = {"ik_error_mean": np.asarray(err["mean"]), "ik_error_max": np.asarray(err["max"]),
-                 "offsets": off.astype(np.float32)}
-        seq = Sequence(joints=seq.joints, fps=seq.fps, rotations=matrix_to_6d(R).astype(np.float32),
-                       root_pos=root.astype(np.float32), extra=extra)
-    return seq
+        seq = Sequence(joints=P.astype(np.float32), fps=bvh.fps, rotations=matrix_to_6d(rot).astype(np.float32),
+                       root_pos=P[:, 0].astype(np.float32), extra={"offsets": off.astype(np.float32)})
+        if fps is not None and abs(fps - bvh.fps) > 1e-6:
+            from .resample import resample_sequence
+            seq = resample_sequence(seq, fps)
+    else:
+        seq = sequence_from_joints(P, bvh.fps, target_fps=fps, refine_steps=refine_steps)
+    return place_on_floor(seq, feet_on_floor, source=str(path))

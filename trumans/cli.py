@@ -23,7 +23,7 @@ import sys
 # (command path, module, one-line help, issue that builds it)
 COMMANDS: list[tuple[tuple[str, ...], str, str, str]] = [
     (("data", "synth"), "trumans.synth.cli", "build the embedded synthetic HSI dataset", "#2"),
-    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release or BVH data into the dataset format", "#2"),
+    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release, BVH or FBX data into the dataset format", "#2"),
     (("augment",), "augment.cli", "contact-preserving CCD-IK augmentation of a dataset", "#3"),
     (("train",), "train.cli", "train the generator (or filter / contact model) from a config", "#4"),
     (("sample",), "sample.cli", "sample a long motion in a scene from a plan", "sampling issue"),
@@ -34,6 +34,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str, str]] = [
     (("eval", "train"), "train.evaluate", "recompute a checkpoint's validation loss", "#4"),
     (("eval", "refine"), "sample.eval_refine", "HOI-filter benchmark figures", "HOI-filter issue"),
     (("eval", "contacts"), "sample.eval_contacts", "contact-prediction benchmark figures", "tracker issue"),
+    (("eval", "realism"), "trumans.realism_cli", "realism statistics of a dataset against real mocap", "#9"),
     (("eval", "local-query"), "scenes.bench_local_query", "local occupancy query benchmark", "#2"),
 ]
 

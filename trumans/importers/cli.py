@@ -1,4 +1,4 @@
-"""`trumans data import`: bring a TRUMANS release folder or BVH files into the dataset format."""
+"""`trumans data import`: bring a TRUMANS release folder, BVH or FBX files into the dataset format."""
 from __future__ import annotations
 
 import argparse
@@ -14,17 +14,22 @@ from trumans.sequence import Sequence, save_sequence
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("src", nargs="+", help="a TRUMANS release folder, or one or more .bvh files")
-    p.add_argument("--format", choices=["trumans", "bvh"], required=True, help="layout of SRC")
+    p.add_argument("src", nargs="+", help="a TRUMANS release folder, or one or more .bvh / .fbx files")
+    p.add_argument("--format", choices=["trumans", "bvh", "fbx"], required=True, help="layout of SRC")
     p.add_argument("--out", required=True, help="dataset folder to write (sequences/, scenes/, index.json); "
                                                 "a folder holding other data is refused unless --overwrite")
     p.add_argument("--overwrite", action="store_true", help="replace the dataset already in --out")
     p.add_argument("--action-names", help="TRUMANS: JSON list or text file (one per line) naming the label columns")
-    p.add_argument("--joint-map", help="BVH: JSON object {our_joint_name: bvh_joint_name} extending the default "
+    p.add_argument("--joint-map", help="BVH/FBX: JSON object {our_joint_name: their_joint_name} overriding the "
                                        "map, inline or in a .json file")
-    p.add_argument("--unit-scale", type=positive_float,
-                   help="BVH: metres per file unit (default: guessed from the skeleton size)")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="BVH: up axis of the file (default y)")
+    p.add_argument("--skeleton", default="auto", choices=["auto", "daz", "cmu_mb", "candidates"],
+                   help="BVH/FBX: built-in joint map (default auto: detected; candidates: the name lists)")
+    p.add_argument("--unit-scale", type=positive_float, help="BVH/FBX: metres per file unit (default: BVH guessed "
+                   "from the skeleton size, FBX from its UnitScaleFactor)")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="BVH: up axis of the file (default y; FBX files say)")
+    p.add_argument("--feet-on-floor", action="store_true",
+                   help="BVH/FBX: move each motion vertically so its feet stand on z = 0 (without it, feet "
+                        "more than 10 cm off the floor are reported)")
     p.add_argument("--fps", type=positive_float, help="resample to this frame rate (default: keep the file's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the train/val/test split")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
@@ -112,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     settings = {"format": args.format, "src": [str(Path(p).resolve()) for p in args.src], "seed": args.seed,
                 "action_names": args.action_names, "joint_map": args.joint_map, "unit_scale": args.unit_scale,
-                "up": args.up, "fps": args.fps}
+                "up": args.up, "fps": args.fps, "skeleton": args.skeleton, "feet_on_floor": args.feet_on_floor}
     # read and check everything first: a refused import leaves --out untouched
     if args.format == "trumans":
         from .trumans_release import read_release
@@ -129,17 +134,24 @@ def run(args: argparse.Namespace) -> int:
         grids, name = rel.scenes, f"trumans-import:{Path(args.src[0]).name}"
     else:
         from trumans.bvh import import_bvh
+        from trumans.importers.fbx import import_fbx
 
         joint_map = _read_joint_map(args.joint_map)
+        skeleton = None if args.skeleton == "candidates" else args.skeleton
         named = []
         for src in args.src:
-            seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps)
+            if args.format == "bvh":
+                seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps,
+                                 skeleton=skeleton, feet_on_floor=args.feet_on_floor)
+            else:
+                seq = import_fbx(src, joint_map=joint_map, unit_scale=args.unit_scale, fps=args.fps,
+                                 skeleton=skeleton, feet_on_floor=args.feet_on_floor)
             named.append((Path(src).stem, seq))
         stems = [s for s, _ in named]
         if len(set(stems)) != len(stems):
-            raise ValueError(f"BVH files with the same name would overwrite each other: "
+            raise ValueError(f"{args.format.upper()} files with the same name would overwrite each other: "
                              f"{sorted({s for s in stems if stems.count(s) > 1})}; rename them")
-        grids, name = {}, "bvh-import"
+        grids, name = {}, f"{args.format}-import"
     if out.resolve() in [Path(p).resolve() for p in args.src] or any(out.resolve() in Path(p).resolve().parents
                                                                      for p in args.src):
         raise ValueError(f"--out {out} is (or holds) the import source; choose another folder")

@@ -1,0 +1,96 @@
+"""Body states found from the motion itself: standing, walking, turning, sitting, lying, and the
+transitions between them, named with the synthetic vocabulary (``trumans.synth.vocab``).
+
+Per frame (z up, metres): pelvis height against the standing pelvis height (where the body stands straight),
+pelvis ground speed, heading rate, trunk tilt (pelvis -> neck against vertical) and thigh angle.
+States are smoothed with a 0.5 s majority window; the frames between standing and a sitting /
+lying state become ``sit_down`` / ``stand_up`` / ``lie_down`` / ``get_up``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from .skeleton import JOINT_INDEX
+
+__all__ = ["MOTION_STATES", "body_features", "label_states", "segments"]
+
+MOTION_STATES: tuple[str, ...] = ("stand", "walk", "turn", "sit_down", "sit", "stand_up", "lie_down", "lie", "get_up")
+J = JOINT_INDEX
+WALK_SPEED = 0.35  # m/s, pelvis ground speed (0.5 s mean) above which the body walks
+TURN_RATE = np.deg2rad(45.0)  # rad/s heading rate above which a body that does not walk turns
+
+
+def body_features(joints: np.ndarray, fps: float) -> dict[str, np.ndarray]:
+    """Per-frame features of joints (T, 24, 3): pelvis height ``h`` (m), standing pelvis height
+    ``h_stand`` (scalar, m), ground ``speed`` (m/s), ``heading`` and ``yaw_rate`` (rad, rad/s), trunk
+    ``tilt`` (rad from vertical), mean ``thigh`` angle from vertical (rad)."""
+    joints = np.asarray(joints, np.float64)
+    win = max(1, int(round(0.5 * fps)))
+    pel = joints[:, J["pelvis"]]
+    thigh_len = np.median(np.linalg.norm(joints[:, J["left_knee"]] - joints[:, J["left_hip"]], axis=-1))
+    shin_len = np.median(np.linalg.norm(joints[:, J["left_ankle"]] - joints[:, J["left_knee"]], axis=-1))
+    trunk = joints[:, J["neck"]] - pel
+    tilt = np.arccos(np.clip(trunk[:, 2] / np.maximum(np.linalg.norm(trunk, axis=-1), 1e-9), -1, 1))
+    th = []
+    for s in ("left", "right"):
+        d = joints[:, J[f"{s}_knee"]] - joints[:, J[f"{s}_hip"]]
+        th.append(np.arccos(np.clip(-d[:, 2] / np.maximum(np.linalg.norm(d, axis=-1), 1e-9), -1, 1)))
+    thigh = np.mean(th, axis=0)
+    upright = (thigh < np.deg2rad(15)) & (tilt < np.deg2rad(20))
+    # standing pelvis height: measured where the body stands straight, else from the leg bones
+    h_stand = float(np.median(pel[upright, 2])) if upright.sum() >= fps else thigh_len + shin_len + 0.05
+    vel = np.gradient(pel[:, :2], axis=0) * fps
+    speed = uniform_filter1d(np.linalg.norm(vel, axis=-1), win, mode="nearest")
+    across = joints[:, J["left_hip"], :2] - joints[:, J["right_hip"], :2]
+    heading = np.unwrap(np.arctan2(-across[:, 0], across[:, 1]))  # forward = left-axis turned -90 deg
+    yaw_rate = uniform_filter1d(np.gradient(heading) * fps, win, mode="nearest")
+    return {"h": pel[:, 2], "h_stand": np.asarray(h_stand), "speed": speed, "heading": heading,
+            "yaw_rate": yaw_rate, "tilt": tilt, "thigh": thigh}
+
+
+def label_states(joints: np.ndarray, fps: float) -> np.ndarray:
+    """Per-frame state index into ``MOTION_STATES`` (T,) int."""
+    f = body_features(joints, fps)
+    T = len(f["h"])
+    rel = f["h"] / f["h_stand"]
+    lie = (f["tilt"] > np.deg2rad(60)) & (rel < 0.75)  # on the floor or a bed
+    sit = ~lie & (rel < 0.85) & (f["thigh"] > np.deg2rad(40)) & (f["speed"] < WALK_SPEED)  # chairs to high stools
+    walk = ~lie & ~sit & (f["speed"] > WALK_SPEED)
+    turn = ~lie & ~sit & ~walk & (np.abs(f["yaw_rate"]) > TURN_RATE)
+    base = np.zeros(T, np.int64)  # stand
+    base[walk] = MOTION_STATES.index("walk")
+    base[turn] = MOTION_STATES.index("turn")
+    base[sit] = MOTION_STATES.index("sit")
+    base[lie] = MOTION_STATES.index("lie")
+    base = _majority(base, max(1, int(round(0.5 * fps))))
+    upright = rel > 0.92
+    longest = int(round(3 * fps))  # a transition lasts at most 3 s
+    core = base.copy()
+    held = np.isin(core, [MOTION_STATES.index("sit"), MOTION_STATES.index("lie")])
+    for state, before, after in (("sit", "sit_down", "stand_up"), ("lie", "lie_down", "get_up")):
+        for s, e in segments(core == MOTION_STATES.index(state)):
+            i = s
+            while i > max(0, s - longest) and not upright[i - 1] and not held[i - 1]:
+                i -= 1
+            base[i:s] = MOTION_STATES.index(before)
+            i = e
+            while i < min(T, e + longest) and not upright[i] and not held[i]:
+                i += 1
+            base[e:i] = MOTION_STATES.index(after)
+    return base
+
+
+def _majority(labels: np.ndarray, win: int) -> np.ndarray:
+    """Most common label in a centred window of ``win`` frames."""
+    n = len(MOTION_STATES)
+    onehot = np.eye(n)[labels]
+    votes = uniform_filter1d(onehot, win, axis=0, mode="nearest")
+    return np.argmax(votes, axis=1)
+
+
+def segments(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) runs of True in a (T,) bool mask."""
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
+    d = np.flatnonzero(np.diff(m.astype(np.int8)))
+    return list(zip(d[::2].tolist(), d[1::2].tolist()))

@@ -1,0 +1,114 @@
+"""Scenes fitted to real motion: a seat under every seated pelvis, a bed under a raised lying body.
+
+Seats are boxes standing on the floor (category "seat", ``scenes.furniture`` frame conventions:
+origin at the footprint centre on the floor, +x = the direction the sitter faces). From the
+seated run of frames (``trumans.motion_labels``): the facing direction is the mean horizontal
+thigh direction; the seat top is ``SEAT_BELOW_HIP_M`` under the hip joints; the seat reaches
+``SEAT_BEHIND_HIP_M`` behind the hips and ``SEAT_THIGH_SHARE`` of the thigh length in front of
+them, and is the hip width plus ``SEAT_SIDE_M`` on each side wide. A lying body whose pelvis rests
+more than ``BED_MIN_HEIGHT_M`` above the floor gets a bed box under it; lower ones lie on the floor.
+"""
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from scenes.furniture import yaw_pose
+from scenes.scene import Scene, SceneObject
+
+from .motion_labels import MOTION_STATES, segments
+from .skeleton import JOINT_INDEX as J
+
+__all__ = ["fit_seats", "fit_beds", "fit_scene", "fitted_contacts", "SEAT_BELOW_HIP_M"]
+
+SEAT_BELOW_HIP_M = 0.10  # hip joint centres sit this far above the seat surface (soft tissue + pelvis)
+SEAT_BEHIND_HIP_M = 0.12
+SEAT_THIGH_SHARE = 0.75
+SEAT_SIDE_M = 0.10
+MIN_SEAT_M = 0.20  # lower "seats" are the floor (or a crouch)
+BED_MIN_HEIGHT_M = 0.30
+BED_BELOW_BODY_M = 0.08
+
+
+def _box_object(name: str, category: str, x: float, y: float, yaw: float, depth: float, width: float,
+                height: float, meta: dict) -> SceneObject:
+    mesh = trimesh.creation.box(extents=(depth, width, height))
+    mesh.apply_translation((0.0, 0.0, height / 2))
+    meta = {"size": [depth, width, height], **meta}
+    return SceneObject(name, category, mesh, pose=yaw_pose(x, y, yaw), meta=meta)
+
+
+def fit_seats(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_seconds: float = 1.0) -> list[SceneObject]:
+    """One seat box per seated run (>= ``min_seconds``) of joints (T, 24, 3) m with per-frame
+    ``states`` (indices into ``MOTION_STATES``); runs seated on the floor get none."""
+    j = np.asarray(joints, np.float64)
+    out = []
+    for s, e in segments(np.asarray(states) == MOTION_STATES.index("sit")):
+        if e - s < min_seconds * fps:
+            continue
+        hips = j[s:e][:, [J["left_hip"], J["right_hip"]]]
+        knees = j[s:e][:, [J["left_knee"], J["right_knee"]]]
+        thigh = (knees - hips)[..., :2].mean(axis=(0, 1))
+        if np.linalg.norm(thigh) < 1e-6:
+            continue
+        fwd = thigh / np.linalg.norm(thigh)
+        yaw = float(np.arctan2(fwd[1], fwd[0]))
+        hip_mid = np.median(hips.mean(axis=1), axis=0)
+        height = float(hip_mid[2] - SEAT_BELOW_HIP_M)
+        if height < MIN_SEAT_M:
+            continue
+        thigh_len = float(np.median(np.linalg.norm(knees - hips, axis=-1)))
+        front, back = SEAT_THIGH_SHARE * thigh_len, SEAT_BEHIND_HIP_M
+        centre = hip_mid[:2] + fwd * (front - back) / 2
+        width = float(np.median(np.linalg.norm(hips[:, 0] - hips[:, 1], axis=-1))) + 2 * SEAT_SIDE_M
+        meta = {"seat_height": height, "seat_center": [0.0, 0.0, height], "sit_yaw": 0.0,
+                "frames": [int(s), int(e)], "fitted": "seated pelvis"}
+        out.append(_box_object(f"seat_{len(out)}", "seat", float(centre[0]), float(centre[1]), yaw,
+                               front + back, width, height, meta))
+    return out
+
+
+def fit_beds(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_seconds: float = 1.0) -> list[SceneObject]:
+    """One bed box per lying run (>= ``min_seconds``) whose pelvis rests above ``BED_MIN_HEIGHT_M``;
+    the box spans the body's extent along its length (+0.2 m) and is 0.9 m wide."""
+    j = np.asarray(joints, np.float64)
+    out = []
+    body = [J[n] for n in ("pelvis", "spine1", "spine2", "spine3", "neck", "head", "left_hip", "right_hip")]
+    for s, e in segments(np.asarray(states) == MOTION_STATES.index("lie")):
+        if e - s < min_seconds * fps:
+            continue
+        seg = j[s:e]
+        if np.median(seg[:, J["pelvis"], 2]) < BED_MIN_HEIGHT_M:
+            continue  # on the floor
+        axis = (seg[:, J["head"], :2] - seg[:, J["pelvis"], :2]).mean(0)
+        axis = axis / max(np.linalg.norm(axis), 1e-9)
+        yaw = float(np.arctan2(axis[1], axis[0]))
+        pts = seg.reshape(-1, 3)[:, :2]
+        along = pts @ axis
+        across = pts @ np.array([-axis[1], axis[0]])
+        length = float(np.ptp(along)) + 0.2
+        centre = axis * (along.min() + along.max()) / 2 + np.array([-axis[1], axis[0]]) * (across.min() + across.max()) / 2
+        height = float(np.percentile(seg[:, body, 2].min(axis=1), 5) - BED_BELOW_BODY_M)
+        meta = {"lie_center": [0.0, 0.0, height], "lie_yaw": 0.0, "lie_length": length,
+                "frames": [int(s), int(e)], "fitted": "lying body"}
+        out.append(_box_object(f"bed_{len(out)}", "bed", float(centre[0]), float(centre[1]), yaw, length, 0.9,
+                               height, meta))
+    return out
+
+
+def fit_scene(joints: np.ndarray, states: np.ndarray, name: str = "fitted", fps: float = 30.0) -> Scene:
+    """A scene for a real clip: the fitted seats and beds (the floor z = 0 is implicit)."""
+    objects = fit_seats(joints, states, fps) + fit_beds(joints, states, fps)
+    return Scene(name=name, objects={o.name: o for o in objects}, meta={"fitted_to_motion": True})
+
+
+def fitted_contacts(joints: np.ndarray, states: np.ndarray, fps: float = 30.0) -> tuple[Scene, np.ndarray, list[str]]:
+    """The fitted scene, per-joint contacts (T, 24) bool by the TRUMANS rule
+    (``trumans.contacts.rule.joint_contacts``, floor included) and the contact object of each
+    joint-frame (T, 24) names ("" = none)."""
+    from .contacts.rule import ContactScene, joint_contacts
+
+    scene = fit_scene(joints, states, fps=fps)
+    res = joint_contacts(np.asarray(joints, np.float64), ContactScene(scene))
+    names = np.array(list(res.names) + [""])
+    return scene, res.contact, names[res.object_index].tolist()

@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml | sysdeps
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python -m trumans.viz.demo --out $(DEMO_OUT)
+	$(BIN)/trumans sample --out $(DEMO_OUT)/demo --formats npz,bvh,glb,gif,png --json
 
 test: $(STAMP)
 	OMP_NUM_THREADS=2 $(BIN)/python -m pytest tests

@@ -45,6 +45,8 @@ class Phase:
     hand: str = "right_wrist"
     step: int = -1
     info: dict = field(default_factory=dict)
+    guide: bool = True  # steer the body onto the goal (False: the goal is only inpainted, e.g. standing up)
+    heading: float | None = None  # world heading (rad) at the goal: the seat's sitting direction
 
     @property
     def length(self) -> float:
@@ -65,6 +67,8 @@ class EpisodeControl:
     hand_goal: np.ndarray | None = None
     hand: str = "right_wrist"
     hand_frame: int = -1
+    guide: bool = True
+    heading: float | None = None
 
 
 def _rot_z(yaw: float) -> np.ndarray:
@@ -109,9 +113,9 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
     def leave(i: int) -> None:
         nonlocal posture, pos
         if posture == "sit":
-            phases.append(Phase("stand_up", ("stand_up",), frames("stand_up"), goal=posture_exit, step=i))
+            phases.append(Phase("stand_up", ("stand_up",), frames("stand_up"), goal=posture_exit, step=i, guide=False))
         elif posture == "lie":
-            phases.append(Phase("get_up", ("get_up",), frames("get_up"), goal=posture_exit, step=i))
+            phases.append(Phase("get_up", ("get_up",), frames("get_up"), goal=posture_exit, step=i, guide=False))
         if posture is not None:
             pos = posture_exit
         posture = None
@@ -140,10 +144,11 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             walk(i, _approach(obj, wm))
             if s.kind == "sit_on":
                 seat, h = seat_target(obj)
+                yaw = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]) + obj.meta.get("sit_yaw", 0.0))
                 phases.append(Phase("sit_down", ("sit_down",), frames("sit_down"), goal=seat[:2], step=i,
-                                    info={"seat_height": h, "object": obj.name}))
+                                    info={"seat_height": h, "object": obj.name}, heading=yaw))
                 phases.append(Phase("sit", ("sit",), frames("sit", s.seconds), goal=seat[:2], step=i,
-                                    info={"seat_height": h, "object": obj.name}))
+                                    info={"seat_height": h, "object": obj.name}, heading=yaw))
                 posture = "sit"
             else:
                 lie = _world(obj, np.asarray(obj.meta["lie_center"], dtype=np.float64))
@@ -234,7 +239,7 @@ class Controller:
         new = L - k
         step_m = self.speed / self.fps
         goal = hand_goal = None
-        hand, hand_frame = "right_wrist", -1
+        hand, hand_frame, guide, heading = "right_wrist", -1, True, None
         f = k
         p = self.phases[self.index] if not self.done else None
         if p is not None and p.kind == "walk":  # anchor on the path where the body really is (closed loop)
@@ -251,7 +256,7 @@ class Controller:
                 prog = np.clip(s / max(cum[-1], 1e-6), 0, 1)
                 labels[f:f + n, self.col["walk"]] = 1.0 + prog
                 phase_of[f:f + n] = self.index
-                goal = self._point_at(p.path, cum, s[-1])
+                goal, guide, heading = self._point_at(p.path, cum, s[-1]), True, None
                 self.walk_s = float(min(s[-1], cum[-1]))
                 f += n
                 if self.walk_s >= cum[-1] - 1e-6:
@@ -267,6 +272,7 @@ class Controller:
                     hand_goal, hand, hand_frame, goal = p.hand_goal, p.hand, f + n - 1, None
                 elif p.goal is not None:
                     goal = np.asarray(p.goal, np.float64)
+                guide, heading = p.guide, p.heading
                 self.elapsed += n
                 f += n
                 if self.elapsed >= p.frames:
@@ -281,4 +287,4 @@ class Controller:
                 goal = np.asarray(pelvis_xy, np.float64)
         if goal is None and hand_goal is None:
             goal = np.asarray(pelvis_xy, np.float64)
-        return EpisodeControl(goal, labels, phase_of, hand_goal, hand, hand_frame)
+        return EpisodeControl(goal, labels, phase_of, hand_goal, hand, hand_frame, guide, heading)

@@ -101,8 +101,8 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
           lengths: np.ndarray, generator: torch.Generator | None) -> _Episode:
     """One episode for every sample, projected onto the bone ``lengths``."""
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
-    goals = [Goal(tuple(c.goal)) if c.hand_goal is None else Goal(tuple(c.hand_goal), c.hand, c.hand_frame)
-             for c in ctrls]
+    goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading) if c.hand_goal is None else
+             Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide) for c in ctrls]
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, generator=generator)
     bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
@@ -138,6 +138,8 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
                    for _ in range(num_samples)]
     context = start_context(ckpt, xy, heading, num_samples)
     lengths = bone_lengths_of(context[0, 0].astype(np.float64))
+    sampler.hip_width = float(np.linalg.norm(context[0, 0, JOINT_INDEX["left_hip"], :2]
+                                             - context[0, 0, JOINT_INDEX["right_hip"], :2]))
     N_A = len(ckpt.vocabulary)
     stand = np.zeros((ckpt.k, N_A), np.float32)
     if "stand" in ckpt.vocabulary:

@@ -36,6 +36,8 @@ class Goal:
     point: tuple[float, ...]
     joint: str = "pelvis"
     frame: int = -1
+    guide: bool = True  # goal guidance applies (``SamplerConfig.goal_guidance``); else inpainting only
+    heading: float | None = None  # world heading (rad) the body should have at the goal (sitting down)
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,7 @@ class EpisodeSampler:
         self.n = int(ckpt.grid.get("n", 32))
         self.extent = tuple(ckpt.grid.get("extent", (1.2, 1.2, 1.2)))
         self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
+        self.hip_width = 0.12  # m, the start pose's hip line length (set by the rollout for its body)
 
     # ------------------------------------------------------------------ one episode
     def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:
@@ -169,18 +172,30 @@ class EpisodeSampler:
         world[:, : self.k] = context
         return _attach_pinned_pelvis(world, goals) if attach_pelvis else world
 
-    def _goal_targets(self, cond: EpisodeCondition, goals: list[Goal]) -> list[tuple[int, list[int], torch.Tensor]]:
-        """Per sample: (frame, feature columns, canonical target) of what the guidance pulls: the
-        hip midpoint's x, y at the last frame onto a pelvis goal, or the goal joint onto its point."""
+    def _goal_targets(self, cond: EpisodeCondition, goals: list[Goal]) -> list[list[tuple]]:
+        """Per sample, the guidance terms (frame, feature columns, W, target): the loss is
+        |W x0[frame, columns] - target|^2 in metres (denormalised, canonical frame). A pelvis goal
+        pulls the hip midpoint's x, y (W averages the hips) and, with a heading, the hip line
+        (left minus right hip) onto the heading's left direction; a joint goal pulls that joint."""
+        lay = self.layout
+        hips = lay.position_index("left_hip", (0, 1)) + lay.position_index("right_hip", (0, 1))
+        mean_w = torch.tensor([[0.5, 0, 0.5, 0], [0, 0.5, 0, 0.5]])
+        diff_w = torch.tensor([[1.0, 0, -1.0, 0], [0, 1.0, 0, -1.0]])
         out = []
         for b, g in enumerate(goals):
-            if g.joint == "pelvis":
-                cols = self.layout.position_index("left_hip", (0, 1)) + self.layout.position_index("right_hip", (0, 1))
-                target = cond.subgoal_canonical()[b, :2]
-                out.append((self.L - 1, cols, torch.as_tensor(np.concatenate([target, target]), dtype=torch.float32)))
-            else:
+            terms = []
+            if g.guide and g.joint == "pelvis":
+                goal = torch.as_tensor(cond.subgoal_canonical()[b, :2], dtype=torch.float32)
+                terms.append((self.L - 1, hips, mean_w, goal))
+                if g.heading is not None:
+                    h = g.heading - float(cond.yaw[b])  # canonical heading
+                    left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * self.hip_width
+                    terms.append((self.L - 1, hips, diff_w, left))
+            elif g.guide:
                 local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
-                out.append((g.frame % self.L, self.layout.position_index(g.joint), torch.as_tensor(local, dtype=torch.float32)))
+                terms.append((g.frame % self.L, lay.position_index(g.joint), torch.eye(3),
+                              torch.as_tensor(local, dtype=torch.float32)))
+            out.append(terms)
         return out
 
     def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, targets, generator) -> torch.Tensor:
@@ -204,10 +219,13 @@ class EpisodeSampler:
                     out = model_fn(xg, t, mask=mask)
                     x0_hat, _ = d.x0_and_eps(out, t, xg)
                     loss = xg.new_zeros(())
-                    for b, (f, cols, target) in enumerate(targets):
-                        pred = x0_hat[b, f, cols] * std[cols] + mean[cols]
-                        loss = loss + ((pred - target) ** 2).sum()
-                    g, = torch.autograd.grad(loss, xg)
+                    for b, terms in enumerate(targets):
+                        for f, cols, W, target in terms:
+                            pred = W @ (x0_hat[b, f, cols] * std[cols] + mean[cols])
+                            loss = loss + ((pred - target) ** 2).sum()
+                    g, = torch.autograd.grad(loss, xg, allow_unused=True) if loss.requires_grad else (None,)
+                    if g is None:
+                        break
                     grad = grad + self.config.goal_guidance * g
             x, _ = d.step(out.detach(), t, xg.detach(), t_prev=ts[i + 1] if i + 1 < len(ts) else -1,
                           eta=self.config.eta, generator=generator)

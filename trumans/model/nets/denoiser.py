@@ -31,7 +31,8 @@ __all__ = ["DenoiserConfig", "Denoiser", "GuidedDenoiser"]
 class DenoiserConfig:
     """layout: per-frame feature layout (+ ``extra_features`` appended, e.g. object pose);
     frames: L; transformer sizes; mask_input: feed the given-entry mask; frame_cond_dim: width of a
-    per-frame condition (0 = none); scene / action: encoder configs (None = that condition is off)."""
+    per-frame condition (0 = none); num_categories: object categories embedded into the first token
+    (the HOI filter's filter mode; 0 = none); scene / action: encoder configs (None = that condition is off)."""
 
     layout: FeatureLayout = field(default_factory=FeatureLayout)
     extra_features: int = 0
@@ -43,12 +44,13 @@ class DenoiserConfig:
     dropout: float = 0.1
     mask_input: bool = True
     frame_cond_dim: int = 0
+    num_categories: int = 0
     scene: ScenePerceiverConfig | None = None
     action: ActionEncoderConfig | None = None
 
     def __post_init__(self) -> None:
-        if self.frames < 1 or self.extra_features < 0 or self.frame_cond_dim < 0:
-            raise ValueError("frames must be >= 1, extra_features and frame_cond_dim >= 0")
+        if self.frames < 1 or self.extra_features < 0 or self.frame_cond_dim < 0 or self.num_categories < 0:
+            raise ValueError("frames must be >= 1, extra_features, frame_cond_dim and num_categories >= 0")
         if self.action is not None and self.action.frames != self.frames:
             raise ValueError(f"action.frames ({self.action.frames}) must equal frames ({self.frames})")
 
@@ -90,6 +92,7 @@ class Denoiser(nn.Module):
         self.action_encoder = ActionEncoder(c.action, c.d_model) if c.action is not None else None
         self.null_scene = nn.Parameter(torch.zeros(c.d_model)) if c.scene is not None else None
         self.null_action = nn.Parameter(torch.zeros(c.d_model)) if c.action is not None else None
+        self.category_embed = nn.Embedding(c.num_categories, c.d_model) if c.num_categories else None
         self.encoder = encoder_stack(c.d_model, c.layers, c.heads, c.ff, c.dropout, post_ln=True)
         self.out_proj = nn.Linear(c.d_model, F)
 
@@ -114,12 +117,14 @@ class Denoiser(nn.Module):
         scene: torch.Tensor | None = None,
         actions: torch.Tensor | None = None,
         frame_cond: torch.Tensor | None = None,
+        category: torch.Tensor | None = None,
         drop_scene: torch.Tensor | None = None,
         drop_action: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """x: (B, L, F) noisy normalised features; t: (B,) int diffusion steps; mask: (B, L, F)
         bool, True = given; scene: (B, n, n, n) bool local grid; actions: (B, L, N_A) labels;
-        frame_cond: (B, L, C); drop_*: (B,) bool, True = use the null embedding. -> ε̂ (B, L, F)."""
+        frame_cond: (B, L, C); category: (B,) int64 object category indices (filter mode);
+        drop_*: (B,) bool, True = use the null embedding. -> ε̂ (B, L, F)."""
         c = self.config
         if x.dim() != 3 or tuple(x.shape[1:]) != (c.frames, c.feature_dim):
             raise ValueError(f"x must be (B, {c.frames}, {c.feature_dim}), got {tuple(x.shape)}")
@@ -141,6 +146,15 @@ class Denoiser(nn.Module):
                     self._condition("actions", self.action_encoder, self.null_action, actions, drop_action, B)):
             if emb is not None:
                 first = first + emb
+        if self.category_embed is not None:  # I'm-HOI filter: the object category enters the first token
+            if category is None or tuple(category.shape) != (B,):
+                raise ValueError(f"category must be (B,) = ({B},) int64 indices, got "
+                                 f"{None if category is None else tuple(category.shape)}")
+            if category.min() < 0 or category.max() >= c.num_categories:
+                raise ValueError(f"category indices must be in [0, {c.num_categories}), got {category.tolist()}")
+            first = first + self.category_embed(category.to(first.device))
+        elif category is not None:
+            raise ValueError("this model takes no category (num_categories = 0)")
         tokens = torch.cat([first[:, None], h], dim=1) + self.pos  # (B, 1 + L, d)
         return self.out_proj(self.encoder(tokens)[:, 1:])
 

@@ -1,0 +1,103 @@
+"""The denoiser in filter mode (I'm-HOI §3.2, appendix A.2) and the window inputs it takes; shared
+by training (``train.filter_task``) and inference (``sample.refine``).
+
+Filter mode of ``trumans.model.nets.Denoiser``: the noisy frame vectors x_n (B, L, 235) are the
+tokens' input, the tracked window enters as a per-frame condition (``frame_cond``: the normalised
+tracked frame vectors with missing entries 0, plus observed flags, 261 wide) added to each frame
+token, and the object category is embedded into the first token with the diffusion step. The
+network predicts x₀ itself (the paper follows [65]; ``prediction = "x0"``). Windows are put in a
+canonical frame computed from the *tracked* input (``trumans.hoi.frame.window_frame``), since at
+inference nothing else is known.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+import torch
+
+from trumans.model.episodes import FeatureLayout, Normalizer
+from trumans.model.nets.denoiser import DenoiserConfig
+
+from .frame import COND_DIM, FRAME_DIM, condition_features, to_frame, window_frame
+
+__all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices"]
+
+
+@dataclass(frozen=True)
+class FilterNetConfig:
+    """Network and window sizes. Paper: 4 layers, 4 heads, d = 1024, N = 1000 steps, T = 64 frames;
+    ours is narrower for a 2-core CPU. fps: the rate the filter works at (input is resampled)."""
+
+    d_model: int = 192
+    layers: int = 4
+    heads: int = 4
+    ff: int = 384
+    dropout: float = 0.0
+    window: int = 64
+    overlap: int = 16
+    fps: float = 30.0
+    diffusion_steps: int = 1000
+
+    def __post_init__(self) -> None:
+        if self.window < 8 or not 0 <= self.overlap < self.window // 2 + 1:
+            raise ValueError(f"need window >= 8 and 0 <= overlap <= window / 2, got {self.window}, {self.overlap}")
+        if self.fps <= 0 or self.diffusion_steps < 1:
+            raise ValueError(f"fps and diffusion_steps must be positive, got {self.fps}, {self.diffusion_steps}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "FilterNetConfig":
+        unknown = set(d) - {f.name for f in fields(cls)}
+        if unknown:
+            raise ValueError(f"unknown filter config keys {sorted(unknown)}")
+        return cls(**d)
+
+
+_LAYOUT = FeatureLayout(rotations=True)  # joints (72) + rotations (144); the object and IMU part is extra
+
+
+def filter_denoiser_config(net: FilterNetConfig, num_categories: int) -> DenoiserConfig:
+    """The ``DenoiserConfig`` of the filter: 235 features, no inpainting mask, a 261-wide per-frame
+    condition, ``num_categories`` category embeddings."""
+    if num_categories < 1:
+        raise ValueError(f"the filter needs at least one object category, got {num_categories}")
+    return DenoiserConfig(layout=_LAYOUT, extra_features=FRAME_DIM - _LAYOUT.dim, frames=net.window,
+                          d_model=net.d_model, layers=net.layers, heads=net.heads, ff=net.ff, dropout=net.dropout,
+                          mask_input=False, frame_cond_dim=COND_DIM, num_categories=num_categories)
+
+
+@dataclass
+class WindowInputs:
+    """cond: (B, L, 261) float32 torch condition; origin (B, 3), yaw (B,): the windows' canonical
+    frames; tracked: (B, L, 235) float32 canonical tracked frame vectors (NaN = missing)."""
+
+    cond: torch.Tensor
+    origin: np.ndarray
+    yaw: np.ndarray
+    tracked: np.ndarray
+
+
+def prepare_windows(tracked_world: np.ndarray, normalizer: Normalizer) -> WindowInputs:
+    """Tracked world windows (B, L, 235) (NaN = missing) -> the filter's inputs."""
+    tw = np.asarray(tracked_world, dtype=np.float32)
+    if tw.ndim != 3 or tw.shape[-1] != FRAME_DIM:
+        raise ValueError(f"tracked windows must be (B, L, {FRAME_DIM}), got {tw.shape}")
+    origin, yaw = window_frame(tw)
+    tc = to_frame(tw, origin, yaw)
+    cond = condition_features(normalizer.normalize(tc))
+    return WindowInputs(cond=torch.from_numpy(cond), origin=origin, yaw=yaw, tracked=tc)
+
+
+def category_indices(names: list[str] | str, categories: list[str]) -> np.ndarray:
+    """Category names -> (n,) int64 indices into ``categories``; an unknown name is a ValueError
+    listing the known ones."""
+    names = [names] if isinstance(names, str) else list(names)
+    lut = {c: i for i, c in enumerate(categories)}
+    bad = sorted({n for n in names if n not in lut})
+    if bad:
+        raise ValueError(f"object category {bad[0]!r} is unknown to this filter; it knows {list(categories)} "
+                         f"(pass --category with one of them)")
+    return np.array([lut[n] for n in names], dtype=np.int64)

@@ -99,7 +99,7 @@ def validation_loss(model: Denoiser, diffusion: GaussianDiffusion, stream: Batch
                     batch_size: int | None = None, max_episodes: int | None = None) -> tuple[float, float]:
     """(val_loss, zero-noise baseline) over the first ``max_episodes`` episodes of ``stream``, with
     fixed diffusion steps, noise and masks (seed ``VAL_SEED``), every condition given. The baseline
-    is the same loss for a model that predicts ε̂ = 0."""
+    is the same loss for a model that outputs 0 (ε̂ = 0, x̂0 = 0 or v̂ = 0 per the prediction type)."""
     model.eval()
     n = min(len(stream.eps), max_episodes or cfg.data.max_val_episodes)
     bs = batch_size or cfg.train.val_batch_size
@@ -119,7 +119,8 @@ def validation_loss(model: Denoiser, diffusion: GaussianDiffusion, stream: Batch
         free = (~mask).float()
         k = free.sum().item()
         tot += out.loss.item() * k
-        zero += (diffusion.elementwise_loss(torch.zeros_like(noise), noise) * free).sum().item()
+        target = diffusion.target(x0, noise, t)
+        zero += (diffusion.elementwise_loss(torch.zeros_like(target), target) * free).sum().item()
         count += k
     return tot / max(count, 1.0), zero / max(count, 1.0)
 
@@ -143,7 +144,7 @@ def _lr_lambda(warmup: int):
     return lambda step: min(1.0, (step + 1) / warmup) if warmup > 0 else 1.0
 
 
-def _plot(history: dict, path: Path, title: str) -> None:
+def _plot(history: dict, path: Path, title: str, ylabel: str = "loss") -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -161,7 +162,7 @@ def _plot(history: dict, path: Path, title: str) -> None:
         ax.plot(history["val_step"], history["zero"], "--", color="gray", label="val, zero-noise baseline")
     ax.set_yscale("log")
     ax.set_xlabel("step")
-    ax.set_ylabel("ε loss")
+    ax.set_ylabel(ylabel)
     ax.set_title(title)
     ax.legend()
     ax.grid(alpha=0.3)
@@ -278,7 +279,7 @@ def train(cfg: TrainConfig, data_dir: str | Path, out_dir: str | Path, *, steps:
                              "seconds": elapsed_before + (time.perf_counter() - t_start)},
                 code_version=__version__)
             save_checkpoint(ckpt_path, ck)
-            _plot(history, out / LOSS_PNG, f"{cfg.name}: step {step}")
+            _plot(history, out / LOSS_PNG, f"{cfg.name}: step {step}", f"{cfg.diffusion.prediction} loss ({cfg.diffusion.loss})")
 
         def validate() -> None:
             if info.is_main:

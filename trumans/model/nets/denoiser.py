@@ -5,7 +5,9 @@ Tokens: first the *condition token* = diffusion-step embedding + scene embedding
 contains timestep information"), then one token per frame: a linear projection of the frame's
 noisy features concatenated with the frame's inpainting mask (so the network knows which entries
 are given, which the authors' code did not do), plus an optional per-frame condition (the HOI
-filter's tracked input). The frame tokens' outputs are projected back to the features: the
+filter's tracked input; ``in_proj(x) + cond_proj(c)`` is one linear map of the concatenation [x, c]).
+In filter mode (``num_categories > 0``, I'm-HOI §3.2) an object-category embedding is added to the
+first token as well. The frame tokens' outputs are projected back to the features: the
 prediction (B, L, F) of the diffusion config's type (ε̂, x̂0 or v̂).
 
 The condition encoders are separate from the per-step network: ``encode_conditions`` gives the

@@ -230,23 +230,22 @@ def orthonormalize_6d(frames: np.ndarray) -> np.ndarray:
 
 
 def resample_frames(frames: np.ndarray, fps_in: float, fps_out: float, num_out: int | None = None) -> np.ndarray:
-    """Frame vectors (T, 235) at ``fps_in`` -> (T_out, 235) at ``fps_out`` over the same duration
-    (``trumans.resample.resample_times``; ``num_out`` forces T_out): linear interpolation, 6D
-    blocks re-orthonormalised, NaN (missing) spreading to the output frames it touches."""
+    """Frame vectors (T, 235) at ``fps_in`` -> (T_out, 235) at ``fps_out``: over the same duration
+    (``trumans.resample.resample_times``), or ``num_out`` frames from time 0 (a last frame past the
+    input's end is extrapolated linearly from its last two frames). Linear interpolation, 6D blocks
+    re-orthonormalised, NaN (missing) spreading to the output frames it touches."""
     from trumans.resample import resample_times
 
     f = np.asarray(frames, dtype=np.float64)
     T = f.shape[0]
-    if num_out is None:
-        src = resample_times(T, fps_in, fps_out)
-    else:
-        src = np.clip(np.arange(num_out) * (fps_in / fps_out), 0, T - 1)
     if abs(fps_in - fps_out) < 1e-9 and (num_out is None or num_out == T):
         return f.astype(np.float32)
-    i0 = np.clip(np.floor(src).astype(int), 0, T - 1)
-    i1 = np.clip(i0 + 1, 0, T - 1)
+    src = resample_times(T, fps_in, fps_out) if num_out is None else np.arange(num_out) * (fps_in / fps_out)
+    i0 = np.clip(np.floor(src).astype(int), 0, max(T - 2, 0))
+    i1 = np.minimum(i0 + 1, T - 1)
     w = (src - i0)[:, None]
-    out = np.where(w > 0, (1 - w) * f[i0] + w * f[i1], f[i0])  # an exact source frame does not see its NaN neighbour
-    flag = np.minimum(f[i0, IMU_FLAG], np.where(w[:, 0] > 0, f[i1, IMU_FLAG], 1.0))
-    out[:, IMU_FLAG] = flag
+    out = (1 - w) * f[i0] + w * f[i1]
+    out = np.where(w == 0, f[i0], np.where(w == 1, f[i1], out))  # an exact source frame ignores a NaN neighbour
+    out[:, IMU_FLAG] = np.where(w[:, 0] == 0, f[i0, IMU_FLAG], np.where(w[:, 0] == 1, f[i1, IMU_FLAG],
+                                                                         np.minimum(f[i0, IMU_FLAG], f[i1, IMU_FLAG])))
     return orthonormalize_6d(out)

@@ -35,7 +35,8 @@ _HANDS = [20, 21, 22, 23]  # wrists and index1
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", nargs="?", default=None, help="filter checkpoint (default: the shipped models/refine.pt)")
-    p.add_argument("--data", default="/work/data/synth", help="dataset folder with val and test splits")
+    p.add_argument("--data", default=None, help="dataset folder with val and test splits (default: the one "
+                                                "recorded in the checkpoint)")
     p.add_argument("--clip", type=int, default=192, help="frames per evaluation clip (default 192)")
     p.add_argument("--max-clips", type=int, default=120, help="at most this many test clips (default 120)")
     p.add_argument("--steps", type=int, default=5, help="DDIM sampling steps (default 5)")
@@ -150,6 +151,11 @@ def run(args: argparse.Namespace) -> int:
 
     filt = HOIFilter.load(args.checkpoint)
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed)
+    data = args.data or filt.ckpt.data.get("path")
+    if not data or not Path(data).is_dir():
+        raise FileNotFoundError(f"the checkpoint's dataset {data!r} is not on this machine; pass --data DIR "
+                                f"(a dataset with val and test splits, e.g. from `trumans data synth`)")
+    args.data = data
     if args.clip < filt.window:
         raise ValueError(f"--clip must be >= the filter's window ({filt.window}), got {args.clip}")
     val_clean, _ = _clips(args.data, "val", args.clip, filt.fps, filt.categories, args.max_clips, args.seed)

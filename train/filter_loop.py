@@ -91,7 +91,8 @@ def train_filter(cfg: FilterConfig, data_dir: str | Path, out: str | Path, *, st
         idx = rng.integers(0, len(train), tc.batch_size)
         b = make_batch(train, idx, normalizer, cfg.corruption, rng)
         model.train()
-        loss, terms = task.loss(model, b, step, total, g)
+        progress_frac = max(step / total, (time.perf_counter() - t0) / tc.time_limit_s if tc.time_limit_s > 0 else 0.0)
+        loss, terms = task.loss(model, b, progress_frac, g)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         if tc.grad_clip > 0:

@@ -118,9 +118,8 @@ def load_filter_config(name_or_path: str | Path) -> FilterConfig:
     return FilterConfig.from_dict(d, str(p))
 
 
-def _phase_weights(cfg: FilterTrainSection, step: int, total: int) -> dict[str, float]:
-    """Regulariser weights at ``step`` (appendix A.2 schedule)."""
-    frac = step / max(total, 1)
+def _phase_weights(cfg: FilterTrainSection, frac: float) -> dict[str, float]:
+    """Regulariser weights at training progress ``frac`` in [0, 1] (appendix A.2 schedule)."""
     on1 = frac >= cfg.simple_only
     on2 = frac >= cfg.consist_imu_from
     return {"off": cfg.w_off * on1, "vel": cfg.w_vel * on1, "consist": cfg.w_consist * on2, "imu": cfg.w_imu * on2}
@@ -165,15 +164,20 @@ class FilterTask:
             raise ValueError(f"the filter predicts x0 (I'm-HOI §3.2); diffusion.prediction is {cfg.diffusion.prediction!r}")
 
     def build_model(self) -> FilterModel:
-        """The filter-mode denoiser behind the tracked-input skip; ``.denoiser`` holds the weights."""
-        return FilterModel(Denoiser(self.model_config))
+        """The filter-mode denoiser behind the tracked-input skip; ``.denoiser`` holds the weights.
+        Its output layer starts at zero, so training starts from x̂0 = the tracked input."""
+        net = Denoiser(self.model_config)
+        torch.nn.init.zeros_(net.out_proj.weight)
+        torch.nn.init.zeros_(net.out_proj.bias)
+        return FilterModel(net)
 
-    def loss(self, model, b: FilterBatch, step: int, total: int,
+    def loss(self, model, b: FilterBatch, progress: float,
              generator: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
-        """Eq. 6 + eq. 7 with the schedule's weights -> (total loss, {term: value})."""
+        """Eq. 6 + eq. 7 with the schedule's weights at training ``progress`` in [0, 1] (the larger of
+        the step and the time-limit fractions) -> (total loss, {term: value})."""
         out = self.diffusion.training_loss(model, b.x0, generator=generator, frame_cond=b.cond, category=b.category)
         x_hat = self.normalizer.denormalize(out.x0_hat)
-        w = _phase_weights(self.cfg.train, step, total)
+        w = _phase_weights(self.cfg.train, progress)
         terms = {"simple": out.terms["simple"], "off": loss_off(x_hat, b.clean), "vel": loss_vel(x_hat, b.clean),
                  "consist": loss_consist(x_hat, b.offsets), "imu": loss_imu(x_hat, b.clean, b.tracked, self.cfg.net.fps)}
         total_loss = terms["simple"] + sum(w[k] * terms[k] for k in w if w[k] > 0)

@@ -55,13 +55,11 @@ class HOIFilter:
     """A loaded filter checkpoint: ``refine_frames`` on frame vectors, ``refine_sequence`` on a Sequence."""
 
     def __init__(self, ckpt: Checkpoint) -> None:
-        if "categories" not in ckpt.meta:
-            raise ValueError("the checkpoint has no category list (meta['categories']); it is not a filter checkpoint")
         self.ckpt = ckpt
-        self.model = FilterModel(ckpt.build_model()).eval()
+        self.model: FilterModel = ckpt.build_model()
         self.diffusion = ckpt.build_diffusion()
         self.normalizer = ckpt.normalizer
-        self.categories: list[str] = [str(c) for c in ckpt.meta["categories"]]
+        self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]
         self.window, self.overlap, self.fps = int(ckpt.L_epi), int(ckpt.k), float(ckpt.fps)
 
     @classmethod

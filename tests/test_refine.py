@@ -32,9 +32,9 @@ def _ckpt(path, zero=True, seed=0):
         torch.nn.init.zeros_(net.out_proj.bias)
     rng = np.random.default_rng(0)
     norm = Normalizer(rng.normal(0, 0.1, FRAME_DIM), rng.uniform(0.5, 2, FRAME_DIM))
-    ck = Checkpoint(kind="filter", model_config=mc, diffusion_config=DIFF, model_state=net.state_dict(),
-                    normalizer=norm, vocabulary=[], fps=NET.fps, L_epi=NET.window, k=NET.overlap, grid={},
-                    meta={"categories": CATS, "net": NET.to_dict()})
+    ck = Checkpoint(kind="filter", model_config=mc, diffusion_config=DIFF, model_state=FilterModel(net).state_dict(),
+                    normalizer=norm, fps=NET.fps, L_epi=NET.window, k=NET.overlap, extra={"categories": CATS},
+                    meta={"net": NET.to_dict()})
     save_checkpoint(path, ck)
     return path
 
@@ -157,3 +157,19 @@ def test_window_objects_and_eval_figures():
     noisy = f.copy()
     noisy[:, :72] += rng.normal(0, 0.02, (64, 72))
     assert tune_savgol([(noisy, f)], windows=(5, 9, 15)) in (5, 9, 15)
+
+
+def test_filter_checkpoint_kind_and_errors(tmp_path):
+    from trumans.model.checkpoint import load_checkpoint
+
+    p = _ckpt(tmp_path / "f.pt")
+    ck = load_checkpoint(p, kind="filter")
+    assert ck.extra["categories"] == CATS and isinstance(ck.build_model(), FilterModel)
+    with pytest.raises(ValueError, match="'filter' checkpoint, but a 'generator'"):
+        load_checkpoint(p)
+    ck.extra = {"categories": ["box"]}  # 2 embeddings, 1 name
+    save_checkpoint(tmp_path / "bad.pt", ck)
+    with pytest.raises(ValueError, match="embeds 2 categories"):
+        HOIFilter.load(tmp_path / "bad.pt")
+    with pytest.raises(FileNotFoundError):
+        HOIFilter.load(tmp_path / "none.pt")

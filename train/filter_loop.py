@@ -119,18 +119,18 @@ def train_filter(cfg: FilterConfig, data_dir: str | Path, out: str | Path, *, st
         history["val_step"].append(step)
         history["val"].append(validate(task, ema, vbatch, tc.val_sampling_steps))
     f = task.checkpoint_fields()
-    ema_state = {k: v.detach().clone() for k, v in ema.denoiser.state_dict().items()}
+    ema_state = {k: v.detach().clone() for k, v in ema.state_dict().items()}
     if export:
         model_state, ema_out, train_state = {k: v.half() for k, v in ema_state.items()}, None, None
     else:
-        model_state = {k: v.detach().clone() for k, v in model.denoiser.state_dict().items()}
+        model_state = {k: v.detach().clone() for k, v in model.state_dict().items()}
         ema_out, train_state = ema_state, {"step": step, "seed": seed, "config": cfg.to_dict(), "history": history}
     seconds = time.perf_counter() - t0
     f["meta"].update({"config_name": cfg.name, "step": step, "val": history["val"][-1], "val_input": val_input,
                       "seconds": seconds, "train_windows": len(train)})
     ck = Checkpoint(kind=f["kind"], model_config=f["model_config"], diffusion_config=f["diffusion_config"],
-                    model_state=model_state, normalizer=f["normalizer"], vocabulary=[], fps=f["fps"],
-                    L_epi=f["L_epi"], k=f["k"], grid={}, data={"name": ds.name, "hash": ds.hash,
+                    model_state=model_state, normalizer=f["normalizer"], fps=f["fps"],
+                    L_epi=f["L_epi"], k=f["k"], extra=f["extra"], data={"name": ds.name, "hash": ds.hash,
                                                            "path": str(Path(data_dir).resolve())},
                     ema_state=ema_out, meta=f["meta"], train_state=train_state, code_version=__version__)
     save_checkpoint(ckpt_path, ck)

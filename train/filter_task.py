@@ -187,8 +187,8 @@ class FilterTask:
         """Everything ``sample.refine`` needs beside the weights."""
         return {"kind": KIND, "model_config": self.model_config, "diffusion_config": self.cfg.diffusion,
                 "normalizer": self.normalizer, "fps": self.cfg.net.fps, "L_epi": self.cfg.net.window,
-                "k": self.cfg.net.overlap, "meta": {"categories": self.categories, "net": self.cfg.net.to_dict(),
-                                                     "corruption": self.cfg.corruption.to_dict()}}
+                "k": self.cfg.net.overlap, "extra": {"categories": self.categories},
+                "meta": {"net": self.cfg.net.to_dict(), "corruption": self.cfg.corruption.to_dict()}}
 
 
 def _rot_err_deg(a6: np.ndarray, b6: np.ndarray) -> np.ndarray:

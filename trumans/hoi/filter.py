@@ -16,12 +16,14 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 import torch
 
+from trumans.model.checkpoint import Checkpoint, KindSpec, register_kind
 from trumans.model.episodes import FeatureLayout, Normalizer
-from trumans.model.nets.denoiser import DenoiserConfig
+from trumans.model.nets.denoiser import Denoiser, DenoiserConfig
 
 from .frame import COND_DIM, FRAME_DIM, condition_features, to_frame, window_frame
 
-__all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices", "sample_x0", "FilterModel"]
+__all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices", "sample_x0", "FilterModel",
+           "build_filter_model"]
 
 
 @dataclass(frozen=True)
@@ -151,3 +153,29 @@ class FilterModel(torch.nn.Module):
     def forward(self, x: torch.Tensor, t: torch.Tensor, *, frame_cond: torch.Tensor, category: torch.Tensor,
                 mask: torch.Tensor | None = None) -> torch.Tensor:
         return frame_cond[..., :FRAME_DIM] + self.denoiser(x, t, mask=mask, frame_cond=frame_cond, category=category)
+
+
+def build_filter_model(config: DenoiserConfig) -> FilterModel:
+    """The checkpoint kind's builder: the filter-mode denoiser behind the tracked-input skip."""
+    return FilterModel(Denoiser(config))
+
+
+def _check_filter(ck: Checkpoint) -> None:
+    cfg: DenoiserConfig = ck.model_config
+    cats = ck.extra.get("categories")
+    if not isinstance(cats, list) or not cats or cfg.num_categories != len(cats):
+        raise ValueError(f"the filter embeds {cfg.num_categories} categories but extra['categories'] is {cats!r}; "
+                         f"the checkpoint is inconsistent")
+    if cfg.feature_dim != FRAME_DIM or cfg.frame_cond_dim != COND_DIM or ck.normalizer.mean.shape[0] != FRAME_DIM:
+        raise ValueError(f"a filter takes {FRAME_DIM} features and a {COND_DIM}-wide condition, this one "
+                         f"{cfg.feature_dim} / {cfg.frame_cond_dim} (normalisation {ck.normalizer.mean.shape[0]})")
+    if cfg.frames != ck.L_epi or not 0 <= ck.k < ck.L_epi:
+        raise ValueError(f"window {ck.L_epi} / overlap {ck.k} do not fit the model's {cfg.frames} frames")
+    if ck.diffusion_config.prediction != "x0":
+        raise ValueError(f"the filter predicts x0, this checkpoint {ck.diffusion_config.prediction!r}")
+
+
+# I'm-HOI filter checkpoints: window = L_epi, overlap = k, fps, categories in extra
+register_kind("filter", KindSpec(config_from_dict=DenoiserConfig.from_dict, build=build_filter_model,
+                                 required=("diffusion_config", "norm", "fps", "L_epi", "k"),
+                                 required_extra=("categories",), check=_check_filter))

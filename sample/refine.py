@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from trumans.hoi.filter import FilterModel, category_indices, prepare_windows, sample_x0
-from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, frames_from_sequence, from_frame,
+from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.hoi.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
@@ -83,8 +83,9 @@ class HOIFilter:
         starts = window_starts(Tm, L, self.overlap)
         padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])
         padded[Tm:, IMU_R] = padded[Tm:, IMU_A] = padded[Tm:, IMU_FLAG] = 0.0  # padding: no IMU either
-        windows = padded[starts[:, None] + np.arange(L)[None]]  # (N, L, 235)
-        inp = prepare_windows(windows, self.normalizer)
+        idx = starts[:, None] + np.arange(L)[None]
+        windows = padded[idx]  # (N, L, 235)
+        inp = prepare_windows(windows, self.normalizer, filled_world=fill_missing(padded)[idx])
         gen = torch.Generator().manual_seed(int(options.seed))
         out = np.empty_like(windows)
         for s in range(0, len(windows), options.batch):
@@ -92,7 +93,7 @@ class HOIFilter:
             cond = inp.cond[sl]
             start = None
             if options.mode == "sdedit":
-                start = cond[..., :FRAME_DIM].clone()  # the normalised tracked input, missing = 0 (the mean)
+                start = cond[..., :FRAME_DIM].clone()  # the normalised tracked input, gaps interpolated
             x0 = sample_x0(self.model, self.diffusion, cond, torch.full((len(cond),), int(cat), dtype=torch.long),
                            num_steps=options.num_steps, eta=options.eta, generator=gen, start=start,
                            strength=options.strength if options.mode == "sdedit" else 1.0)

@@ -86,6 +86,14 @@ def test_condition_and_canonical_frame():
     c = condition_features(f)
     assert c.shape == (40, COND_DIM) and np.isfinite(c).all()
     assert c[3, FRAME_DIM] == 0 and c[3, FRAME_DIM + 1] == 1 and c[7, -1] == 0 and c[6, -1] == 1
+    np.testing.assert_allclose(c[3, :3], (f[2, :3] + f[4, :3]) / 2, atol=1e-6)  # gaps: linear in time
+    np.testing.assert_allclose(c[7, OBJ_T], (f[6, OBJ_T] + f[8, OBJ_T]) / 2, atol=1e-6)
+    g = f.copy()
+    g[:5, ROTATIONS] = np.nan  # leading gap: held at the first observation; a never-observed column: 0
+    g[:, IMU_A] = np.nan
+    c = condition_features(g)
+    np.testing.assert_allclose(c[:5, ROTATIONS], np.repeat(g[5:6, ROTATIONS], 5, 0))
+    assert (c[:, IMU_A] == 0).all() and c[0, FRAME_DIM + 24] == 0 and c[5, FRAME_DIM + 24] == 1
     o, y = window_frame(f)
     np.testing.assert_allclose(o[:2], np.nanmean(f[:, 0:2], 0), atol=1e-5)
     # canonical <-> world is exact, and moves the object and IMU with the body

@@ -77,13 +77,16 @@ def test_identity_filter_reproduces_input_across_windows(tmp_path):
     np.testing.assert_allclose(filt.refine_frames(f[:10], 30.0, "box")[:, JOINTS], f[:10, JOINTS], atol=2e-4)
     out60 = filt.refine_frames(f[::1], 60.0, "box")
     np.testing.assert_allclose(out60[:, JOINTS], f[:, JOINTS], atol=2e-3)
-    # NaN frames and joints: the output is complete
+    # NaN frames and joints: the output is complete, the gaps linearly interpolated (identity filter)
     g = f.copy()
-    g[20:30] = np.nan
+    g[20:30, :OBJ_T.stop] = np.nan
     g[50, :3] = np.nan
     out = filt.refine_frames(g, 30.0, "box")
     assert np.isfinite(out).all()
     np.testing.assert_allclose(out[60:, JOINTS], f[60:, JOINTS], atol=2e-4)
+    lin = f[19, JOINTS] + (np.arange(1, 11) / 11)[:, None] * (f[30, JOINTS] - f[19, JOINTS])
+    np.testing.assert_allclose(out[20:30, JOINTS], lin, atol=2e-4)
+    np.testing.assert_allclose(out[50, :3], (f[49, :3] + f[51, :3]) / 2, atol=2e-4)
     with pytest.raises(ValueError, match=r"\(T, 235\)"):
         filt.refine_frames(f[:, :200], 30.0, "box")
     with pytest.raises(ValueError, match="'lamp' is unknown"):

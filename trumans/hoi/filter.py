@@ -4,7 +4,7 @@ by training (``train.filter_task``) and inference (``sample.refine``).
 Filter mode of ``trumans.model.nets.Denoiser``: the noisy frame vectors x_n (B, L, 235) are the
 tokens' input, the tracked window enters as a per-frame condition (``frame_cond``: the normalised
 tracked frame vectors with missing entries 0, plus observed flags, 261 wide) added to each frame
-token, and the object category is embedded into the first token with the diffusion step. The
+token (the tracked values, missing ones interpolated in time, plus observed flags), and the object category is embedded into the first token with the diffusion step. The
 network predicts x₀ itself (the paper follows [65]; ``prediction = "x0"``). Windows are put in a
 canonical frame computed from the *tracked* input (``trumans.hoi.frame.window_frame``), since at
 inference nothing else is known.
@@ -82,14 +82,18 @@ class WindowInputs:
     tracked: np.ndarray
 
 
-def prepare_windows(tracked_world: np.ndarray, normalizer: Normalizer) -> WindowInputs:
-    """Tracked world windows (B, L, 235) (NaN = missing) -> the filter's inputs."""
+def prepare_windows(tracked_world: np.ndarray, normalizer: Normalizer,
+                    filled_world: np.ndarray | None = None) -> WindowInputs:
+    """Tracked world windows (B, L, 235) (NaN = missing) -> the filter's inputs. filled_world: the
+    same windows with gaps filled over the whole sequence (``fill_missing`` before cutting); default:
+    filled within each window. (Rigid transforms and normalising commute with the linear filling.)"""
     tw = np.asarray(tracked_world, dtype=np.float32)
     if tw.ndim != 3 or tw.shape[-1] != FRAME_DIM:
         raise ValueError(f"tracked windows must be (B, L, {FRAME_DIM}), got {tw.shape}")
     origin, yaw = window_frame(tw)
     tc = to_frame(tw, origin, yaw)
-    cond = condition_features(normalizer.normalize(tc))
+    filled = None if filled_world is None else normalizer.normalize(to_frame(filled_world, origin, yaw))
+    cond = condition_features(normalizer.normalize(tc), filled)
     return WindowInputs(cond=torch.from_numpy(cond), origin=origin, yaw=yaw, tracked=tc)
 
 
@@ -141,7 +145,8 @@ def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: t
 
 class FilterModel(torch.nn.Module):
     """The filter-mode denoiser with a skip from the tracked input: x̂0 = c + D(x_n, n, c, category),
-    where c is the normalised tracked frame vector part of the condition (missing = 0). The network
+    where c is the normalised tracked frame vector part of the condition (missing values
+    interpolated in time). The network
     learns the correction of the tracked input instead of re-deriving it (our addition for a CPU
     training budget; the paper's network outputs x̂0 directly). Holds no weights of its own:
     ``denoiser.state_dict()`` is the checkpoint's."""

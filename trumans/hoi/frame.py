@@ -16,8 +16,9 @@ IMU_FLAG    1      1 where the IMU is present, 0 where not (then IMU_R and IMU_A
 ==========  =====  ==========================================================================
 
 The paper uses SMPL-H (52 joints, x ∈ R^486); ours is the 24-joint skeleton. NaN marks a missing
-measurement (dropped frame, occluded joint); ``condition_features`` turns a tracked frame vector
-into the filter's per-frame condition: NaN -> 0 plus observed flags (24 joints, rotations, object).
+measurement (dropped frame, occluded joint); ``condition_features`` turns tracked frame vectors
+into the filter's per-frame condition: missing values interpolated in time, plus observed flags
+(24 joints, rotations, object).
 
 Frames move between the world and a window's canonical frame (``to_frame`` / ``from_frame``):
 ``p' = R_z(-yaw)(p - origin)`` for positions, ``R' = R_z(-yaw) R`` for the root, object and IMU
@@ -36,7 +37,7 @@ from trumans.skeleton import NUM_JOINTS, heading
 __all__ = [
     "JOINTS", "ROTATIONS", "OBJ_T", "OBJ_R", "IMU_R", "IMU_A", "IMU_FLAG", "FRAME_DIM", "COND_DIM",
     "HOIFrames", "pack_frames", "unpack_frames", "frames_from_sequence", "sequence_from_frames",
-    "condition_features", "window_frame", "to_frame", "from_frame", "orthonormalize_6d", "resample_frames",
+    "condition_features", "fill_missing", "window_frame", "to_frame", "from_frame", "orthonormalize_6d", "resample_frames",
 ]
 
 JOINTS = slice(0, 72)
@@ -159,18 +160,42 @@ def sequence_from_frames(frames: np.ndarray, fps: float, object_name: str, categ
         objects=objects, extra={} if t is None else dict(t.extra), allow_missing=missing)
 
 
-def condition_features(frames: np.ndarray) -> np.ndarray:
-    """Tracked frame vectors (..., 235) with NaN = missing -> the filter's condition (..., 261):
-    NaN -> 0, then observed flags (24 joints, rotations, object) in {0, 1}."""
+def fill_missing(frames: np.ndarray) -> np.ndarray:
+    """Fill NaN entries (..., L, D) along the time axis (-2) by linear interpolation between the
+    nearest observed frames of the same column, holding the first / last observed value at the
+    ends; a column with no observed frame becomes 0."""
+    f = np.asarray(frames, dtype=np.float64)
+    L = f.shape[-2]
+    ok = np.isfinite(f)
+    t = np.arange(L).reshape(L, 1)
+    prev = np.maximum.accumulate(np.where(ok, t, -1), axis=-2)
+    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(ok, t, L), -2), axis=-2), -2)
+    has_p, has_n = prev >= 0, nxt < L
+    vp = np.take_along_axis(f, np.clip(prev, 0, L - 1), -2)
+    vn = np.take_along_axis(f, np.clip(nxt, 0, L - 1), -2)
+    w = np.where(has_p & has_n, (t - prev) / np.maximum(nxt - prev, 1), 0.0)
+    out = np.where(has_p & has_n, (1 - w) * vp + w * vn, np.where(has_p, vp, np.where(has_n, vn, 0.0)))
+    return np.where(ok, f, out).astype(np.float32)
+
+
+def condition_features(frames: np.ndarray, filled: np.ndarray | None = None) -> np.ndarray:
+    """Tracked frame vectors (..., L, 235) with NaN = missing -> the filter's condition (..., L, 261):
+    the values with missing entries filled (``filled``, e.g. gaps filled over a whole sequence before
+    it was cut into windows; default ``fill_missing(frames)``: linear in time, 0 where a column has
+    no observation), then observed flags (24 joints, rotations, object) in {0, 1}."""
     f = np.asarray(frames, dtype=np.float32)
-    if f.shape[-1] != FRAME_DIM:
-        raise ValueError(f"frame vectors must be (..., {FRAME_DIM}), got {f.shape}")
+    if f.ndim < 2 or f.shape[-1] != FRAME_DIM:
+        raise ValueError(f"frame vectors must be (..., L, {FRAME_DIM}), got {f.shape}")
     joints = f[..., JOINTS].reshape(*f.shape[:-1], NUM_JOINTS, 3)
     seen_j = np.isfinite(joints).all(-1)
     seen_r = np.isfinite(f[..., ROTATIONS]).all(-1, keepdims=True)
     seen_o = (np.isfinite(f[..., OBJ_T]).all(-1) & np.isfinite(f[..., OBJ_R]).all(-1))[..., None]
     flags = np.concatenate([seen_j, seen_r, seen_o], -1).astype(np.float32)
-    return np.concatenate([np.nan_to_num(f, nan=0.0), flags], -1)
+    if filled is None:
+        filled = fill_missing(f)
+    elif np.shape(filled) != f.shape or not np.isfinite(filled).all():
+        raise ValueError(f"filled must be finite and shaped like frames {f.shape}, got {np.shape(filled)}")
+    return np.concatenate([np.asarray(filled, np.float32), flags], -1)
 
 
 def window_frame(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

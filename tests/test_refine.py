@@ -121,31 +121,51 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     assert rc == 2 and "does not exist" in capsys.readouterr().err
 
 
-def test_training_task_loss_and_schedule():
-    from train.filter_task import FilterConfig, FilterTask, _phase_weights, make_batch
-
-    s, f = _tracked(T=64)
-    human = np.concatenate([s.joints.reshape(64, -1), s.rotations.reshape(64, -1)], -1).astype(np.float32)
-    obj = add_clean_imu(f[None], 30.0)[0, :, OBJ_T.start:IMU_FLAG + 1]
-    data = FilterWindows(human=[human], objects=[obj], offsets=np.stack([s.extra.get("offsets", np.zeros((24, 3)))]).astype(np.float32),
-                         windows=np.array([[0, 0, 0], [0, 48, 0]]), categories=np.array([0, 1]),
-                         category_names=CATS, files=["x"], window=16, fps=30.0)
+def _dataset(root):
+    """A tiny dataset folder of exact clips (one per split) for the filter task."""
+    from trumans.dataset import content_hash, write_index
     from trumans.skeleton import rest_offsets
-    data.offsets[:] = rest_offsets()
-    cfg = FilterConfig.from_dict({"net": NET.to_dict(), "diffusion": DIFF.to_dict()})
-    norm = Normalizer(np.zeros(FRAME_DIM), np.ones(FRAME_DIM))
-    task = FilterTask(cfg, CATS, norm)
-    model = task.build_model()
-    b = make_batch(data, np.array([0, 1]), norm, cfg.corruption, np.random.default_rng(0))
+
+    splits = {}
+    for k, split in enumerate(("train", "val", "test")):
+        s = _clip(T=80, seed=k)
+        s.extra["offsets"] = rest_offsets().astype(np.float32)
+        rel = f"sequences/{split}.npz"
+        save_sequence(s, root / rel)
+        splits[split] = [rel]
+    files = [p for v in splits.values() for p in v]
+    write_index(root, {"name": "tiny-hoi", "version": 1, "fps": 30.0, "vocabulary": [], "splits": splits,
+                       "scenes": {}, "hash": content_hash(root, files)})
+    return root
+
+
+def test_filter_task_trains_through_the_loop(tmp_path):
+    from train.filter_task import FilterTask, _phase_weights
+    from train.loop import train
+    from train.tasks import make_task
+
+    data = _dataset(tmp_path / "data")
+    task = make_task("filter", overrides={"net": NET.to_dict(), "diffusion": DIFF.to_dict(),
+                                          "train": {"batch_size": 2, "checkpoint_every": 2, "val_every": 2},
+                                          "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 8}})
+    assert isinstance(task, FilterTask)
+    res = train(task, data, tmp_path / "run", steps=3, progress=False)
+    assert res.steps == 3 and np.isfinite(res.val_loss) and res.val_loss_zero_baseline > 0
+    filt = HOIFilter.load(tmp_path / "run" / "checkpoint.pt")
+    assert filt.categories == ["box"] and filt.window == 16
+    b = task.batch(0, 0, 1)
     assert b.x0.shape == (2, 16, FRAME_DIM) and b.cond.shape == (2, 16, 261) and torch.isfinite(b.cond).all()
-    loss, terms = task.loss(model, b, 0.99, torch.Generator().manual_seed(0))
-    assert set(terms) == {"simple", "off", "vel", "consist", "imu"} and all(np.isfinite(list(terms.values())))
-    loss.backward()
-    assert all(p.grad is not None and torch.isfinite(p.grad).all() for p in model.parameters() if p.requires_grad)
-    w0, w1, w2 = (_phase_weights(cfg.train, k) for k in (0.0, 0.4, 0.9))
+    loss = task.loss(task.build_model(), b, torch.Generator().manual_seed(0), "cpu")
+    assert set(loss.terms) == {"simple", "off", "vel", "consist", "imu"}
+    assert all(torch.isfinite(v) for v in loss.terms.values())
+    w0, w1, w2 = (_phase_weights(task.config.filter, k) for k in (0.0, 0.4, 0.9))
     assert sum(w0.values()) == 0 and w1["off"] > 0 and w1["imu"] == 0 and w2["imu"] > 0
+    abl = make_task("filter", ablate=["regularisers"])
+    assert abl.config.filter.w_off == 0 and abl.config.filter.w_imu == 0
+    with pytest.raises(ValueError, match="unknown ablation 'scene'"):
+        make_task("filter", ablate=["scene"])
     with pytest.raises(ValueError, match="unknown key"):
-        FilterConfig.from_dict({"train": {"stepz": 3}})
+        make_task("filter", overrides={"filter": {"stepz": 3}})
 
 
 def test_window_objects_and_eval_figures():

@@ -1,124 +1,117 @@
-"""Training the HOI filter (I'm-HOI §3.2, appendix A.2): the task (model, loss, checkpoint) and
-its config.
+"""The HOI filter as a training task (I'm-HOI §3.2, appendix A.2; ``train.tasks.Task``):
+``trumans train --task filter``.
 
 Loss: x₀-prediction with the L1 simple objective (eq. 6) on normalised frame vectors, plus the
 regularisers of eq. 7 on the de-normalised prediction (``trumans.hoi.losses``). Schedule
-(appendix A.2): the first ``simple_only`` fraction of the steps is the warm-up on every category
-with the simple loss only; then L_off and L_vel join; after ``consist_imu_from`` L_consist and L_imu
-join too. One shared model embeds the object category into its first token (the paper fine-tunes
-one model per category; ``categories`` in the config restricts training to a subset, which is how a
-per-category fine-tune from a shared checkpoint is run). EMA of the weights.
+(appendix A.2): the first ``simple_only`` fraction of ``train.steps`` is the warm-up on every
+category with the simple loss only; then L_off and L_vel join; from ``consist_imu_from`` L_consist
+and L_imu join too. One shared model embeds the object category into its first token (the paper
+fine-tunes one model per category; that variant is not measured here). EMA of the weights is the
+loop's.
 
 Data: clean windows (``trumans.hoi.data``) corrupted on the fly by ``trumans.hoi.corrupt`` with a
-generator seeded per step, so a run is a pure function of its seed.
+generator seeded by (seed, step, rank), so a run is a pure function of its seed. Validation: the
+MPJPE (m) of the EMA model sampled from noise on fixed corrupted val windows, beside the MPJPE of
+the tracked input with its gaps interpolated (the identity filter) as the baseline.
 """
 from __future__ import annotations
 
-import tomllib
-from dataclasses import asdict, dataclass, field, fields, is_dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
+from torch import nn
 
+from trumans import __version__
+from trumans.dataset import Dataset
 from trumans.hoi.corrupt import CorruptionConfig, corrupt
-from trumans.hoi.filter import FilterModel, FilterNetConfig, filter_denoiser_config, prepare_windows, sample_x0
-from trumans.hoi.frame import JOINTS, OBJ_R, OBJ_T, to_frame
+from trumans.hoi.data import FilterWindows, load_filter_windows
+from trumans.hoi.filter import FilterModel, FilterNetConfig, build_filter_model, filter_denoiser_config, prepare_windows, sample_x0
+from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, to_frame
 from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_vel
+from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
 from trumans.model.episodes import Normalizer
-from trumans.model.nets.denoiser import Denoiser
 from trumans.rotations import sixd_to_matrix
 
-from trumans.hoi.data import FilterWindows
+from .config import TrainSection, build_config, load_toml
+from .tasks import TaskLoss
 
-__all__ = ["FilterTrainSection", "FilterConfig", "load_filter_config", "FilterTask", "filter_metrics", "KIND"]
+__all__ = ["FilterSection", "FilterConfig", "load_filter_config", "FilterTask", "FilterBatch", "make_batch",
+           "filter_metrics", "export_checkpoint", "ABLATIONS", "DEFAULT_CONFIG", "CONFIG_DIR"]
 
-KIND = "filter"
-CONFIG_DIR = Path(__file__).parent / "configs"
+CONFIG_DIR = Path(__file__).parent / "configs" / "filter"
+DEFAULT_CONFIG = "cpu"
+VAL_SEED = 20240601
+ABLATIONS = {  # --ablate NAME -> overrides
+    "regularisers": {"filter": {"w_off": 0.0, "w_vel": 0.0, "w_consist": 0.0, "w_imu": 0.0}},
+    "imu": {"corruption": {"p_no_imu": 1.0}},
+}
 
 
 @dataclass(frozen=True)
-class FilterTrainSection:
-    """Optimiser, schedule and loss weights. Paper weights: λ_off = λ_vel = λ_consist = 1,
-    λ_imu = 100 on unnormalised SMPL-H vectors; ours act on metres next to an L1 loss on
-    standardised features, so they are rescaled (at the start each weighted term is a fraction of the simple loss)."""
+class FilterSection:
+    """Windows, validation and the loss schedule. Paper weights: λ_off = λ_vel = λ_consist = 1,
+    λ_imu = 100 on unnormalised SMPL-H vectors; ours act on metres beside an L1 loss on
+    standardised features, so they are rescaled (at the start each weighted term is a fraction of
+    the simple loss). simple_only / consist_imu_from: fractions of ``train.steps``."""
 
-    steps: int = 3000
-    batch_size: int = 32
-    lr: float = 5e-4
-    warmup_steps: int = 100
-    ema_decay: float = 0.995
-    grad_clip: float = 1.0
     stride: int = 16
-    val_every: int = 500
-    val_windows: int = 256
+    val_windows: int = 128
     val_sampling_steps: int = 5
-    time_limit_s: float = 0.0
     simple_only: float = 0.3
     consist_imu_from: float = 0.6
     w_off: float = 0.01
     w_vel: float = 0.1
     w_consist: float = 0.02
     w_imu: float = 0.1
-    categories: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.stride < 1 or self.val_windows < 1 or self.val_sampling_steps < 1:
+            raise ValueError("stride, val_windows and val_sampling_steps must be >= 1")
+        if not 0 <= self.simple_only <= self.consist_imu_from <= 1:
+            raise ValueError(f"need 0 <= simple_only <= consist_imu_from <= 1, got {self.simple_only}, {self.consist_imu_from}")
+        if min(self.w_off, self.w_vel, self.w_consist, self.w_imu) < 0:
+            raise ValueError("regulariser weights must be >= 0")
 
 
 @dataclass(frozen=True)
 class FilterConfig:
+    """The filter's training config: [net] (``FilterNetConfig``), [diffusion], [train] (the shared
+    ``TrainSection``), [filter] (``FilterSection``), [corruption] (``CorruptionConfig``)."""
+
     name: str = "filter-cpu"
     net: FilterNetConfig = field(default_factory=FilterNetConfig)
     diffusion: DiffusionConfig = field(default_factory=lambda: DiffusionConfig(steps=1000, loss="l1", prediction="x0"))
-    train: FilterTrainSection = field(default_factory=FilterTrainSection)
+    train: TrainSection = field(default_factory=TrainSection)
+    filter: FilterSection = field(default_factory=FilterSection)
     corruption: CorruptionConfig = field(default_factory=CorruptionConfig)
 
     def to_dict(self) -> dict:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, d: dict, where: str = "filter config") -> "FilterConfig":
-        return _build(cls, d, where)
+    def from_dict(cls, d: dict, source: str = "filter config") -> "FilterConfig":
+        return build_config(cls, d, source)
 
-
-def _build(cls, d, where: str):
-    if not isinstance(d, dict):
-        raise ValueError(f"{where} must be a table, got {type(d).__name__}")
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(d) - known)
-    if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; known keys: {sorted(known)}")
-    defaults = cls()
-    kw = {}
-    for k, v in d.items():
-        dv = getattr(defaults, k)
-        if is_dataclass(dv):
-            kw[k] = _build(type(dv), v, f"{where}.{k}")
-        elif isinstance(dv, tuple):
-            kw[k] = tuple(v)
-        else:
-            kw[k] = v
-    try:
-        return cls(**kw)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"{where}: {e}") from e
+    def with_overrides(self, **sections: dict) -> "FilterConfig":
+        d = self.to_dict()
+        for sec, vals in sections.items():
+            if sec not in d or not isinstance(d[sec], dict):
+                raise ValueError(f"unknown config section {sec!r}; sections: {sorted(k for k in d if isinstance(d[k], dict))}")
+            d[sec].update(vals)
+        return type(self).from_dict(d)
 
 
 def load_filter_config(name_or_path: str | Path) -> FilterConfig:
-    """A built-in config name (``filter-cpu``) or a TOML file -> FilterConfig (unknown keys are errors)."""
-    p = Path(name_or_path)
-    if not p.suffix and (CONFIG_DIR / f"{p.name}.toml").is_file():
-        p = CONFIG_DIR / f"{p.name}.toml"
-    if not p.is_file():
-        raise FileNotFoundError(f"filter config {name_or_path!r} is neither a built-in config nor a TOML file")
-    try:
-        d = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{p} is not valid TOML: {e}") from e
-    d.setdefault("name", p.stem)
+    """A built-in filter config (``train/configs/filter/<name>.toml``: cpu) or a TOML file."""
+    d, p = load_toml(name_or_path, CONFIG_DIR)
     return FilterConfig.from_dict(d, str(p))
 
 
-def _phase_weights(cfg: FilterTrainSection, frac: float) -> dict[str, float]:
+def _phase_weights(cfg: FilterSection, frac: float) -> dict[str, float]:
     """Regulariser weights at training progress ``frac`` in [0, 1] (appendix A.2 schedule)."""
     on1 = frac >= cfg.simple_only
     on2 = frac >= cfg.consist_imu_from
@@ -129,7 +122,7 @@ def _phase_weights(cfg: FilterTrainSection, frac: float) -> dict[str, float]:
 class FilterBatch:
     """x0: (B, L, 235) normalised clean canonical windows; clean: the same in metres; tracked:
     (B, L, 235) canonical tracked windows (NaN = missing); cond: (B, L, 261); offsets (B, 24, 3);
-    category (B,) int64."""
+    category (B,) int64; progress: the training progress in [0, 1] that sets the loss schedule."""
 
     x0: torch.Tensor
     clean: torch.Tensor
@@ -137,10 +130,11 @@ class FilterBatch:
     cond: torch.Tensor
     offsets: torch.Tensor
     category: torch.Tensor
+    progress: float = 1.0
 
 
 def make_batch(data: FilterWindows, idx: np.ndarray, normalizer: Normalizer, cfg: CorruptionConfig,
-               rng: np.random.Generator) -> FilterBatch:
+               rng: np.random.Generator, progress: float = 1.0) -> FilterBatch:
     """Assemble, corrupt and canonicalise windows ``idx`` of ``data``."""
     clean, offsets, cat = data.batch(idx)
     tracked = corrupt(clean, data.fps, rng, cfg)
@@ -148,47 +142,154 @@ def make_batch(data: FilterWindows, idx: np.ndarray, normalizer: Normalizer, cfg
     clean_c = to_frame(clean, inp.origin, inp.yaw)
     t = torch.from_numpy
     return FilterBatch(x0=t(normalizer.normalize(clean_c).astype(np.float32)), clean=t(clean_c), tracked=t(inp.tracked),
-                       cond=inp.cond, offsets=t(offsets.astype(np.float32)), category=t(cat))
+                       cond=inp.cond, offsets=t(offsets.astype(np.float32)), category=t(cat), progress=progress)
 
 
 class FilterTask:
-    """The filter as a training task: build the model, the loss on a batch, the checkpoint fields."""
+    """The filter as a ``train.tasks.Task``: windows and normalisation from ``setup``, the
+    filter-mode denoiser, eq. 6 + eq. 7 loss, sampled validation, the 'filter' checkpoint."""
 
-    kind = KIND
+    kind = "filter"
 
-    def __init__(self, cfg: FilterConfig, categories: list[str], normalizer: Normalizer) -> None:
-        self.cfg, self.categories, self.normalizer = cfg, list(categories), normalizer
-        self.model_config = filter_denoiser_config(cfg.net, len(categories))
-        self.diffusion = GaussianDiffusion(cfg.diffusion)
-        if cfg.diffusion.prediction != "x0":
-            raise ValueError(f"the filter predicts x0 (I'm-HOI §3.2); diffusion.prediction is {cfg.diffusion.prediction!r}")
+    def __init__(self, config: FilterConfig) -> None:
+        if config.diffusion.prediction != "x0":
+            raise ValueError(f"the filter predicts x0 (I'm-HOI §3.2); diffusion.prediction is {config.diffusion.prediction!r}")
+        self.config = config
+        self.diffusion = GaussianDiffusion(config.diffusion)
+        self.categories: list[str] | None = None
+        self.normalizer: Normalizer | None = None
+        self.train_data: FilterWindows | None = None
+        self.val_batch: FilterBatch | None = None
+        self.seed = 0
+        self.data_record: dict = {}
+
+    @classmethod
+    def from_config(cls, config: str | Path | None = None, *, overrides: dict[str, dict] | None = None,
+                    ablate: Sequence[str] = ()) -> "FilterTask":
+        """The task factory (``train.tasks.TASKS``): a config name or TOML path (default cpu);
+        ablations: regularisers (all λ = 0), imu (no window has an IMU)."""
+        cfg = load_filter_config(config or DEFAULT_CONFIG)
+        over = {k: dict(v) for k, v in (overrides or {}).items()}
+        for a in ablate:
+            if a not in ABLATIONS:
+                raise ValueError(f"unknown ablation {a!r} for the filter; ablations: {sorted(ABLATIONS)}")
+            for sec, vals in ABLATIONS[a].items():
+                over.setdefault(sec, {}).update(vals)
+        return cls(cfg.with_overrides(**over) if over else cfg)
+
+    @property
+    def model_config(self):
+        if self.categories is None:
+            raise ValueError("the filter's categories are unknown: call setup() with a dataset first")
+        return filter_denoiser_config(self.config.net, len(self.categories))
+
+    def setup(self, data_dir: str | Path, out_dir: Path, *, is_main: bool, barrier: Callable[[], None],
+              prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
+              progress: bool = True) -> None:
+        """Windows of the train and val splits; normalisation fitted on clean canonical train
+        windows (or the resumed run's); a fixed corrupted validation batch."""
+        if extra_dirs:
+            raise ValueError("the filter trains on one dataset; --augmented is not supported for --task filter")
+        net, fc = self.config.net, self.config.filter
+        ds = Dataset(data_dir)
+        self.data_record = {"name": ds.name, "hash": ds.hash, "path": str(Path(data_dir).resolve())}
+        cats = None
+        if prev is not None:
+            if prev.data.get("hash") != ds.hash:
+                raise ValueError(f"the run in {out_dir} was trained on other data; resume with the same --data")
+            cats = list(prev.extra["categories"])
+        self.train_data = load_filter_windows(data_dir, "train", net.window, fc.stride, net.fps, cats)
+        self.categories = self.train_data.category_names
+        val = load_filter_windows(data_dir, "val", net.window, net.window, net.fps, self.categories)
+        self.seed = seed
+        if prev is not None:
+            self.normalizer = prev.normalizer
+        else:
+            rng = np.random.default_rng(seed)
+            idx = rng.choice(len(self.train_data), size=min(2048, len(self.train_data)), replace=False)
+            ident = Normalizer(np.zeros(FRAME_DIM), np.ones(FRAME_DIM))
+            self.normalizer = Normalizer.fit(make_batch(self.train_data, idx, ident, self.config.corruption, rng).clean.numpy())
+        vrng = np.random.default_rng(VAL_SEED)
+        vidx = vrng.choice(len(val), size=min(fc.val_windows, len(val)), replace=False)
+        self.val_batch = make_batch(val, vidx, self.normalizer, self.config.corruption, vrng)
 
     def build_model(self) -> FilterModel:
-        """The filter-mode denoiser behind the tracked-input skip; ``.denoiser`` holds the weights.
-        Its output layer starts at zero, so training starts from x̂0 = the tracked input."""
-        net = Denoiser(self.model_config)
-        torch.nn.init.zeros_(net.out_proj.weight)
-        torch.nn.init.zeros_(net.out_proj.bias)
-        return FilterModel(net)
+        """The filter-mode denoiser behind the tracked-input skip; its output layer starts at zero,
+        so training starts from x̂0 = the tracked input (gaps interpolated)."""
+        model = build_filter_model(self.model_config)
+        nn.init.zeros_(model.denoiser.out_proj.weight)
+        nn.init.zeros_(model.denoiser.out_proj.bias)
+        return model
 
-    def loss(self, model, b: FilterBatch, progress: float,
-             generator: torch.Generator) -> tuple[torch.Tensor, dict[str, float]]:
-        """Eq. 6 + eq. 7 with the schedule's weights at training ``progress`` in [0, 1] (the larger of
-        the step and the time-limit fractions) -> (total loss, {term: value})."""
-        out = self.diffusion.training_loss(model, b.x0, generator=generator, frame_cond=b.cond, category=b.category)
+    def batch(self, step: int, rank: int, world: int) -> FilterBatch:
+        """This rank's share of batch ``step``: windows drawn and corrupted by (seed, step, rank)."""
+        rng = np.random.default_rng([self.seed, step, rank])
+        per = max(1, self.config.train.batch_size // world)
+        idx = rng.integers(0, len(self.train_data), per)
+        return make_batch(self.train_data, idx, self.normalizer, self.config.corruption, rng,
+                          progress=step / max(self.config.train.steps, 1))
+
+    def loss(self, model: nn.Module, b: FilterBatch, generator: torch.Generator, device: torch.device) -> TaskLoss:
+        """Eq. 6 + eq. 7 with the schedule's weights at the batch's training progress."""
+        dev = torch.device(device)
+        if self.diffusion.betas.device != dev:
+            self.diffusion = self.diffusion.to(dev)
+        to = lambda v: v.to(dev)
+        out = self.diffusion.training_loss(model, to(b.x0), generator=generator, frame_cond=to(b.cond),
+                                           category=to(b.category))
         x_hat = self.normalizer.denormalize(out.x0_hat)
-        w = _phase_weights(self.cfg.train, progress)
-        terms = {"simple": out.terms["simple"], "off": loss_off(x_hat, b.clean), "vel": loss_vel(x_hat, b.clean),
-                 "consist": loss_consist(x_hat, b.offsets), "imu": loss_imu(x_hat, b.clean, b.tracked, self.cfg.net.fps)}
-        total_loss = terms["simple"] + sum(w[k] * terms[k] for k in w if w[k] > 0)
-        return total_loss, {k: float(v.detach()) for k, v in terms.items()}
+        clean = to(b.clean)
+        w = _phase_weights(self.config.filter, b.progress)
+        terms = {"simple": out.terms["simple"], "off": loss_off(x_hat, clean), "vel": loss_vel(x_hat, clean),
+                 "consist": loss_consist(x_hat, to(b.offsets)),
+                 "imu": loss_imu(x_hat, clean, to(b.tracked), self.config.net.fps)}
+        total = terms["simple"] + sum(w[k] * terms[k] for k in w if w[k] > 0)
+        return TaskLoss(total, terms)
 
-    def checkpoint_fields(self) -> dict:
-        """Everything ``sample.refine`` needs beside the weights."""
-        return {"kind": KIND, "model_config": self.model_config, "diffusion_config": self.cfg.diffusion,
-                "normalizer": self.normalizer, "fps": self.cfg.net.fps, "L_epi": self.cfg.net.window,
-                "k": self.cfg.net.overlap, "extra": {"categories": self.categories},
-                "meta": {"net": self.cfg.net.to_dict(), "corruption": self.cfg.corruption.to_dict()}}
+    @torch.no_grad()
+    def validate(self, model: nn.Module) -> tuple[float, float]:
+        """(MPJPE in m of x̂0 sampled from noise, MPJPE of the gap-interpolated tracked input) on the
+        fixed validation windows."""
+        m = self.val_metrics(model)
+        return m["mpjpe_mm"] / 1000, m["mpjpe_in_mm"] / 1000
+
+    @torch.no_grad()
+    def val_metrics(self, model: nn.Module) -> dict[str, float]:
+        model.eval()
+        dev = next(model.parameters()).device
+        v = self.val_batch
+        g = torch.Generator().manual_seed(VAL_SEED)
+        x0 = sample_x0(model, self.diffusion.to(dev), v.cond.to(dev), v.category.to(dev),
+                       num_steps=self.config.filter.val_sampling_steps, generator=g)
+        clean = v.clean.numpy()
+        out = filter_metrics(self.normalizer.denormalize(x0.cpu().numpy()), clean)
+        inp = filter_metrics(fill_missing(v.tracked.numpy()), clean)
+        out.update({"mpjpe_in_mm": inp["mpjpe_mm"], "obj_t_err_in_cm": inp["obj_t_err_cm"],
+                    "obj_rot_err_in_deg": inp["obj_rot_err_deg"]})
+        return out
+
+    def sizes(self) -> tuple[int, int]:
+        return len(self.train_data), len(self.val_batch.x0)
+
+    def checkpoint(self, *, model_state: dict, ema_state: dict, meta: dict, train_state: dict) -> Checkpoint:
+        net = self.config.net
+        return Checkpoint(kind="filter", model_config=self.model_config, model_state=model_state,
+                          diffusion_config=self.config.diffusion, normalizer=self.normalizer, fps=net.fps,
+                          L_epi=net.window, k=net.overlap, extra={"categories": list(self.categories)},
+                          data=dict(self.data_record), ema_state=ema_state,
+                          meta={**meta, "net": net.to_dict(), "corruption": self.config.corruption.to_dict()},
+                          train_state=train_state, code_version=__version__)
+
+
+def export_checkpoint(src: Checkpoint, half: bool = True) -> Checkpoint:
+    """The shipped form of a trained filter: the EMA weights only (float16 if ``half``), no
+    optimiser state."""
+    state = src.ema_state if src.ema_state is not None else src.model_state
+    state = {k: (v.half() if half and v.is_floating_point() else v).clone() for k, v in state.items()}
+    return Checkpoint(kind=src.kind, model_config=src.model_config, model_state=state,
+                      diffusion_config=src.diffusion_config, normalizer=src.normalizer, fps=src.fps, L_epi=src.L_epi,
+                      k=src.k, extra=dict(src.extra), data=dict(src.data), ema_state=None, meta=dict(src.meta),
+                      train_state=None, code_version=src.code_version)
 
 
 def _rot_err_deg(a6: np.ndarray, b6: np.ndarray) -> np.ndarray:
@@ -203,13 +304,3 @@ def filter_metrics(pred: np.ndarray, clean: np.ndarray) -> dict[str, float]:
     return {"mpjpe_mm": float(1000 * np.linalg.norm(J(pred) - J(clean), axis=-1).mean()),
             "obj_t_err_cm": float(100 * np.linalg.norm(pred[..., OBJ_T] - clean[..., OBJ_T], axis=-1).mean()),
             "obj_rot_err_deg": float(_rot_err_deg(pred[..., OBJ_R], clean[..., OBJ_R]).mean())}
-
-
-@torch.no_grad()
-def validate(task: FilterTask, model, val: FilterBatch, num_steps: int, seed: int = 0) -> dict[str, float]:
-    """Sampled (from noise, ``num_steps`` DDIM steps) metrics on fixed validation windows."""
-    model.eval()
-    g = torch.Generator().manual_seed(seed)
-    x0 = sample_x0(model, task.diffusion, val.cond, val.category, num_steps=num_steps, generator=g)
-    pred = task.normalizer.denormalize(x0.numpy())
-    return filter_metrics(pred, val.clean.numpy())

@@ -23,7 +23,8 @@ DIFF = DiffusionConfig(steps=50, loss="l1", prediction="x0")
 
 
 def _ckpt(path, zero=True, seed=0):
-    """A tiny filter checkpoint; zero=True zeroes the output layer, so x̂0 = the tracked input."""
+    """A tiny filter checkpoint; zero=True zeroes the output layer and the skip's smoothing, so
+    x̂0 = the tracked input."""
     torch.manual_seed(seed)
     mc = filter_denoiser_config(NET, len(CATS))
     net = Denoiser(mc)
@@ -33,7 +34,7 @@ def _ckpt(path, zero=True, seed=0):
     rng = np.random.default_rng(0)
     norm = Normalizer(rng.normal(0, 0.1, FRAME_DIM), rng.uniform(0.5, 2, FRAME_DIM))
     ck = Checkpoint(kind="filter", model_config=mc, diffusion_config=DIFF, model_state=FilterModel(net).state_dict(),
-                    normalizer=norm, fps=NET.fps, L_epi=NET.window, k=NET.overlap, extra={"categories": CATS},
+                    normalizer=norm, fps=NET.fps, L_epi=NET.window, k=NET.overlap, extra={"categories": CATS, "skip_sigma": 0.0 if zero else 2.0},
                     meta={"net": NET.to_dict()})
     save_checkpoint(path, ck)
     return path

@@ -217,6 +217,7 @@ class FilterTask:
         """The filter-mode denoiser behind the tracked-input skip; its output layer starts at zero,
         so training starts from x̂0 = the tracked input (gaps interpolated)."""
         model = build_filter_model(self.model_config)
+        model.skip_sigma = self.config.net.skip_sigma
         nn.init.zeros_(model.denoiser.out_proj.weight)
         nn.init.zeros_(model.denoiser.out_proj.bias)
         return model
@@ -275,7 +276,7 @@ class FilterTask:
         net = self.config.net
         return Checkpoint(kind="filter", model_config=self.model_config, model_state=model_state,
                           diffusion_config=self.config.diffusion, normalizer=self.normalizer, fps=net.fps,
-                          L_epi=net.window, k=net.overlap, extra={"categories": list(self.categories)},
+                          L_epi=net.window, k=net.overlap, extra={"categories": list(self.categories), "skip_sigma": net.skip_sigma},
                           data=dict(self.data_record), ema_state=ema_state,
                           meta={**meta, "net": net.to_dict(), "corruption": self.config.corruption.to_dict()},
                           train_state=train_state, code_version=__version__)

@@ -44,8 +44,8 @@ class CorruptionConfig:
     jitter_m: float = 0.015
     p_spike: float = 0.003
     spike_m: float = 0.10
-    drift_m: float = 0.04
-    joint_drift_m: float = 0.01
+    drift_m: float = 0.015
+    joint_drift_m: float = 0.005
     drift_frames: int = 30
     rot_noise_rad: float = 0.06
     p_joint_occlusion: float = 0.002

@@ -26,11 +26,14 @@ __all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare
            "build_filter_model"]
 
 
+SKIP_SIGMA_FRAMES = 2.0  # the default Gaussian low-pass of FilterModel's skip, in frames at the filter's fps
+
+
 @dataclass(frozen=True)
 class FilterNetConfig:
     """Network and window sizes. Paper: 4 layers, 4 heads, d = 1024, T = 64 frames; ours is
     narrower for a 2-core CPU. overlap: frames shared by neighbouring windows at inference; fps: the
-    rate the filter works at (input is resampled)."""
+    rate the filter works at (input is resampled); skip_sigma: the low-pass of ``FilterModel``'s skip."""
 
     d_model: int = 128
     layers: int = 4
@@ -40,12 +43,13 @@ class FilterNetConfig:
     window: int = 64
     overlap: int = 16
     fps: float = 30.0
+    skip_sigma: float = SKIP_SIGMA_FRAMES
 
     def __post_init__(self) -> None:
         if self.window < 8 or not 0 <= self.overlap < self.window // 2 + 1:
             raise ValueError(f"need window >= 8 and 0 <= overlap <= window / 2, got {self.window}, {self.overlap}")
-        if not self.fps > 0:
-            raise ValueError(f"fps must be positive, got {self.fps}")
+        if not self.fps > 0 or self.skip_sigma < 0:
+            raise ValueError(f"fps must be positive and skip_sigma >= 0, got {self.fps}, {self.skip_sigma}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -143,21 +147,36 @@ def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: t
     return x0
 
 
-class FilterModel(torch.nn.Module):
-    """The filter-mode denoiser with a skip from the tracked input: x̂0 = c + D(x_n, n, c, category),
-    where c is the normalised tracked frame vector part of the condition (missing values
-    interpolated in time). The network
-    learns the correction of the tracked input instead of re-deriving it (our addition for a CPU
-    training budget; the paper's network outputs x̂0 directly). Holds no weights of its own:
-    ``denoiser.state_dict()`` is the checkpoint's."""
+def smooth_time(x: torch.Tensor, sigma: float = SKIP_SIGMA_FRAMES) -> torch.Tensor:
+    """Gaussian low-pass of x (B, L, D) along time (edges replicated); sigma in frames (0 = none)."""
+    if sigma <= 0:
+        return x
+    r = int(np.ceil(3 * sigma))
+    k = torch.exp(-0.5 * (torch.arange(-r, r + 1, dtype=x.dtype, device=x.device) / sigma) ** 2)
+    k = k / k.sum()
+    B, L, D = x.shape
+    h = torch.nn.functional.pad(x.transpose(1, 2).reshape(B * D, 1, L), (r, r), mode="replicate")
+    return torch.nn.functional.conv1d(h, k.view(1, 1, -1)).reshape(B, D, L).transpose(1, 2)
 
-    def __init__(self, denoiser: torch.nn.Module) -> None:
+
+class FilterModel(torch.nn.Module):
+    """The filter-mode denoiser with a skip from the tracked input: x̂0 = S(c) + D(x_n, n, c, category),
+    where c is the normalised tracked frame vector part of the condition (missing values
+    interpolated in time) and S a fixed Gaussian low-pass in time (σ = ``skip_sigma`` frames, kept in
+    the checkpoint's ``extra``; 0 = no smoothing). The
+    network learns the correction of a smoothed tracked input instead of re-deriving the sequence
+    (our addition for a CPU training budget; the paper's network outputs x̂0 directly). Holds no
+    weights of its own beside ``denoiser``."""
+
+    def __init__(self, denoiser: torch.nn.Module, skip_sigma: float = SKIP_SIGMA_FRAMES) -> None:
         super().__init__()
         self.denoiser = denoiser
+        self.skip_sigma = float(skip_sigma)
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, *, frame_cond: torch.Tensor, category: torch.Tensor,
                 mask: torch.Tensor | None = None) -> torch.Tensor:
-        return frame_cond[..., :FRAME_DIM] + self.denoiser(x, t, mask=mask, frame_cond=frame_cond, category=category)
+        skip = smooth_time(frame_cond[..., :FRAME_DIM], self.skip_sigma)
+        return skip + self.denoiser(x, t, mask=mask, frame_cond=frame_cond, category=category)
 
 
 def build_filter_model(config: DenoiserConfig) -> FilterModel:

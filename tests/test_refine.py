@@ -197,3 +197,35 @@ def test_filter_checkpoint_kind_and_errors(tmp_path):
         HOIFilter.load(tmp_path / "bad.pt")
     with pytest.raises(FileNotFoundError):
         HOIFilter.load(tmp_path / "none.pt")
+
+
+def test_eval_refine_command(tmp_path, capsys):
+    import json
+
+    from trumans.cli import console_main
+
+    data = _dataset(tmp_path / "data")
+    ck = _ckpt(tmp_path / "f.pt", zero=False)
+    rc = console_main(["eval", "refine", str(ck), "--data", str(data), "--clip", "32", "--steps", "2", "--json"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    res = json.loads(out.strip().splitlines()[-1])
+    for k in ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "accel_err_in", "accel_err_out", "accel_gt",
+              "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg",
+              "hand_obj_dist_cm", "frames_per_s"):
+        assert np.isfinite(res[k]), k
+    assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
+    assert res["savgol_window"] % 2 == 1
+    rc = console_main(["eval", "refine", str(ck), "--data", str(data), "--clip", "8"])
+    assert rc == 2 and "--clip must be >=" in capsys.readouterr().err
+
+
+def test_smooth_time():
+    from trumans.hoi.filter import smooth_time
+
+    t = torch.arange(40, dtype=torch.float64)
+    lin = torch.stack([t, 2 * t + 1], -1)[None]  # (1, 40, 2)
+    np.testing.assert_allclose(smooth_time(lin, 2.0)[0, 8:-8], lin[0, 8:-8], atol=1e-9)  # interior: linear kept
+    assert torch.equal(smooth_time(lin, 0.0), lin)
+    noise = torch.randn(1, 400, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    assert smooth_time(noise, 2.0).std() < 0.5 * noise.std()

@@ -1,8 +1,9 @@
 """`trumans refine tracked.npz --out refined.npz [--category C]`: the HOI filter (I'm-HOI §3.2).
 
 With ``--interactions`` the command is the contact-driven tracker instead (iReplica): it dispatches
-to ``sample.interactions_cli.run(args)``; that module may add its own options through
-``add_arguments(group)`` (called here with an argument group when the module exists).
+to ``sample.interactions_cli.run(args)`` (args.input, --out, --seed, --json are shared); that module
+adds its own options through ``add_interaction_arguments(group)``, called here with an argument
+group when the module exists.
 """
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ def _interactions_module():
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("tracked", help="tracked sequence .npz (DESIGN.md format; NaN marks missing frames/joints)")
+    p.add_argument("input", metavar="tracked.npz",
+                   help="tracked sequence .npz (DESIGN.md format; NaN marks missing frames/joints)")
     p.add_argument("--out", required=True, help="refined sequence .npz (same frames and fps)")
     p.add_argument("--category", default=None,
                    help="object category (default: the object's own); must be one the filter knows")
@@ -40,8 +42,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--interactions", action="store_true",
                    help="contact-driven interaction tracking (iReplica) instead of the filter")
     mod = _interactions_module()
-    if mod is not None and hasattr(mod, "add_arguments"):
-        mod.add_arguments(p.add_argument_group("interactions mode (--interactions)"))
+    if mod is not None and hasattr(mod, "add_interaction_arguments"):
+        mod.add_interaction_arguments(p.add_argument_group("interactions mode (--interactions)"))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from .refine import HOIFilter, RefineOptions
 
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed)
-    seq = load_sequence(args.tracked, allow_missing=True)
+    seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()
     out, name = filt.refine_sequence(seq, category=args.category, object_name=args.object, options=opts)

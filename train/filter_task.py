@@ -28,7 +28,8 @@ from trumans import __version__
 from trumans.dataset import Dataset
 from trumans.hoi.corrupt import CorruptionConfig, corrupt
 from trumans.hoi.data import FilterWindows, load_filter_windows
-from trumans.hoi.filter import FilterModel, FilterNetConfig, build_filter_model, filter_denoiser_config, prepare_windows, sample_x0
+from trumans.hoi.filter import (FilterModel, FilterNetConfig, build_filter_model, filter_denoiser_config, fit_normalizer,
+                                prepare_windows, sample_x0)
 from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, to_frame
 from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_vel
 from trumans.model.checkpoint import Checkpoint
@@ -208,7 +209,7 @@ class FilterTask:
             rng = np.random.default_rng(seed)
             idx = rng.choice(len(self.train_data), size=min(2048, len(self.train_data)), replace=False)
             ident = Normalizer(np.zeros(FRAME_DIM), np.ones(FRAME_DIM))
-            self.normalizer = Normalizer.fit(make_batch(self.train_data, idx, ident, self.config.corruption, rng).clean.numpy())
+            self.normalizer = fit_normalizer(make_batch(self.train_data, idx, ident, self.config.corruption, rng).clean.numpy())
         vrng = np.random.default_rng(VAL_SEED)
         vidx = vrng.choice(len(val), size=min(fc.val_windows, len(val)), replace=False)
         self.val_batch = make_batch(val, vidx, self.normalizer, self.config.corruption, vrng)

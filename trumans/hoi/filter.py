@@ -20,9 +20,9 @@ from trumans.model.checkpoint import Checkpoint, KindSpec, register_kind
 from trumans.model.episodes import FeatureLayout, Normalizer
 from trumans.model.nets.denoiser import Denoiser, DenoiserConfig
 
-from .frame import COND_DIM, FRAME_DIM, condition_features, to_frame, window_frame
+from .frame import COND_DIM, FRAME_DIM, IMU_FLAG, IMU_R, condition_features, to_frame, window_frame
 
-__all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices", "sample_x0", "FilterModel",
+__all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices", "sample_x0", "FilterModel", "fit_normalizer",
            "build_filter_model"]
 
 
@@ -101,6 +101,14 @@ def prepare_windows(tracked_world: np.ndarray, normalizer: Normalizer,
     return WindowInputs(cond=torch.from_numpy(cond), origin=origin, yaw=yaw, tracked=tc)
 
 
+def fit_normalizer(clean: np.ndarray) -> Normalizer:
+    """Standardisation of clean canonical frame vectors (..., 235); the IMU flag keeps its 0 / 1
+    values (mean 0, std 1): clean windows all have an IMU, so its fitted std would be 0."""
+    n = Normalizer.fit(clean)
+    n.mean[IMU_FLAG], n.std[IMU_FLAG] = 0.0, 1.0
+    return n
+
+
 def category_indices(names: list[str] | str, categories: list[str]) -> np.ndarray:
     """Category names -> (n,) int64 indices into ``categories``; an unknown name is a ValueError
     listing the known ones."""
@@ -160,8 +168,9 @@ def smooth_time(x: torch.Tensor, sigma: float = SKIP_SIGMA_FRAMES) -> torch.Tens
 
 
 class FilterModel(torch.nn.Module):
-    """The filter-mode denoiser with a skip from the tracked input: x̂0 = S(c) + D(x_n, n, c, category),
-    where c is the normalised tracked frame vector part of the condition (missing values
+    """The filter-mode denoiser with a skip from the tracked input: x̂0 = S(c) + D(x_n, n, c, category)
+    on the human and object features (the IMU part is D's alone: an absent IMU has no value to
+    pass on), where c is the normalised tracked frame vector part of the condition (missing values
     interpolated in time) and S a fixed Gaussian low-pass in time (σ = ``skip_sigma`` frames, kept in
     the checkpoint's ``extra``; 0 = no smoothing). The
     network learns the correction of a smoothed tracked input instead of re-deriving the sequence
@@ -175,8 +184,9 @@ class FilterModel(torch.nn.Module):
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, *, frame_cond: torch.Tensor, category: torch.Tensor,
                 mask: torch.Tensor | None = None) -> torch.Tensor:
-        skip = smooth_time(frame_cond[..., :FRAME_DIM], self.skip_sigma)
-        return skip + self.denoiser(x, t, mask=mask, frame_cond=frame_cond, category=category)
+        skip = smooth_time(frame_cond[..., :IMU_R.start], self.skip_sigma)  # human and object only
+        out = self.denoiser(x, t, mask=mask, frame_cond=frame_cond, category=category)
+        return torch.cat([out[..., :IMU_R.start] + skip, out[..., IMU_R.start:]], dim=-1)
 
 
 def build_filter_model(config: DenoiserConfig) -> FilterModel:

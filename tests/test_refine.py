@@ -150,7 +150,7 @@ def test_filter_task_trains_through_the_loop(tmp_path):
 
     data = _dataset(tmp_path / "data")
     task = make_task("filter", overrides={"net": NET.to_dict(), "diffusion": DIFF.to_dict(),
-                                          "train": {"batch_size": 2, "checkpoint_every": 2, "val_every": 2},
+                                          "train": {"batch_size": 2, "checkpoint_every": 10, "val_every": 10},
                                           "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 8}})
     assert isinstance(task, FilterTask)
     res = train(task, data, tmp_path / "run", steps=3, progress=False)

@@ -81,7 +81,7 @@ ARG_CASES = [
     (["data", "import", REPO_BVH, "--format", "bvh", "--joint-map", '{"pelvis": 5}'], ["joint-map"]),
     (["data", "import", REPO_BVH, "--format", "bvh", "--joint-map", "{" + "x" * 400], ["joint-map", "json"]),
     (["data", "import", REPO_BVH, "--format", "bvh", "--fps", "nan"], ["--fps"]),
-    (["sample"], ["not built yet"]),
+    (["sample"], ["required: --out"]),
     (["frobnicate"], ["frobnicate"]),
 ]
 

@@ -162,11 +162,13 @@ def test_load_corpus_errors(tmp_path):
 
 def test_cli_eval_realism(tmp_path, capsys):
     from trumans.cli import main
+    from trumans.dataset import DatasetWriter
     from trumans.importers.cli import write_dataset
     from trumans.sequence import Sequence
 
     seqs = [(f"w{c}", Sequence(joints=walker(cadence=c).astype(np.float32), fps=FPS)) for c in (100, 110, 120)]
-    write_dataset(tmp_path / "ds", seqs, {}, name="walkers", seed=0)
+    with DatasetWriter(tmp_path / "ds", "test", {}) as writer:
+        write_dataset(writer, seqs, {}, name="walkers", seed=0)
     assert main(["eval", "realism", str(tmp_path / "ds"), "--reference", str(tmp_path / "ds"), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert rep["dataset_clips"] == 3 and rep["reference_clips"] == 3

@@ -45,6 +45,9 @@ class Sequence:
     scene: str = ""
     objects: dict[str, ObjectTrack] = field(default_factory=dict)
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    # True for tracked input (``trumans refine``): NaN entries in joints / rotations / object poses /
+    # IMU mark missing measurements (a dropped frame, an occluded joint). False: every value finite.
+    allow_missing: bool = False
 
     def __post_init__(self) -> None:
         self.joints = np.asarray(self.joints, dtype=np.float32)
@@ -59,8 +62,9 @@ class Sequence:
         j = self.joints
         if j.ndim != 3 or j.shape[1:] != (NUM_JOINTS, 3):
             raise ValueError(f"joints must be (T, 24, 3), got {j.shape}")
-        if not np.isfinite(j).all():
-            raise ValueError("joints contain NaN or inf; clean the sequence before saving/using it")
+        if np.isinf(j).any() or (not self.allow_missing and np.isnan(j).any()):
+            raise ValueError("joints contain NaN or inf; clean the sequence before saving/using it "
+                             "(tracked input with missing frames: load it with allow_missing=True)")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ValueError(f"fps must be a positive number, got {self.fps}")
         T = j.shape[0]
@@ -118,8 +122,9 @@ def save_sequence(seq: Sequence, path: str | Path) -> None:
     atomic_write(path, _write)
 
 
-def load_sequence(path: str | Path) -> Sequence:
-    """Read a sequence ``.npz`` (never unpickles). Raises FileNotFoundError / ValueError with the fix."""
+def load_sequence(path: str | Path, allow_missing: bool = False) -> Sequence:
+    """Read a sequence ``.npz`` (never unpickles). Raises FileNotFoundError / ValueError with the fix.
+    allow_missing: accept NaN (= missing) entries, as in tracked input (``Sequence.allow_missing``)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"sequence file {path} does not exist")
@@ -170,6 +175,7 @@ def load_sequence(path: str | Path) -> Sequence:
             scene=str(data.get("scene", "")),
             objects=objects,
             extra={k[len("extra/"):]: v for k, v in data.items() if k.startswith("extra/")},
+            allow_missing=allow_missing,
         )
     except ValueError as e:
         raise ValueError(f"{path}: {e}") from e

@@ -5,7 +5,9 @@ Tokens: first the *condition token* = diffusion-step embedding + scene embedding
 contains timestep information"), then one token per frame: a linear projection of the frame's
 noisy features concatenated with the frame's inpainting mask (so the network knows which entries
 are given, which the authors' code did not do), plus an optional per-frame condition (the HOI
-filter's tracked input). The frame tokens' outputs are projected back to the features: the
+filter's tracked input; ``in_proj(x) + cond_proj(c)`` is one linear map of the concatenation [x, c]).
+In filter mode (``num_categories > 0``, I'm-HOI §3.2) an object-category embedding is added to the
+first token as well. The frame tokens' outputs are projected back to the features: the
 prediction (B, L, F) of the diffusion config's type (ε̂, x̂0 or v̂).
 
 The condition encoders are separate from the per-step network: ``encode_conditions`` gives the
@@ -35,7 +37,8 @@ __all__ = ["DenoiserConfig", "Denoiser", "GuidedDenoiser"]
 class DenoiserConfig:
     """layout: per-frame feature layout (+ ``extra_features`` appended, e.g. object pose);
     frames: L; transformer sizes; mask_input: feed the given-entry mask; frame_cond_dim: width of a
-    per-frame condition (0 = none); scene / action: encoder configs (None = that condition is off)."""
+    per-frame condition (0 = none); num_categories: object categories embedded into the first token
+    (the HOI filter's filter mode; 0 = none); scene / action: encoder configs (None = that condition is off)."""
 
     layout: FeatureLayout = field(default_factory=FeatureLayout)
     extra_features: int = 0
@@ -47,12 +50,13 @@ class DenoiserConfig:
     dropout: float = 0.1
     mask_input: bool = True
     frame_cond_dim: int = 0
+    num_categories: int = 0
     scene: ScenePerceiverConfig | None = None
     action: ActionEncoderConfig | None = None
 
     def __post_init__(self) -> None:
-        if self.frames < 1 or self.extra_features < 0 or self.frame_cond_dim < 0:
-            raise ValueError("frames must be >= 1, extra_features and frame_cond_dim >= 0")
+        if self.frames < 1 or self.extra_features < 0 or self.frame_cond_dim < 0 or self.num_categories < 0:
+            raise ValueError("frames must be >= 1, extra_features, frame_cond_dim and num_categories >= 0")
         if self.action is not None and self.action.frames != self.frames:
             raise ValueError(f"action.frames ({self.action.frames}) must equal frames ({self.frames})")
 
@@ -106,6 +110,7 @@ class Denoiser(nn.Module):
         self.action_encoder = ActionEncoder(c.action, c.d_model) if c.action is not None else None
         self.null_scene = nn.Parameter(torch.zeros(c.d_model)) if c.scene is not None else None
         self.null_action = nn.Parameter(torch.zeros(c.d_model)) if c.action is not None else None
+        self.category_embed = nn.Embedding(c.num_categories, c.d_model) if c.num_categories else None
         self.encoder = encoder_stack(c.d_model, c.layers, c.heads, c.ff, c.dropout, post_ln=True)
         self.out_proj = nn.Linear(c.d_model, F)
 
@@ -156,6 +161,16 @@ class Denoiser(nn.Module):
             emb = emb + p
         return emb
 
+    def category_embedding(self, category: torch.Tensor | None, batch: int) -> torch.Tensor:
+        """(B, d_model) embeddings of the object categories (B,) int64 (filter mode)."""
+        n = self.config.num_categories
+        if category is None or tuple(category.shape) != (batch,):
+            raise ValueError(f"category must be (B,) = ({batch},) int64 indices, got "
+                             f"{None if category is None else tuple(category.shape)}")
+        if bool((category < 0).any() or (category >= n).any()):
+            raise ValueError(f"category indices must be in [0, {n}), got {category.tolist()}")
+        return self.category_embed(category.to(self.pos.device))
+
     def forward(
         self,
         x: torch.Tensor,
@@ -165,13 +180,15 @@ class Denoiser(nn.Module):
         scene: torch.Tensor | None = None,
         actions: torch.Tensor | None = None,
         frame_cond: torch.Tensor | None = None,
+        category: torch.Tensor | None = None,
         drop_scene: torch.Tensor | None = None,
         drop_action: torch.Tensor | None = None,
         cond_emb: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """x: (B, L, F) noisy normalised features; t: (B,) or scalar int diffusion steps; mask:
         (B, L, F) bool, True = given; scene: (B, n, n, n) bool local grid; actions: (B, L, N_A)
-        labels; frame_cond: (B, L, C); drop_*: (B,) bool, True = use the null embedding;
+        labels; frame_cond: (B, L, C); category: (B,) int64 object category indices (filter mode);
+        drop_*: (B,) bool, True = use the null embedding;
         cond_emb: (B, d_model) from ``encode_conditions`` INSTEAD of scene / actions / drop_*
         (same result). -> the prediction (ε̂, x̂0 or v̂ per the diffusion config) (B, L, F)."""
         c = self.config
@@ -200,6 +217,10 @@ class Denoiser(nn.Module):
             raise ValueError("this model takes no frame_cond (frame_cond_dim = 0)")
         t = torch.as_tensor(t, device=x.device).reshape(-1).expand(B)
         first = self.step_embed(sinusoidal_embedding(t, c.d_model)) + cond_emb  # (B, d)
+        if self.category_embed is not None:  # I'm-HOI filter: the object category enters the first token
+            first = first + self.category_embedding(category, B)
+        elif category is not None:
+            raise ValueError("this model takes no category (num_categories = 0)")
         tokens = torch.cat([first[:, None], h], dim=1) + self.pos  # (B, 1 + L, d)
         return self.out_proj(self.encoder(tokens)[:, 1:])
 

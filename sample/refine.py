@@ -1,0 +1,121 @@
+"""Refining tracked human-object sequences with the HOI filter (I'm-HOI §3.2) at any length.
+
+The tracked sequence (NaN = missing) is resampled to the filter's fps, cut into windows of ``L``
+frames overlapping by ``overlap`` (``trumans.hoi.windows``; a short one is padded with missing
+frames), each window is put in its own canonical frame computed from the tracked input, denoised
+as a batch, turned back to the world, blended across the overlaps, and resampled back to the
+input's frames. Sampling starts from noise conditioned on the tracked input (the paper) or,
+with ``mode="sdedit"``, from the tracked input noised to ``strength`` (Meng et al. 2022).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+
+from trumans.hoi.filter import SKIP_SIGMA_FRAMES, FilterModel, category_indices, prepare_windows, sample_x0
+from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
+                               orthonormalize_6d, resample_frames, sequence_from_frames)
+from trumans.hoi.windows import blend_windows, window_starts
+from trumans.model.checkpoint import Checkpoint, load_checkpoint
+from trumans.sequence import Sequence
+
+__all__ = ["RefineOptions", "HOIFilter", "DEFAULT_CHECKPOINT"]
+
+DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "models" / "refine.pt"
+Mode = Literal["noise", "sdedit"]
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """num_steps: DDIM steps; mode: 'noise' (the paper) or 'sdedit'; strength: SDEdit's noise level
+    in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
+    network call; seed: the sampling noise."""
+
+    num_steps: int = 5
+    mode: Mode = "noise"
+    strength: float = 0.5
+    eta: float = 0.0
+    batch: int = 64
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("noise", "sdedit"):
+            raise ValueError(f"mode must be 'noise' or 'sdedit', got {self.mode!r}")
+        if self.num_steps < 1 or self.batch < 1:
+            raise ValueError(f"num_steps and batch must be >= 1, got {self.num_steps}, {self.batch}")
+        if not 0 < self.strength <= 1:
+            raise ValueError(f"strength must be in (0, 1], got {self.strength}")
+
+
+class HOIFilter:
+    """A loaded filter checkpoint: ``refine_frames`` on frame vectors, ``refine_sequence`` on a Sequence."""
+
+    def __init__(self, ckpt: Checkpoint) -> None:
+        self.ckpt = ckpt
+        self.model: FilterModel = ckpt.build_model()
+        self.model.skip_sigma = float(ckpt.extra.get("skip_sigma", SKIP_SIGMA_FRAMES))
+        self.diffusion = ckpt.build_diffusion()
+        self.normalizer = ckpt.normalizer
+        self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]
+        self.window, self.overlap, self.fps = int(ckpt.L_epi), int(ckpt.k), float(ckpt.fps)
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> "HOIFilter":
+        """Load ``path`` (default: the shipped ``models/refine.pt``)."""
+        return cls(load_checkpoint(DEFAULT_CHECKPOINT if path is None else path, kind="filter"))
+
+    def refine_frames(self, frames: np.ndarray, fps: float, category: str,
+                      options: RefineOptions = RefineOptions()) -> np.ndarray:
+        """Tracked world frame vectors (T, 235) at ``fps`` (NaN = missing) -> refined (T, 235)."""
+        f = np.asarray(frames, dtype=np.float32)
+        if f.ndim != 2 or f.shape[1] != FRAME_DIM:
+            raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
+        T = f.shape[0]
+        if T < 2:
+            raise ValueError(f"a tracked sequence needs at least 2 frames, got {T}")
+        cat = category_indices(category, self.categories)[0]
+        # model frames from time 0 over the whole duration (the last may end just past it)
+        g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
+        Tm, L = g.shape[0], self.window
+        starts = window_starts(Tm, L, self.overlap)
+        padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])
+        padded[Tm:, IMU_R] = padded[Tm:, IMU_A] = padded[Tm:, IMU_FLAG] = 0.0  # padding: no IMU either
+        idx = starts[:, None] + np.arange(L)[None]
+        windows = padded[idx]  # (N, L, 235)
+        inp = prepare_windows(windows, self.normalizer, filled_world=fill_missing(padded)[idx])
+        gen = torch.Generator().manual_seed(int(options.seed))
+        out = np.empty_like(windows)
+        for s in range(0, len(windows), options.batch):
+            sl = slice(s, s + options.batch)
+            cond = inp.cond[sl]
+            start = None
+            if options.mode == "sdedit":
+                start = cond[..., :FRAME_DIM].clone()  # the normalised tracked input, gaps interpolated
+            x0 = sample_x0(self.model, self.diffusion, cond, torch.full((len(cond),), int(cat), dtype=torch.long),
+                           num_steps=options.num_steps, eta=options.eta, generator=gen, start=start,
+                           strength=options.strength if options.mode == "sdedit" else 1.0)
+            out[sl] = self.normalizer.denormalize(x0.numpy())
+        world = from_frame(out, inp.origin, inp.yaw)
+        blended = orthonormalize_6d(blend_windows(world, starts, Tm))
+        blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
+        return resample_frames(blended, self.fps, fps, num_out=T)
+
+    def refine_sequence(self, seq: Sequence, category: str | None = None, object_name: str | None = None,
+                        options: RefineOptions = RefineOptions()) -> tuple[Sequence, str]:
+        """Refine ``seq`` (joints, optional rotations, one object's pose and optional IMU; NaN =
+        missing) -> (refined Sequence with the same frames and fps, the object's name). The object's
+        category is ``category`` or its own; other fields and objects are passed through."""
+        frames, name = frames_from_sequence(seq, object_name)
+        cat = category or seq.objects[name].category
+        if not cat:
+            raise ValueError(f"object {name!r} has no category; pass --category (one of {self.categories})")
+        refined = self.refine_frames(frames, seq.fps, cat, options)
+        out = sequence_from_frames(refined, seq.fps, name, cat, template=seq, imu=False)
+        out.objects[name].imu_rot, out.objects[name].imu_acc = seq.objects[name].imu_rot, seq.objects[name].imu_acc
+        out.allow_missing = False
+        out.validate()
+        return out, name

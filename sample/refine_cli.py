@@ -1,0 +1,83 @@
+"""`trumans refine tracked.npz --out refined.npz [--category C]`: the HOI filter (I'm-HOI §3.2).
+
+With ``--interactions`` the command is the contact-driven tracker instead (iReplica): it dispatches
+to ``sample.interactions_cli.run(args)`` (args.input, --out, --seed, --json are shared); that module
+adds its own options through ``add_interaction_arguments(group)``, called here with an argument
+group when the module exists.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import time
+
+__all__ = ["add_arguments", "run", "main"]
+
+
+def _interactions_module():
+    try:
+        return importlib.import_module("sample.interactions_cli")
+    except ModuleNotFoundError as e:
+        if e.name in ("sample.interactions_cli",):
+            return None
+        raise
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", metavar="tracked.npz",
+                   help="tracked sequence .npz (DESIGN.md format; NaN marks missing frames/joints)")
+    p.add_argument("--out", required=True, help="refined sequence .npz (same frames and fps)")
+    p.add_argument("--category", default=None,
+                   help="object category (default: the object's own); must be one the filter knows")
+    p.add_argument("--object", default=None, help="object to refine with the human (default: the only one, "
+                                                  "else the one that moves most); others pass through")
+    p.add_argument("--checkpoint", default=None, help="filter checkpoint (default: the shipped models/refine.pt)")
+    p.add_argument("--steps", type=int, default=5, help="DDIM sampling steps (default 5)")
+    p.add_argument("--mode", choices=("noise", "sdedit"), default="noise",
+                   help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
+    p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
+    p.add_argument("--seed", type=int, default=0, help="sampling seed")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    p.add_argument("--interactions", action="store_true",
+                   help="contact-driven interaction tracking (iReplica) instead of the filter")
+    mod = _interactions_module()
+    if mod is not None and hasattr(mod, "add_interaction_arguments"):
+        mod.add_interaction_arguments(p.add_argument_group("interactions mode (--interactions)"))
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.interactions:
+        mod = _interactions_module()
+        if mod is None:
+            raise ValueError("--interactions (the iReplica tracker) is not built yet in this checkout; "
+                             "run without it for the HOI filter")
+        return int(mod.run(args) or 0)
+    from trumans.sequence import load_sequence, save_sequence
+
+    from .refine import HOIFilter, RefineOptions
+
+    opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed)
+    seq = load_sequence(args.input, allow_missing=True)
+    filt = HOIFilter.load(args.checkpoint)
+    t0 = time.perf_counter()
+    out, name = filt.refine_sequence(seq, category=args.category, object_name=args.object, options=opts)
+    seconds = time.perf_counter() - t0
+    save_sequence(out, args.out)
+    import numpy as np
+
+    summary = {"out": str(args.out), "frames": seq.num_frames, "fps": seq.fps, "object": name,
+               "category": out.objects[name].category,
+               "missing_frames_in": int(np.isnan(seq.joints).any(axis=(1, 2)).sum()),
+               "seconds": round(seconds, 3), "frames_per_s": round(seq.num_frames / max(seconds, 1e-9), 1)}
+    print(f"refined {summary['frames']} frames ({summary['missing_frames_in']} missing) with object {name!r} "
+          f"({summary['category']}) in {seconds:.2f} s -> {args.out}")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="trumans refine", description="refine a tracked HOI sequence with the diffusion filter")
+    add_arguments(p)
+    return run(p.parse_args(argv))

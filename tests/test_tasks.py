@@ -24,7 +24,7 @@ def test_config_nests_component_configs(tmp_path: Path) -> None:
     cfg = load_config("cpu-small")
     assert isinstance(cfg.model, DenoiserConfig) and cfg.model.frames == cfg.data.episode_frames == 16
     assert cfg.model.scene == cfg.scene and cfg.scene.grid == cfg.data.grid and cfg.model.action.frames == 16
-    assert (cfg.diffusion.schedule, cfg.diffusion.prediction) == ("linear", "eps")  # the lead chooses the shipped ones
+    assert (cfg.diffusion.schedule, cfg.diffusion.prediction) == ("cosine", "x0")  # reaches noise; x0 for the sampler
     assert cfg.denoiser_config(7).action.num_actions == 7
     assert GeneratorConfig.from_dict(cfg.to_dict()) == cfg and "frames" not in cfg.to_dict()["model"]
     p = tmp_path / "c.toml"

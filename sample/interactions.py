@@ -1,0 +1,262 @@
+"""Interaction tracking from body motion (iReplica §4): contacts -> trajectory -> objects.
+
+``track(seq, scene, model)``:
+1. per-hand contact probabilities and the interaction class from the pose windows (§4.2);
+2. threshold, gap filling (<= 0.5 s), contact intervals and hand-set segments (§4.2, supp. §10);
+3. for each interval in time order whose class is a movable dof (slide | hinge | free): the
+   nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
+   none -> the contact is a false positive and ignored); its contact point p_c (the closest
+   object point to the hand) becomes a control point for the root path, which is bent to it by
+   the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
+4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
+   two-hand / one-hand sliding, hinge, free), segment by segment; the object is released at the
+   contact's end and stays where it was left.
+The result is a Sequence with the corrected joints / root and ``objects/<name>/pose`` for every
+dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)``,
+``root_correction (T, 2)`` (m) and ``interactions (N, 5)`` int64 rows, one per hand-set segment,
+``[start, end, object index into extra['interaction_objects'], left, right]``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scenes.distance import SceneDistance
+from scenes.scene import Scene
+from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, two_hand_motion
+from trumans.contacts.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
+from trumans.contacts.predictor import CLASSES, ContactPredictor, predict_contacts
+from trumans.contacts.trajectory import TrajectoryConfig, correct_trajectory
+from trumans.resample import interp_rotations, resample_times
+from trumans.rotations import matrix_to_6d, sixd_to_matrix
+from trumans.sequence import ObjectTrack, Sequence
+from trumans.skeleton import JOINT_INDEX, forward_kinematics
+
+__all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
+           "select_object", "drive_object", "track", "track_interactions"]
+
+_WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """post: contact post-processing; trajectory: bending-energy correction; search_radius (m):
+    object search around the hands at contact start (0.5 m in the paper); hand_radius (m): the
+    hand point's distance to the surface it touches (the control point puts it there);
+    correct: run the contact-based trajectory correction (False = the ablation)."""
+
+    post: PostprocessConfig = field(default_factory=PostprocessConfig)
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    search_radius: float = 0.5
+    hand_radius: float = 0.02
+    correct: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.search_radius > 0 or not self.hand_radius >= 0:
+            raise ValueError(f"search_radius must be > 0 and hand_radius >= 0 (m), got "
+                             f"{self.search_radius}, {self.hand_radius}")
+
+
+@dataclass(frozen=True)
+class Interaction:
+    """One contact interval attached to ``name`` (a scene object of dof ``dof``): frames
+    [start, end), its hand-set segments, and the contact point (world, m) at its start."""
+
+    name: str
+    dof: str
+    start: int
+    end: int
+    segments: tuple[ContactSegment, ...]
+    contact_point: np.ndarray
+
+
+@dataclass
+class TrackResult:
+    """sequence: the output; interactions; prob (T, 2) / mask (T, 2) per hand; classes (N,) the
+    class name of each union contact interval; correction (T, 2) m added to the root path."""
+
+    sequence: Sequence
+    interactions: list[Interaction]
+    prob: np.ndarray
+    mask: np.ndarray
+    classes: list[str]
+    correction: np.ndarray
+
+
+def contact_probabilities(model: ContactPredictor, rotations: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 24, 6) rotations at ``fps`` -> contact (T, 2) and class (T, C) probabilities; the poses
+    are resampled to the model's rate and the probabilities interpolated back."""
+    rot = np.asarray(rotations, dtype=np.float32)
+    mfps = model.config.fps
+    if abs(fps - mfps) < 1e-9 or len(rot) < 2:
+        return predict_contacts(model, rot)
+    src = resample_times(len(rot), fps, mfps)
+    rot_m = matrix_to_6d(interp_rotations(sixd_to_matrix(rot.astype(np.float64)), src)).astype(np.float32)
+    prob, cls = predict_contacts(model, rot_m)
+    t = np.arange(len(rot)) * (mfps / fps)  # original frames in model-frame coordinates
+    interp = lambda p: np.stack([np.interp(t, np.arange(len(p)), p[:, k]) for k in range(p.shape[1])], 1)
+    return interp(prob).astype(np.float32), interp(cls).astype(np.float32)
+
+
+def interval_classes(class_prob: np.ndarray, segments: list[ContactSegment]) -> dict[int, str]:
+    """Union interval index -> the class with the largest mean probability over its frames."""
+    out: dict[int, str] = {}
+    for i in sorted({s.interval for s in segments}):
+        frames = np.concatenate([np.arange(s.start, s.end) for s in segments if s.interval == i])
+        out[i] = CLASSES[int(class_prob[frames].mean(0).argmax())]
+    return out
+
+
+class _ObjectQueries:
+    """Closest points on scene objects posed anywhere (each mesh queried in its own frame)."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self._sd: dict[str, SceneDistance] = {}
+
+    def closest(self, name: str, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """points (n, 3) world -> (closest (n, 3) world, distance (n,)) to object ``name`` at ``pose``."""
+        if name not in self._sd:
+            self._sd[name] = SceneDistance({name: self.scene.objects[name].mesh})
+        inv = np.linalg.inv(pose)
+        local = points @ inv[:3, :3].T + inv[:3, 3]
+        r = self._sd[name].query(local)
+        closest = r.closest.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+        return closest, r.dist.astype(np.float64)
+
+
+def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: int, hands: np.ndarray,
+                  dof: str, radius: float) -> tuple[str, np.ndarray, np.ndarray] | None:
+    """The nearest object of ``dof`` within ``radius`` of the contacting hand points ``hands``
+    (k, 3) at ``frame`` (objects at their current ``poses``). Returns (name, closest points (k, 3),
+    distances (k,)) or None."""
+    best = None
+    for name, obj in queries.scene.objects.items():
+        if obj.dof != dof or name not in poses:
+            continue
+        closest, dist = queries.closest(name, poses[name][frame], hands)
+        if dist.min() <= radius and (best is None or dist.min() < best[2].min()):
+            best = (name, closest, dist)
+    return best
+
+
+def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np.ndarray, pose0: np.ndarray,
+                 axis: np.ndarray | None, hinge_point: np.ndarray | None) -> np.ndarray:
+    """Motions (n, 4, 4) of an object over a segment (supp. §10). hands: (n, 2, 3) hand points;
+    wrist_rot: (n, 2, 3, 3) wrist world rotations; pose0: the object's pose at the segment start;
+    axis / hinge_point: object frame (slide direction or hinge)."""
+    used = [h for h in (0, 1) if seg.hands[h]]
+    main = 1 if seg.hands[1] else 0  # the right hand leads when both hold on
+    if dof == "hinge":
+        return hinge_motion(hands[:, used].mean(1), pose0[:3, :3] @ hinge_point + pose0[:3, 3], pose0[:3, :3] @ axis)
+    if dof == "slide":
+        if axis is not None:  # along one direction (drawer): translation only
+            return one_hand_motion(hands[:, used].mean(1), pose0[:3, :3] @ axis)
+        if seg.two_handed:
+            return two_hand_motion(hands[:, 0], hands[:, 1])
+        return one_hand_motion(hands[:, main])
+    if dof == "free":
+        return free_motion(wrist_rot[:, main], hands[:, main])
+    raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
+
+
+def _drive_all(interactions: list[Interaction], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
+               wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
+    poses = {n: p.copy() for n, p in base.items()}
+    hands = hand_points(joints)
+    for it in interactions:
+        obj = scene.objects[it.name]
+        for seg in it.segments:
+            s, e = seg.start, seg.end
+            M = drive_object(it.dof, seg, hands[s:e], wrist_rot[s:e], poses[it.name][s], obj.axis, obj.hinge_point)
+            poses[it.name][s:e] = M @ poses[it.name][s]
+            poses[it.name][e:] = poses[it.name][e - 1]  # released where it was left
+    return poses
+
+
+def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerConfig = TrackerConfig(),
+          anchors: tuple[np.ndarray, np.ndarray] | None = None) -> TrackResult:
+    """Track interactions (module doc). seq: body motion with ``rotations`` (T, 24, 6) and joints in
+    the scene's frame; scene: its objects' dofs and initial poses; anchors: optional (frames (K,),
+    root xy (K, 2)) known positions (e.g. visual localisation) used as extra control points."""
+    if seq.rotations is None:
+        raise ValueError("the sequence has no 'rotations'; the contact predictor needs local joint rotations "
+                         "(fit them from joints with trumans.ik.fit.fit_rotations)")
+    T, fps = seq.num_frames, float(seq.fps)
+    a_frames = np.zeros(0, np.int64) if anchors is None else np.asarray(anchors[0]).astype(np.int64).ravel()
+    a_xy = np.zeros((0, 2)) if anchors is None else np.asarray(anchors[1], np.float64).reshape(-1, 2)
+    if len(a_frames) != len(a_xy) or (len(a_frames) and (a_frames.min() < 0 or a_frames.max() >= T)):
+        raise ValueError(f"anchors must be frames (K,) in [0, {T - 1}] with positions (K, 2), got "
+                         f"{a_frames.shape} / {a_xy.shape}")
+    prob, class_prob = contact_probabilities(model, seq.rotations, fps)
+    mask = contact_mask(prob, fps, config.post)
+    segments = contact_segments(mask)
+    cls = interval_classes(class_prob, segments)
+
+    joints0 = np.asarray(seq.joints, np.float64)
+    root0 = joints0[:, 0, :2]
+    _, G = forward_kinematics(sixd_to_matrix(np.asarray(seq.rotations, np.float64)), np.zeros((T, 3)))
+    wrist_rot = G[:, list(_WRIST)]  # (T, 2, 3, 3)
+    base = {n: np.tile(o.pose, (T, 1, 1)) for n, o in scene.objects.items() if o.dof != "static"}
+    queries = _ObjectQueries(scene)
+
+    def corrected(c_frames: list[int], c_xy: list[np.ndarray]) -> np.ndarray:
+        frames = np.r_[a_frames, np.asarray(c_frames, np.int64)].astype(np.int64)
+        pts = np.concatenate([a_xy, np.asarray(c_xy).reshape(-1, 2)])
+        return correct_trajectory(root0, frames, pts, fps, config.trajectory) - root0
+
+    corr = corrected([], [])
+    interactions: list[Interaction] = []
+    c_frames: list[int] = []
+    c_xy: list[np.ndarray] = []
+    poses = base
+    for i in sorted(cls):
+        if cls[i] == "none":
+            continue  # a contact with the static scene: nothing to drive
+        segs = tuple(s for s in segments if s.interval == i)
+        s0 = segs[0].start
+        joints = joints0.copy()
+        joints[:, :, :2] += corr[:, None]
+        hands_s = hand_points(joints[s0:s0 + 1])[0][[h for h in (0, 1) if segs[0].hands[h]]]  # (k, 3)
+        found = select_object(queries, poses, s0, hands_s, cls[i], config.search_radius)
+        if found is None:
+            continue  # no object of that class near the hands: a false positive (§4.1)
+        name, closest, dist = found
+        d = closest - hands_s
+        shift = d[:, :2] * (1 - config.hand_radius / np.maximum(dist, 1e-9))[:, None]  # hand -> hand_radius off p_c
+        interactions.append(Interaction(name, cls[i], s0, segs[-1].end, segs, closest.mean(0)))
+        if config.correct:
+            c_frames.append(s0)
+            c_xy.append(root0[s0] + corr[s0] + shift.mean(0))
+            corr = corrected(c_frames, c_xy)
+            joints = joints0.copy()
+            joints[:, :, :2] += corr[:, None]
+        poses = _drive_all(interactions, scene, base, joints, wrist_rot)
+
+    joints = joints0.copy()
+    joints[:, :, :2] += corr[:, None]
+    poses = _drive_all(interactions, scene, base, joints, wrist_rot)
+    names = sorted({it.name for it in interactions})
+    rows = np.array([[seg.start, seg.end, names.index(it.name), int(seg.hands[0]), int(seg.hands[1])]
+                     for it in interactions for seg in it.segments], dtype=np.int64).reshape(-1, 5)
+    root_pos = None
+    if seq.root_pos is not None:
+        root_pos = np.asarray(seq.root_pos, np.float64).copy()
+        root_pos[:, :2] += corr
+    extra = dict(seq.extra)
+    extra.update(contact_prob=prob, contact_mask=mask, root_correction=corr.astype(np.float32), interactions=rows,
+                 interaction_objects=np.asarray(names, dtype=np.str_))
+    out = Sequence(
+        joints=joints.astype(np.float32), fps=fps, rotations=seq.rotations, root_pos=root_pos, actions=seq.actions,
+        action_names=list(seq.action_names), contacts=seq.contacts, scene=seq.scene,
+        objects={n: ObjectTrack(pose=p.astype(np.float32), category=scene.objects[n].category) for n, p in poses.items()
+                 if scene.objects[n].dynamic},
+        extra=extra,
+    )
+    return TrackResult(out, interactions, prob, mask, [cls[i] for i in sorted(cls)], corr)
+
+
+def track_interactions(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerConfig = TrackerConfig()) -> Sequence:
+    """The tracked sequence only (``track(...).sequence``)."""
+    return track(seq, scene, model, config).sequence

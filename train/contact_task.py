@@ -1,0 +1,217 @@
+"""Training the contact predictor (iReplica §4.2): data windows, labels, loss, and a plain loop.
+
+Labels per frame of a dataset sequence (at the model's fps):
+- hand contact: the hand's wrist or index1 joint is in contact (``Sequence.contacts``, the
+  TRUMANS rule: any object, static ones and the floor included);
+- interaction class (``CLASSES``): the dof of a dynamic scene object that moves within
+  ``moving_dilate_s`` of the frame (slide | hinge | free), else "none".
+Loss: binary cross-entropy on both hands' contacts over every frame of each window (the network
+is sequence-to-sequence, §4.2) plus ``class_weight`` x cross-entropy on the class. Each window is
+mirrored left/right with probability ``mirror_p`` (``mirror_rotations``; hand labels swapped).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from scipy.ndimage import maximum_filter1d
+
+from trumans.contacts.model_io import save_predictor
+from trumans.contacts.predictor import (CLASSES, HAND_JOINTS, HANDS, ContactPredictor, ContactPredictorConfig,
+                                        mirror_rotations, pose_windows, predict_contacts, window_indices)
+from trumans.contacts.scores import binary_scores
+from trumans.dataset import Dataset
+from trumans.resample import resample_sequence
+from trumans.sequence import Sequence
+
+__all__ = ["ContactTrainConfig", "ContactData", "sequence_labels", "load_contact_data", "sample_batch",
+           "contact_loss", "evaluate_contacts", "train_contact"]
+
+
+@dataclass(frozen=True)
+class ContactTrainConfig:
+    """steps, batch_size (windows), lr (Adam), mirror_p, class_weight, moving_dilate_s (s),
+    val_every (steps), val_stride (frames between validated centres), time_limit_s (None = no
+    limit), model: the predictor's config."""
+
+    steps: int = 4000
+    batch_size: int = 64
+    lr: float = 1e-3
+    mirror_p: float = 0.5
+    class_weight: float = 0.5
+    moving_dilate_s: float = 0.5
+    val_every: int = 500
+    val_stride: int = 3
+    time_limit_s: float | None = None
+    model: ContactPredictorConfig = field(default_factory=ContactPredictorConfig)
+
+    def __post_init__(self) -> None:
+        if self.steps < 1 or self.batch_size < 1 or self.val_every < 1 or self.val_stride < 1:
+            raise ValueError("steps, batch_size, val_every and val_stride must be >= 1, got "
+                             f"{self.steps}, {self.batch_size}, {self.val_every}, {self.val_stride}")
+        if not (self.lr > 0 and 0 <= self.mirror_p <= 1 and self.class_weight >= 0 and self.moving_dilate_s >= 0):
+            raise ValueError("need lr > 0, 0 <= mirror_p <= 1, class_weight >= 0, moving_dilate_s >= 0")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ContactTrainConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"unknown contact training config keys {unknown}; known keys are {sorted(known)}")
+        d = dict(d)
+        if isinstance(d.get("model"), dict):
+            d["model"] = ContactPredictorConfig.from_dict(d["model"])
+        return cls(**d)
+
+
+@dataclass
+class ContactData:
+    """Sequences concatenated frame-wise: rotations (F, 24, 6), hands (F, 2) float {0, 1},
+    classes (F,) int64 into CLASSES, lo / hi (F,) first / last frame of each frame's sequence."""
+
+    rotations: torch.Tensor
+    hands: torch.Tensor
+    classes: torch.Tensor
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.rotations)
+
+
+def sequence_labels(seq: Sequence, dofs: dict[str, str], dilate_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame labels of a sequence with ``contacts``: hands (T, 2) bool (left, right) and
+    classes (T,) int64 (module doc). dofs: object name -> dof from the sequence's scene."""
+    if seq.contacts is None:
+        raise ValueError("the sequence has no per-joint contacts; the contact predictor trains on labelled data")
+    c = np.asarray(seq.contacts, dtype=bool)
+    hands = np.stack([c[:, list(HAND_JOINTS[h])].any(axis=1) for h in HANDS], axis=1)
+    classes = np.zeros(seq.num_frames, np.int64)
+    size = 2 * int(round(dilate_s * seq.fps)) + 1
+    for name, track in seq.objects.items():
+        dof = dofs.get(name, "static")
+        if dof not in CLASSES or seq.num_frames < 2:
+            continue
+        step = np.abs(np.diff(np.asarray(track.pose, dtype=np.float64), axis=0)).reshape(seq.num_frames - 1, -1).max(1)
+        moving = np.r_[step > 1e-4, False]
+        moving = maximum_filter1d(moving.astype(np.uint8), size=size) > 0
+        classes[moving] = CLASSES.index(dof)
+    return hands, classes
+
+
+def load_contact_data(dataset: Dataset, split: str, fps: float, dilate_s: float = 0.5) -> ContactData:
+    """Every sequence of ``split`` with rotations and contacts, resampled to ``fps``."""
+    rots, hands, classes, lo, hi = [], [], [], [], []
+    dofs_of: dict[str, dict[str, str]] = {}
+    start = 0
+    for path in dataset.split(split):
+        seq = dataset.load(path)
+        if seq.rotations is None or seq.contacts is None:
+            continue
+        if abs(seq.fps - fps) > 1e-6:
+            seq = resample_sequence(seq, fps)
+        if seq.scene not in dofs_of:
+            scene = dataset.scene(seq.scene)
+            dofs_of[seq.scene] = {n: o.dof for n, o in scene.objects.items()}
+        h, c = sequence_labels(seq, dofs_of[seq.scene], dilate_s)
+        T = seq.num_frames
+        rots.append(np.asarray(seq.rotations, np.float32))
+        hands.append(h)
+        classes.append(c)
+        lo.append(np.full(T, start))
+        hi.append(np.full(T, start + T - 1))
+        start += T
+    if not rots:
+        raise ValueError(f"split {split!r} of {dataset.root} has no sequence with rotations and contacts")
+    return ContactData(torch.from_numpy(np.concatenate(rots)), torch.from_numpy(np.concatenate(hands)).float(),
+                       torch.from_numpy(np.concatenate(classes)), np.concatenate(lo), np.concatenate(hi))
+
+
+def sample_batch(data: ContactData, centers: np.ndarray, window: int, mirror: np.ndarray) -> tuple[torch.Tensor, ...]:
+    """Windows around ``centers`` (B,): x (B, W, 24, 6), hand labels (B, W, 2), classes (B, W);
+    windows where ``mirror`` (B,) bool is True are mirrored with their hand labels swapped."""
+    idx = window_indices(centers, data.lo[centers], data.hi[centers], window)
+    x = pose_windows(data.rotations, idx)
+    y = data.hands[torch.from_numpy(idx)]
+    m = torch.from_numpy(np.asarray(mirror, dtype=bool))
+    if m.any():
+        x[m] = mirror_rotations(x[m])
+        y[m] = y[m].flip(-1)
+    return x, y, data.classes[torch.from_numpy(idx)]
+
+
+def contact_loss(model: ContactPredictor, x: torch.Tensor, y: torch.Tensor, cls: torch.Tensor,
+                 class_weight: float) -> dict[str, torch.Tensor]:
+    """{'loss', 'bce', 'ce'} for a batch (``sample_batch``)."""
+    logit, class_logit = model(x)
+    bce = F.binary_cross_entropy_with_logits(logit, y)
+    ce = F.cross_entropy(class_logit.reshape(-1, len(CLASSES)), cls.reshape(-1))
+    return {"loss": bce + class_weight * ce, "bce": bce, "ce": ce}
+
+
+def evaluate_contacts(model: ContactPredictor, data: ContactData, stride: int = 1) -> dict[str, float]:
+    """Centre-frame figures on every ``stride``-th frame: ap/precision/recall/accuracy (both hands
+    pooled, threshold 0.5) and class_accuracy."""
+    centers = np.arange(0, len(data), stride)
+    probs, cprobs = [], []
+    for s in range(0, len(centers), 4096):
+        c = centers[s:s + 4096]
+        with torch.no_grad():
+            model.eval()
+            logit, class_logit = model(pose_windows(data.rotations, window_indices(c, data.lo[c], data.hi[c],
+                                                                                   model.config.window)))
+        W = model.config.window
+        probs.append(torch.sigmoid(logit[:, W // 2]))
+        cprobs.append(class_logit[:, W // 2].argmax(-1))
+    p = torch.cat(probs).numpy()
+    out = binary_scores(p, data.hands[centers].numpy() > 0.5)
+    out["class_accuracy"] = float((torch.cat(cprobs) == data.classes[centers]).float().mean())
+    return out
+
+
+def train_contact(data_dir: str | Path, out: str | Path, config: ContactTrainConfig = ContactTrainConfig(),
+                  seed: int = 0, progress: bool = True) -> dict:
+    """Train on the train split, validate on val, write ``out`` (a contact checkpoint). Returns a
+    summary dict (steps, seconds, losses, val figures, parameter count)."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    ds = Dataset(data_dir)
+    mc = config.model
+    train = load_contact_data(ds, "train", mc.fps, config.moving_dilate_s)
+    val = load_contact_data(ds, "val", mc.fps, config.moving_dilate_s)
+    model = ContactPredictor(mc)
+    opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s / config.steps, 1.0))))
+    t0, history, best = time.time(), [], None
+    step = 0
+    for step in range(1, config.steps + 1):
+        model.train()
+        centers = rng.integers(0, len(train), config.batch_size)
+        x, y, c = sample_batch(train, centers, mc.window, rng.random(config.batch_size) < config.mirror_p)
+        losses = contact_loss(model, x, y, c, config.class_weight)
+        opt.zero_grad()
+        losses["loss"].backward()
+        opt.step()
+        sched.step()
+        history.append(losses["loss"].item())
+        done = step == config.steps or (config.time_limit_s is not None and time.time() - t0 > config.time_limit_s)
+        if step % config.val_every == 0 or done:
+            fig = evaluate_contacts(model, val, config.val_stride)
+            if progress:
+                print(f"step {step}: train loss {np.mean(history[-config.val_every:]):.4f}, val ap {fig['ap']:.3f}, "
+                      f"acc {fig['accuracy']:.3f}, class acc {fig['class_accuracy']:.3f} ({time.time() - t0:.0f} s)",
+                      flush=True)
+        if done:
+            break
+    n_params = sum(p.numel() for p in model.parameters())
+    summary = {"steps": step, "seconds": time.time() - t0, "train_loss": float(np.mean(history[-100:])),
+               "val": fig, "parameters": n_params, "train_frames": len(train), "val_frames": len(val)}
+    cfg = asdict(config)
+    save_predictor(model, out, data={"name": ds.name, "hash": ds.hash},
+                   meta={"train_config": cfg, "summary": summary, "seed": seed})
+    return summary

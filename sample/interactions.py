@@ -34,7 +34,7 @@ from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
 __all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
-           "select_object", "drive_object", "track", "track_interactions"]
+           "select_object", "attach_detach", "drive_object", "track", "track_interactions"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -141,6 +141,32 @@ def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: 
     return best
 
 
+def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
+                  window_s: float = 1.0) -> tuple[int, int]:
+    """Refine a contact interval [start, end) to the frames the object is actually held (not in
+    the paper; the contact labels switch on a few cm before the hand touches and off a few cm after
+    it lets go, and the hands must not drag the object while reaching or retracting).
+    hands: (n, k, 3) contacting hand points over the interval; dist_at_rest: (n,) their mean
+    distance (m) to the object at its pose at ``start``. Attach at the closest approach within the
+    first ``window_s`` (at most half the interval), detach after the slowest frame of the hands
+    within the last ``window_s`` (the hand stops before it lets go). Returns (attach, detach)
+    frames, start <= attach < detach <= end."""
+    n = end - start
+    w = max(1, min(int(round(window_s * fps)), n // 2))
+    attach = start + int(np.argmin(dist_at_rest[:w]))
+    if n < 3:
+        return attach, end
+    speed = np.linalg.norm(np.gradient(hands, axis=0), axis=-1).mean(-1)  # (n,) m/frame
+    lo = max(attach - start + 1, n - w)
+    detach = start + lo + int(np.argmin(speed[lo:])) + 1
+    return attach, max(detach, attach + 1)
+
+
+def _clip(segs: tuple[ContactSegment, ...], a: int, d: int) -> tuple[ContactSegment, ...]:
+    return tuple(ContactSegment(max(s.start, a), min(s.end, d), s.hands, s.interval)
+                 for s in segs if min(s.end, d) > max(s.start, a))
+
+
 def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np.ndarray, pose0: np.ndarray,
                  axis: np.ndarray | None, hinge_point: np.ndarray | None) -> np.ndarray:
     """Motions (n, 4, 4) of an object over a segment (supp. §10). hands: (n, 2, 3) hand points;
@@ -222,13 +248,21 @@ def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerC
         found = select_object(queries, poses, s0, hands_s, cls[i], config.search_radius)
         if found is None:
             continue  # no object of that class near the hands: a false positive (§4.1)
-        name, closest, dist = found
-        d = closest - hands_s
+        name = found[0]
+        e1 = segs[-1].end
+        used = [h for h in (0, 1) if segs[0].hands[h]]
+        span = hand_points(joints[s0:e1])[:, used]  # (n, k, 3)
+        pts, rest = span.reshape(-1, 3), poses[name][s0]
+        near, dist = queries.closest(name, rest, pts)
+        a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, e1, fps)
+        segs = _clip(segs, a, d_end)
+        closest, dist = near.reshape(span.shape)[a - s0], dist.reshape(len(span), -1)[a - s0]
+        d = closest - span[a - s0]
         shift = d[:, :2] * (1 - config.hand_radius / np.maximum(dist, 1e-9))[:, None]  # hand -> hand_radius off p_c
-        interactions.append(Interaction(name, cls[i], s0, segs[-1].end, segs, closest.mean(0)))
+        interactions.append(Interaction(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
         if config.correct:
-            c_frames.append(s0)
-            c_xy.append(root0[s0] + corr[s0] + shift.mean(0))
+            c_frames.append(a)
+            c_xy.append(root0[a] + corr[a] + shift.mean(0))
             corr = corrected(c_frames, c_xy)
             joints = joints0.copy()
             joints[:, :, :2] += corr[:, None]

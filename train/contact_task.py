@@ -1,10 +1,7 @@
 """Training the contact predictor (iReplica §4.2): data windows, labels, loss, and a plain loop.
 
-Labels per frame of a dataset sequence (at the model's fps):
-- hand contact: the hand's wrist or index1 joint is in contact (``Sequence.contacts``, the
-  TRUMANS rule: any object, static ones and the floor included);
-- interaction class (``CLASSES``): the dof of a dynamic scene object that moves within
-  ``moving_dilate_s`` of the frame (slide | hinge | free), else "none".
+Labels per frame of a dataset sequence (at the model's fps): ``trumans.contacts.labels`` (hand
+contact = wrist or index1 in contact; class = dof of the object moving near the frame).
 Loss: binary cross-entropy on both hands' contacts over every frame of each window (the network
 is sequence-to-sequence, §4.2) plus ``class_weight`` x cross-entropy on the class. Each window is
 mirrored left/right with probability ``mirror_p`` (``mirror_rotations``; hand labels swapped).
@@ -19,17 +16,17 @@ from pathlib import Path
 import numpy as np
 import torch
 import torch.nn.functional as F
-from scipy.ndimage import maximum_filter1d
 
+from trumans.contacts.labels import sequence_labels
 from trumans.contacts.model_io import save_predictor
-from trumans.contacts.predictor import (CLASSES, HAND_JOINTS, HANDS, ContactPredictor, ContactPredictorConfig,
-                                        mirror_rotations, pose_windows, predict_contacts, window_indices)
+from trumans.contacts.predictor import (CLASSES, ContactPredictor, ContactPredictorConfig, mirror_rotations,
+                                        pose_windows, window_indices)
 from trumans.contacts.scores import binary_scores
 from trumans.dataset import Dataset
 from trumans.resample import resample_sequence
 from trumans.sequence import Sequence
 
-__all__ = ["ContactTrainConfig", "ContactData", "sequence_labels", "load_contact_data", "sample_batch",
+__all__ = ["ContactTrainConfig", "ContactData", "load_contact_data", "sample_batch",
            "contact_loss", "evaluate_contacts", "train_contact"]
 
 
@@ -82,26 +79,6 @@ class ContactData:
 
     def __len__(self) -> int:
         return len(self.rotations)
-
-
-def sequence_labels(seq: Sequence, dofs: dict[str, str], dilate_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """Per-frame labels of a sequence with ``contacts``: hands (T, 2) bool (left, right) and
-    classes (T,) int64 (module doc). dofs: object name -> dof from the sequence's scene."""
-    if seq.contacts is None:
-        raise ValueError("the sequence has no per-joint contacts; the contact predictor trains on labelled data")
-    c = np.asarray(seq.contacts, dtype=bool)
-    hands = np.stack([c[:, list(HAND_JOINTS[h])].any(axis=1) for h in HANDS], axis=1)
-    classes = np.zeros(seq.num_frames, np.int64)
-    size = 2 * int(round(dilate_s * seq.fps)) + 1
-    for name, track in seq.objects.items():
-        dof = dofs.get(name, "static")
-        if dof not in CLASSES or seq.num_frames < 2:
-            continue
-        step = np.abs(np.diff(np.asarray(track.pose, dtype=np.float64), axis=0)).reshape(seq.num_frames - 1, -1).max(1)
-        moving = np.r_[step > 1e-4, False]
-        moving = maximum_filter1d(moving.astype(np.uint8), size=size) > 0
-        classes[moving] = CLASSES.index(dof)
-    return hands, classes
 
 
 def load_contact_data(dataset: Dataset, split: str, fps: float, dilate_s: float = 0.5) -> ContactData:

@@ -2,7 +2,8 @@
 
 On held-out synthetic sequences (by default a small set built here with a seed that training
 never sees; or ``--data DIR --split test``) whose root is moved by a simulated localisation error:
-a smooth offset of 5-15 cm whose direction and size drift with time and distance walked, plus
+a smooth offset of 5-15 cm whose direction and size drift with time and distance walked
+(about a radian per 30 s or 4 m), plus
 3 mm per-frame jitter. Figures (one JSON object with --json):
 - ``ap``, ``precision``, ``recall``, ``accuracy``: per-hand, per-frame contact at threshold 0.5
   (labels: wrist or index1 in contact);
@@ -42,10 +43,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def simulate_drift(root_xy: np.ndarray, fps: float, rng: np.random.Generator, lo: float = 0.05, hi: float = 0.15,
                    jitter: float = 0.003) -> np.ndarray:
     """A localisation error (T, 2) m for a root path (T, 2): magnitude in [lo, hi] and direction
-    varying smoothly with u = time / 20 s + distance walked / 2 m, plus iid jitter (m)."""
+    varying smoothly with u = time / 30 s + distance walked / 4 m, plus iid jitter (m)."""
     T = len(root_xy)
     walked = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(root_xy, axis=0), axis=1))]
-    u = np.arange(T) / fps / 20.0 + walked / 2.0
+    u = np.arange(T) / fps / 30.0 + walked / 4.0
     f, ph = rng.uniform(0.5, 1.5, 3), rng.uniform(0, 2 * np.pi, 3)
     mag = lo + (hi - lo) * 0.5 * (1 + np.sin(f[0] * u + ph[0]))
     ang = ph[1] + 1.5 * np.sin(f[1] * u + ph[2]) + f[2] * u

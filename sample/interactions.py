@@ -49,7 +49,7 @@ class TrackerConfig:
     post: PostprocessConfig = field(default_factory=PostprocessConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     search_radius: float = 0.5
-    hand_radius: float = 0.02
+    hand_radius: float = 0.015
     correct: bool = True
 
     def __post_init__(self) -> None:
@@ -127,18 +127,27 @@ class _ObjectQueries:
 
 
 def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: int, hands: np.ndarray,
-                  dof: str, radius: float) -> tuple[str, np.ndarray, np.ndarray] | None:
-    """The nearest object of ``dof`` within ``radius`` of the contacting hand points ``hands``
-    (k, 3) at ``frame`` (objects at their current ``poses``). Returns (name, closest points (k, 3),
-    distances (k,)) or None."""
-    best = None
+                  dof: str, radius: float) -> tuple[str, float] | None:
+    """The object of ``dof`` that the contacting hands come closest to (supp. §10.1: the nearest
+    object of the interaction's class within ``radius``). hands: (n, k, 3) the k contacting hand
+    points over the first n frames of the contact; objects at their ``poses`` at ``frame`` (at
+    rest before the interaction). The closest approach over those frames, not the first frame's
+    distance, decides (the hand reaches for the object during the first frames). Returns (name,
+    closest approach in m) or None when no such object is within ``radius``."""
+    best: tuple[str, float] | None = None
     for name, obj in queries.scene.objects.items():
         if obj.dof != dof or name not in poses:
             continue
-        closest, dist = queries.closest(name, poses[name][frame], hands)
-        if dist.min() <= radius and (best is None or dist.min() < best[2].min()):
-            best = (name, closest, dist)
+        _, dist = queries.closest(name, poses[name][frame], hands.reshape(-1, 3))
+        d = float(dist.reshape(hands.shape[:2]).mean(1).min())
+        if d <= radius and (best is None or d < best[1]):
+            best = (name, d)
     return best
+
+
+def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
+    """Frames at the start (and end) of an n-frame contact searched for attaching (detaching)."""
+    return max(1, min(int(round(window_s * fps)), n // 2))
 
 
 def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
@@ -152,7 +161,7 @@ def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: 
     within the last ``window_s`` (the hand stops before it lets go). Returns (attach, detach)
     frames, start <= attach < detach <= end."""
     n = end - start
-    w = max(1, min(int(round(window_s * fps)), n // 2))
+    w = _attach_window(n, fps, window_s)
     attach = start + int(np.argmin(dist_at_rest[:w]))
     if n < 3:
         return attach, end
@@ -244,14 +253,13 @@ def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerC
         s0 = segs[0].start
         joints = joints0.copy()
         joints[:, :, :2] += corr[:, None]
-        hands_s = hand_points(joints[s0:s0 + 1])[0][[h for h in (0, 1) if segs[0].hands[h]]]  # (k, 3)
-        found = select_object(queries, poses, s0, hands_s, cls[i], config.search_radius)
+        e1 = segs[-1].end
+        used = [h for h in (0, 1) if segs[0].hands[h]]
+        span = hand_points(joints[s0:e1])[:, used]  # (n, k, 3) contacting hand points
+        found = select_object(queries, poses, s0, span[:_attach_window(len(span), fps)], cls[i], config.search_radius)
         if found is None:
             continue  # no object of that class near the hands: a false positive (§4.1)
         name = found[0]
-        e1 = segs[-1].end
-        used = [h for h in (0, 1) if segs[0].hands[h]]
-        span = hand_points(joints[s0:e1])[:, used]  # (n, k, 3)
         pts, rest = span.reshape(-1, 3), poses[name][s0]
         near, dist = queries.closest(name, rest, pts)
         a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, e1, fps)

@@ -44,6 +44,19 @@ def test_prediction_does_not_depend_on_batch_composition():
     assert cls.shape == (40, 4) and np.allclose(cls.sum(1), 1.0, atol=1e-5)
 
 
+def test_strided_prediction_matches_centre_frames():
+    model = _model(4)
+    rot = _rotations(23)
+    full, _ = predict_contacts(model, rot)
+    p3, c3 = predict_contacts(model, rot, stride=3, batch_size=4)
+    assert p3.shape == (23, 2) and c3.shape == (23, 4)
+    centres = np.arange(1, 22, 3)  # frames that are the centre of their window
+    assert np.allclose(p3[centres], full[centres], atol=1e-5)
+    assert np.abs(p3 - full).max() > 0  # the other frames come from an off-centre position
+    with pytest.raises(ValueError, match="stride"):
+        predict_contacts(model, rot, stride=2)
+
+
 def test_attention_runs_over_the_frames_of_a_window():
     model = _model(1)
     win = pose_windows(torch.from_numpy(_rotations(30)), window_indices(np.array([15]), 0, 29, TINY.window))

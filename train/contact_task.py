@@ -192,3 +192,31 @@ def train_contact(data_dir: str | Path, out: str | Path, config: ContactTrainCon
     save_predictor(model, out, data={"name": ds.name, "hash": ds.hash},
                    meta={"train_config": cfg, "summary": summary, "seed": seed})
     return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m train.contact_task --data DIR --out FILE [--steps N] [--time-limit S] [--seed S] [--json]``."""
+    import argparse
+    import json
+
+    p = argparse.ArgumentParser(prog="python -m train.contact_task", description="train the contact predictor")
+    p.add_argument("--data", required=True, help="dataset folder (index.json; sequences with rotations and contacts)")
+    p.add_argument("--out", required=True, help="checkpoint file to write (.pt)")
+    p.add_argument("--steps", type=int, default=ContactTrainConfig.steps, help="optimisation steps")
+    p.add_argument("--batch-size", type=int, default=ContactTrainConfig.batch_size, help="windows per step")
+    p.add_argument("--time-limit", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    args = p.parse_args(argv)
+    cfg = ContactTrainConfig(steps=args.steps, batch_size=args.batch_size, time_limit_s=args.time_limit)
+    summary = train_contact(args.data, args.out, cfg, seed=args.seed)
+    print(f"{summary['steps']} steps in {summary['seconds']:.0f} s, val ap {summary['val']['ap']:.3f}; wrote {args.out}")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

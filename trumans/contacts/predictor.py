@@ -175,31 +175,43 @@ def pose_windows(rot6: torch.Tensor, index: np.ndarray | torch.Tensor) -> torch.
 
 
 @torch.no_grad()
-def predict_contacts(model: ContactPredictor, rotations: np.ndarray, batch_size: int = 2048) -> tuple[np.ndarray, np.ndarray]:
-    """Sliding-window prediction (centre frame of each window).
+def predict_contacts(model: ContactPredictor, rotations: np.ndarray, batch_size: int = 2048,
+                     stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Sliding-window prediction.
 
     rotations: (T, 24, 6) local 6D at ``model.config.fps``. Returns contact probabilities (T, 2)
-    (left, right) and class probabilities (T, len(CLASSES)), float32. The result for a frame
-    does not depend on ``batch_size`` or on the other frames in its batch."""
+    (left, right) and class probabilities (T, len(CLASSES)), float32. With ``stride`` 1 (the
+    paper) each frame takes the centre prediction of its own window; with stride s (odd) one
+    window every s frames predicts the s frames around its centre (s times cheaper). The result for
+    a frame does not depend on ``batch_size`` or on the other windows in its batch."""
     rot = np.asarray(rotations, dtype=np.float32)
     if rot.ndim != 3 or rot.shape[1:] != (NUM_JOINTS, 6):
         raise ValueError(f"rotations must be (T, 24, 6) local 6D, got {rot.shape}")
     if not np.isfinite(rot).all():
         raise ValueError("rotations contain NaN or inf")
-    if batch_size < 1:
-        raise ValueError(f"batch_size must be >= 1, got {batch_size}")
-    was_training = model.training
-    model.eval()
-    T, W = len(rot), model.config.window
-    rt = torch.from_numpy(rot)
-    probs, cls = [], []
-    for start in range(0, T, batch_size):
-        centers = np.arange(start, min(start + batch_size, T))
-        win = pose_windows(rt, window_indices(centers, 0, T - 1, W))
-        logit, class_logit = model(win)
-        probs.append(torch.sigmoid(logit[:, W // 2]))
-        cls.append(torch.softmax(class_logit[:, W // 2], dim=-1))
-    model.train(was_training)
+    W = model.config.window
+    if batch_size < 1 or stride < 1 or stride % 2 == 0 or stride > W:
+        raise ValueError(f"batch_size must be >= 1 and stride odd in [1, {W}], got {batch_size}, {stride}")
+    T = len(rot)
     if T == 0:
         return np.zeros((0, len(HANDS)), np.float32), np.zeros((0, len(CLASSES)), np.float32)
-    return torch.cat(probs).numpy(), torch.cat(cls).numpy()
+    was_training = model.training
+    model.eval()
+    rt = torch.from_numpy(rot)
+    half = stride // 2
+    centers_all = np.arange(half, T + half, stride).clip(max=T - 1)  # window k predicts frames k*s .. k*s+s-1
+    probs, cls = [], []
+    for start in range(0, len(centers_all), batch_size):
+        centers = centers_all[start:start + batch_size]
+        logit, class_logit = model(pose_windows(rt, window_indices(centers, 0, T - 1, W)))
+        frames = np.arange(stride) - half + W // 2  # positions in the window of the frames kept
+        probs.append(torch.sigmoid(logit[:, frames]).reshape(-1, len(HANDS)))
+        cls.append(torch.softmax(class_logit[:, frames], dim=-1).reshape(-1, len(CLASSES)))
+    model.train(was_training)
+    # frame f is predicted by window f // s at position f - (f // s) * s - half relative to its centre
+    frame = np.arange(T)
+    win, off = frame // stride, frame % stride
+    # windows whose centre was clipped at the end: shift the position so it still points at frame f
+    pos = win * stride + off - centers_all[win] + half
+    flat = win * stride + pos
+    return torch.cat(probs).numpy()[flat], torch.cat(cls).numpy()[flat]

@@ -117,13 +117,25 @@ class _ObjectQueries:
 
     def closest(self, name: str, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """points (n, 3) world -> (closest (n, 3) world, distance (n,)) to object ``name`` at ``pose``."""
+        closest, dist, _ = self.contact_target(name, pose, points, 0.0)
+        return closest, dist
+
+    def contact_target(self, name: str, pose: np.ndarray, points: np.ndarray,
+                       gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest points (n, 3), unsigned distances (n,) and where each point should be to touch
+        the object from outside at ``gap`` m (n, 3): off the closest point away from it, or along
+        the outward normal for a point inside the object (all world, object at ``pose``)."""
         if name not in self._sd:
             self._sd[name] = SceneDistance({name: self.scene.objects[name].mesh})
         inv = np.linalg.inv(pose)
         local = points @ inv[:3, :3].T + inv[:3, 3]
         r = self._sd[name].query(local)
         closest = r.closest.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
-        return closest, r.dist.astype(np.float64)
+        normal = r.normal.astype(np.float64) @ pose[:3, :3].T
+        dist = r.dist.astype(np.float64)
+        away = (points - closest) / np.maximum(dist, 1e-9)[:, None]
+        out = np.where((r.signed < 0)[:, None] | (dist < 1e-9)[:, None], normal, away)
+        return closest, dist, closest + gap * out
 
 
 def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: int, hands: np.ndarray,
@@ -151,18 +163,20 @@ def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
 
 
 def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
-                  window_s: float = 1.0) -> tuple[int, int]:
+                  window_s: float = 1.0, approach_tol: float = 0.01) -> tuple[int, int]:
     """Refine a contact interval [start, end) to the frames the object is actually held (not in
     the paper; the contact labels switch on a few cm before the hand touches and off a few cm after
     it lets go, and the hands must not drag the object while reaching or retracting).
     hands: (n, k, 3) contacting hand points over the interval; dist_at_rest: (n,) their mean
-    distance (m) to the object at its pose at ``start``. Attach at the closest approach within the
-    first ``window_s`` (at most half the interval), detach after the slowest frame of the hands
-    within the last ``window_s`` (the hand stops before it lets go). Returns (attach, detach)
-    frames, start <= attach < detach <= end."""
+    distance (m) to the object at its pose at ``start``. Attach at the first frame within
+    ``approach_tol`` of the closest approach in the first ``window_s`` (at most half the interval;
+    the first, as a hand lifting an object slides along its side and gets no further from it),
+    detach after the slowest frame of the hands within the last ``window_s`` (the hand stops before
+    it lets go). Returns (attach, detach) frames, start <= attach < detach <= end."""
     n = end - start
     w = _attach_window(n, fps, window_s)
-    attach = start + int(np.argmin(dist_at_rest[:w]))
+    near = dist_at_rest[:w]
+    attach = start + int(np.argmax(near <= near.min() + approach_tol))
     if n < 3:
         return attach, end
     speed = np.linalg.norm(np.gradient(hands, axis=0), axis=-1).mean(-1)  # (n,) m/frame
@@ -176,10 +190,11 @@ def _clip(segs: tuple[ContactSegment, ...], a: int, d: int) -> tuple[ContactSegm
                  for s in segs if min(s.end, d) > max(s.start, a))
 
 
-def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np.ndarray, pose0: np.ndarray,
-                 axis: np.ndarray | None, hinge_point: np.ndarray | None) -> np.ndarray:
+def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np.ndarray, wrist_pos: np.ndarray,
+                 pose0: np.ndarray, axis: np.ndarray | None, hinge_point: np.ndarray | None) -> np.ndarray:
     """Motions (n, 4, 4) of an object over a segment (supp. §10). hands: (n, 2, 3) hand points;
-    wrist_rot: (n, 2, 3, 3) wrist world rotations; pose0: the object's pose at the segment start;
+    wrist_rot: (n, 2, 3, 3) / wrist_pos: (n, 2, 3) wrist world poses (a free object rides on the
+    wrist's frame: the fingers move relative to it while grasping); pose0: the object's pose at the segment start;
     axis / hinge_point: object frame (slide direction or hinge)."""
     used = [h for h in (0, 1) if seg.hands[h]]
     main = 1 if seg.hands[1] else 0  # the right hand leads when both hold on
@@ -192,21 +207,29 @@ def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np
             return two_hand_motion(hands[:, 0], hands[:, 1])
         return one_hand_motion(hands[:, main])
     if dof == "free":
-        return free_motion(wrist_rot[:, main], hands[:, main])
+        return free_motion(wrist_rot[:, main], wrist_pos[:, main])
     raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
+
+
+def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
+               wrist_rot: np.ndarray) -> None:
+    """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
+    released where it was left. joints: (T, 24, 3); wrist_rot: (T, 2, 3, 3)."""
+    obj = scene.objects[it.name]
+    track = poses[it.name]
+    for seg in it.segments:
+        s, e = seg.start, seg.end
+        M = drive_object(it.dof, seg, hand_points(joints[s:e]), wrist_rot[s:e], joints[s:e][:, list(_WRIST)], track[s],
+                         obj.axis, obj.hinge_point)
+        track[s:e] = M @ track[s]
+        track[e:] = track[e - 1]
 
 
 def _drive_all(interactions: list[Interaction], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
                wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
     poses = {n: p.copy() for n, p in base.items()}
-    hands = hand_points(joints)
     for it in interactions:
-        obj = scene.objects[it.name]
-        for seg in it.segments:
-            s, e = seg.start, seg.end
-            M = drive_object(it.dof, seg, hands[s:e], wrist_rot[s:e], poses[it.name][s], obj.axis, obj.hinge_point)
-            poses[it.name][s:e] = M @ poses[it.name][s]
-            poses[it.name][e:] = poses[it.name][e - 1]  # released where it was left
+        _drive_one(it, scene, poses, joints, wrist_rot)
     return poses
 
 
@@ -245,7 +268,7 @@ def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerC
     interactions: list[Interaction] = []
     c_frames: list[int] = []
     c_xy: list[np.ndarray] = []
-    poses = base
+    poses = {n: p.copy() for n, p in base.items()}
     for i in sorted(cls):
         if cls[i] == "none":
             continue  # a contact with the static scene: nothing to drive
@@ -260,22 +283,24 @@ def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerC
         if found is None:
             continue  # no object of that class near the hands: a false positive (§4.1)
         name = found[0]
-        pts, rest = span.reshape(-1, 3), poses[name][s0]
-        near, dist = queries.closest(name, rest, pts)
+        near, dist, target = queries.contact_target(name, poses[name][s0], span.reshape(-1, 3), config.hand_radius)
         a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, e1, fps)
         segs = _clip(segs, a, d_end)
-        closest, dist = near.reshape(span.shape)[a - s0], dist.reshape(len(span), -1)[a - s0]
-        d = closest - span[a - s0]
-        shift = d[:, :2] * (1 - config.hand_radius / np.maximum(dist, 1e-9))[:, None]  # hand -> hand_radius off p_c
+        closest = near.reshape(span.shape)[a - s0]  # p_c of each contacting hand
+        shift = (target.reshape(span.shape)[a - s0] - span[a - s0])[:, :2]  # hand -> hand_radius off p_c
         interactions.append(Interaction(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
         if config.correct:
+            step = shift.mean(0)
             c_frames.append(a)
-            c_xy.append(root0[a] + corr[a] + shift.mean(0))
-            corr = corrected(c_frames, c_xy)
-            joints = joints0.copy()
-            joints[:, :, :2] += corr[:, None]
-        poses = _drive_all(interactions, scene, base, joints, wrist_rot)
+            c_xy.append(root0[a] + corr[a] + step)
+            # until the joint solve below, the new offset holds from this contact on (and before the
+            # first one when nothing else pins the start)
+            corr[a if (c_frames[:-1] or len(a_frames)) else 0:] += step
+            joints[:, :, :2] = joints0[:, :, :2] + corr[:, None]
+        _drive_one(interactions[-1], scene, poses, joints, wrist_rot)
 
+    if c_frames:
+        corr = corrected(c_frames, c_xy)  # eq. 2 with every control point
     joints = joints0.copy()
     joints[:, :, :2] += corr[:, None]
     poses = _drive_all(interactions, scene, base, joints, wrist_rot)

@@ -44,13 +44,16 @@ class TrackerConfig:
     """post: contact post-processing; trajectory: bending-energy correction; search_radius (m):
     object search around the hands at contact start (0.5 m in the paper); hand_radius (m): the
     hand point's distance to the surface it touches (the control point puts it there);
-    correct: run the contact-based trajectory correction (False = the ablation)."""
+    correct: run the contact-based trajectory correction (False = the ablation); predict_stride:
+    one prediction window every that many frames (1 = the paper's centre-frame prediction; 3 is
+    about 3x cheaper, see ``predict_contacts``)."""
 
     post: PostprocessConfig = field(default_factory=PostprocessConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     search_radius: float = 0.5
     hand_radius: float = 0.015
     correct: bool = True
+    predict_stride: int = 3
 
     def __post_init__(self) -> None:
         if not self.search_radius > 0 or not self.hand_radius >= 0:
@@ -84,16 +87,17 @@ class TrackResult:
     correction: np.ndarray
 
 
-def contact_probabilities(model: ContactPredictor, rotations: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
+def contact_probabilities(model: ContactPredictor, rotations: np.ndarray, fps: float,
+                          stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(T, 24, 6) rotations at ``fps`` -> contact (T, 2) and class (T, C) probabilities; the poses
     are resampled to the model's rate and the probabilities interpolated back."""
     rot = np.asarray(rotations, dtype=np.float32)
     mfps = model.config.fps
     if abs(fps - mfps) < 1e-9 or len(rot) < 2:
-        return predict_contacts(model, rot)
+        return predict_contacts(model, rot, stride=stride)
     src = resample_times(len(rot), fps, mfps)
     rot_m = matrix_to_6d(interp_rotations(sixd_to_matrix(rot.astype(np.float64)), src)).astype(np.float32)
-    prob, cls = predict_contacts(model, rot_m)
+    prob, cls = predict_contacts(model, rot_m, stride=stride)
     t = np.arange(len(rot)) * (mfps / fps)  # original frames in model-frame coordinates
     interp = lambda p: np.stack([np.interp(t, np.arange(len(p)), p[:, k]) for k in range(p.shape[1])], 1)
     return interp(prob).astype(np.float32), interp(cls).astype(np.float32)
@@ -247,7 +251,7 @@ def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerC
     if len(a_frames) != len(a_xy) or (len(a_frames) and (a_frames.min() < 0 or a_frames.max() >= T)):
         raise ValueError(f"anchors must be frames (K,) in [0, {T - 1}] with positions (K, 2), got "
                          f"{a_frames.shape} / {a_xy.shape}")
-    prob, class_prob = contact_probabilities(model, seq.rotations, fps)
+    prob, class_prob = contact_probabilities(model, seq.rotations, fps, config.predict_stride)
     mask = contact_mask(prob, fps, config.post)
     segments = contact_segments(mask)
     cls = interval_classes(class_prob, segments)

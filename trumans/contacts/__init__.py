@@ -1,1 +1,7 @@
-"""Contacts between the body and the scene: the TRUMANS joint rule (``rule``)."""
+"""Contacts between the body and the scene.
+
+``rule`` the TRUMANS joint contact rule; iReplica's interaction tracking (§4): ``predictor`` the
+per-hand contact transformer, ``labels`` its training labels, ``model_io`` its checkpoints,
+``postprocess`` thresholds / gap filling / contact segments, ``trajectory`` the bending-energy
+root correction, ``objects`` object motion driven by the hands, ``scores`` AP and friends.
+"""

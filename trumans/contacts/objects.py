@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from trumans.rotations import axis_angle_to_matrix
 from trumans.skeleton import JOINT_INDEX
 
 __all__ = [
@@ -60,10 +61,7 @@ def rotation_about_axis(angle: np.ndarray, axis: np.ndarray, point: np.ndarray) 
     """(n,) angles (rad) about a unit ``axis`` (3,) through ``point`` (3,) -> (n, 4, 4) rigid motions."""
     angle = np.asarray(angle, dtype=np.float64)
     k = np.asarray(axis, dtype=np.float64)
-    k = k / np.linalg.norm(k)
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    R = np.eye(3) + s * K + (1 - c) * (K @ K)  # Rodrigues
+    R = axis_angle_to_matrix(angle[:, None] * (k / np.linalg.norm(k)))
     M = np.tile(np.eye(4), (len(angle), 1, 1))
     M[:, :3, :3] = R
     M[:, :3, 3] = point - np.einsum("nij,j->ni", R, point)

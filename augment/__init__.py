@@ -1,5 +1,6 @@
-"""Contact-preserving motion augmentation (TRUMANS §3.3, appendix B.5): contacts, offset
-blending (A1-A6), vectorised CCD IK, object variations and the dataset pipeline."""
+"""Contact-preserving motion augmentation (TRUMANS §3.3, appendix B.5): contact intervals, offset
+blending (A1-A6), the two IK passes, object variations and the dataset pipeline. The CCD solver
+lives in ``trumans.ik.ccd`` (re-exported here); contacts come from ``trumans.contacts``."""
 from trumans.ik.ccd import IKConfig, IKResult, solve_ik
 from .core import (AugmentConfig, AugmentOutput, SequenceContacts, augment_many, augment_sequence, find_intervals,
                    sequence_contacts, sequence_pose)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from trumans.contacts.rule import HOLD_THRESHOLD
+
 from .pipeline import PipelineConfig, augment_dataset
 from .variations import KINDS
 
@@ -17,7 +19,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--splits", nargs="+", default=["train"], help="source splits to augment (default: train)")
     p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS), help="variation kinds to draw from")
     p.add_argument("--window", type=float, default=1.0, help="offset fade window W in seconds (default 1 s = 30 frames at 30 fps)")
-    p.add_argument("--threshold", type=float, default=0.03, help="contact distance beyond the body surface, m")
+    p.add_argument("--threshold", type=float, default=HOLD_THRESHOLD,
+                   help=f"hold joints within this distance beyond the body surface, m (default {HOLD_THRESHOLD})")
     p.add_argument("--max-unreachable", type=float, default=0.1,
                    help="redraw a variation whose IK leaves more than this fraction of its contact frames "
                         "unreachable; skip it after 4 draws (default 0.1; 1.0 keeps every draw)")

@@ -1,7 +1,8 @@
 """Augment one sequence for a set of object variations: contacts -> intervals -> offsets -> IK.
 
 Contacts are found with the TRUMANS joint rule (``trumans.contacts.rule``; the floor counts, so
-planted feet are contacts with an unchanged object and stay planted). Contacts with a changed
+planted feet are contacts with an unchanged object and stay planted), within ``HOLD_THRESHOLD`` of
+the body surface, and cut into intervals by ``trumans.contacts.intervals``. Contacts with a changed
 object get the A2 offset ``v'_m - v_m`` (variations.map_contact_points); every other contact is
 held where it was (zero offset). See ``augment.contact_ik`` for the two IK passes.
 """
@@ -13,13 +14,16 @@ import numpy as np
 import trimesh
 
 from scenes.scene import Scene, SceneObject
-from trumans.contacts.rule import FLOOR_NAME, ContactScene, joint_contacts
-from trumans.rotations import matrix_to_6d, sixd_to_matrix
-from trumans.sequence import ObjectTrack, Sequence
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics
-
+from trumans.contacts.intervals import joint_contact_intervals, runs
+from trumans.contacts.rule import FLOOR_NAME, HOLD_THRESHOLD, ContactScene, joint_contacts
 from trumans.ik.ccd import ROOT_GROUP, IKConfig
-from .offsets import ContactInterval, runs
+from trumans.ik.fit import fit_rotations
+from trumans.rotations import fit_yaw, matrix_to_6d, sixd_to_matrix, yaw_matrix
+from trumans.sequence import ObjectTrack, Sequence
+from trumans.skeleton import (ANKLES, FEET, INDEX1, KNEES, NUM_JOINTS, PARENTS, WRISTS, forward_kinematics,
+                              offsets_from_pose)
+
+from .offsets import ContactInterval
 from .contact_ik import RetargetResult, retarget_many
 from .variations import Variation, apply_variation, map_contact_points, move_matrix
 
@@ -29,12 +33,12 @@ __all__ = ["AugmentConfig", "AugmentOutput", "SequenceContacts", "sequence_pose"
 
 @dataclass
 class AugmentConfig:
-    """window_s: A3 fade window in seconds (W = 30 frames at 30 fps); threshold: contact distance
-    beyond the body surface (m); contact runs shorter than min_len frames are dropped and gaps of
-    up to max_gap frames closed."""
+    """window_s: A3 fade window in seconds (W = 30 frames at 30 fps); threshold: distance beyond
+    the body surface (m) within which a joint is held to its surface (``HOLD_THRESHOLD``); contact
+    runs shorter than min_len frames are dropped and gaps of up to max_gap frames closed."""
 
     window_s: float = 1.0
-    threshold: float = 0.03
+    threshold: float = HOLD_THRESHOLD
     min_len: int = 3
     max_gap: int = 2
     ik: IKConfig = field(default_factory=IKConfig)
@@ -58,26 +62,19 @@ class AugmentOutput:
 def sequence_pose(seq: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(joints (T, 24, 3), global_rot (T, 24, 3, 3), offsets (24, 3)) float64 of a sequence.
 
-    Uses the stored 6D rotations + root_pos (offsets recovered from the joints); sequences with
-    joints only are fitted with ``trumans.ik.fit.fit_rotations``."""
+    Uses the stored 6D rotations + root_pos (offsets recovered from the pose,
+    ``trumans.skeleton.offsets_from_pose``); sequences with joints only are fitted with
+    ``trumans.ik.fit.fit_rotations``."""
     P = np.asarray(seq.joints, dtype=np.float64)
     if seq.rotations is not None:
         rot = sixd_to_matrix(np.asarray(seq.rotations, dtype=np.float64))
-        _, G = forward_kinematics(rot, P[:, 0], np.zeros((NUM_JOINTS, 3)))
-        d = P[:, 1:] - P[:, PARENTS[1:]]
-        off = np.zeros((NUM_JOINTS, 3))
-        off[1:] = np.einsum("tjik,tji->jk", G[:, PARENTS[1:]], d) / len(P)  # mean of G_par^T (p_j - p_par)
-        off[0] = P[0, 0]
+        _, G = forward_kinematics(rot, P[:, 0], np.zeros((NUM_JOINTS, 3)))  # global rotations need no offsets
+        off = offsets_from_pose(P, G)
         J, G = forward_kinematics(rot, P[:, 0], off)
         if np.abs(J - P).max() > 5e-3:
             raise ValueError(f"the sequence's rotations do not reproduce its joints (max {np.abs(J - P).max():.3f} m); "
                              "drop 'rotations' to refit them")
         return J, G, off
-    try:
-        from trumans.ik.fit import fit_rotations
-    except ModuleNotFoundError as e:
-        raise ValueError("the sequence has joints only and trumans.ik.fit (fit_rotations) is not available; "
-                         "store rotations + root_pos with the sequence") from e
     rot, root, off = fit_rotations(P)
     J, G = forward_kinematics(np.asarray(rot, np.float64), np.asarray(root, np.float64), np.asarray(off, np.float64))
     return J, G, np.asarray(off, np.float64)
@@ -92,13 +89,7 @@ def find_intervals(P: np.ndarray, G: np.ndarray, seq: Sequence, scene: Scene, cf
                    ) -> tuple[list[ContactInterval], np.ndarray]:
     """Contact intervals per (joint, object) and the closest surface points (T, 24, 3) world m."""
     res = joint_contacts(P, ContactScene(scene), cfg.threshold, G, _object_poses(seq, scene))
-    out: list[ContactInterval] = []
-    for j in range(NUM_JOINTS):
-        for k in np.unique(res.object_index[:, j]):
-            if k < 0:
-                continue
-            for s, e in runs(res.object_index[:, j] == k, cfg.max_gap, cfg.min_len):
-                out.append(ContactInterval(j, res.names[k], s, e))
+    out = [ContactInterval(*c) for c in joint_contact_intervals(res.object_index, res.names, cfg.max_gap, cfg.min_len)]
     return merge_body_contacts(out, len(P), cfg.max_gap), res.closest.astype(np.float64)
 
 
@@ -120,7 +111,7 @@ def merge_body_contacts(intervals: list[ContactInterval], T: int, max_gap: int =
     return keep
 
 
-_LEGS = [JOINT_INDEX[f"{side}_{part}"] for side in ("left", "right") for part in ("knee", "ankle", "foot")]
+_LEGS = [*KNEES, *ANKLES, *FEET]
 
 
 def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, changed: set[str], T: int) -> None:
@@ -156,17 +147,14 @@ def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, c
         c = (closest * w[..., None]).sum(1) / np.maximum(n, 1)[:, None]
         c2 = (vm2 * w[..., None]).sum(1) / np.maximum(n, 1)[:, None]
         a, b = closest - c[:, None], vm2 - c2[:, None]
-        th = np.arctan2((w * (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])).sum(1),
-                        (w * (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1])).sum(1))
-        ct, st = np.cos(th)[:, None], np.sin(th)[:, None]
-        rig = np.stack([ct * a[..., 0] - st * a[..., 1], st * a[..., 0] + ct * a[..., 1], a[..., 2]], -1) + c2[:, None]
+        rig = np.einsum("tij,tkj->tki", yaw_matrix(fit_yaw(a, b, w)), a) + c2[:, None]
         for iv in mine:
             fr = np.arange(iv.start, iv.end)
             use = ok[fr] & on[fr, iv.joint]
             iv.frame_offset[use] = rig[fr[use], iv.joint] - closest[fr[use], iv.joint]
 
 
-_HANDS = ((JOINT_INDEX["left_wrist"], JOINT_INDEX["left_index1"]), (JOINT_INDEX["right_wrist"], JOINT_INDEX["right_index1"]))
+_HANDS = tuple(zip(WRISTS, INDEX1))  # (wrist, index1) per hand
 
 
 def _rigid_hand_offsets(intervals: list[ContactInterval], changed: set[str], T: int) -> None:
@@ -200,14 +188,15 @@ class SequenceContacts:
     global_rot: np.ndarray  # (T, 24, 3, 3)
     intervals: list[ContactInterval]
     closest: np.ndarray  # (T, 24, 3)
+    offsets: np.ndarray  # (24, 3) the actor's rest offsets (m), see ``sequence_pose``
 
 
 def sequence_contacts(seq: Sequence, scene: Scene, config: AugmentConfig | None = None) -> SequenceContacts:
     """Pose (``sequence_pose``) and contact intervals (``find_intervals``) of a sequence."""
     cfg = config or AugmentConfig()
-    P, G, _ = sequence_pose(seq)
+    P, G, off = sequence_pose(seq)
     intervals, closest = find_intervals(P, G, seq, scene, cfg)
-    return SequenceContacts(seq, scene, P, G, intervals, closest)
+    return SequenceContacts(seq, scene, P, G, intervals, closest, off)
 
 
 def augment_sequence(

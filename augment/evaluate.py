@@ -4,11 +4,14 @@ By default on a held-out synthetic set built here (trumans.synth.cases: sitting,
 hands, successive contacts; seeds disjoint from the tests'), or on ``--data DIR`` (a dataset's
 ``--split``). Every touched object gets ``--variations`` random variations. Figures (last line,
 JSON): contact_err_cm (mean A1 residual |p'_t - (l_t + v'_m - v_m)| over contact frames of changed
-objects), bone_length_err_mm (max), smooth_ratio (max A13 ratio of the IK targets; targets the
+objects), bone_length_err_mm (max deviation from the source's bone lengths,
+``trumans.metrics.bone_length_dev_mm``), smooth_ratio (max A13 ratio of the IK targets; targets the
 variation leaves unchanged meet it with equality, so smooth_ratio_moved gives the max over the
 moved ones),
-foot_skate_added_cm (mean per output of foot skate after minus before, feet in floor contact),
-penetration_max_cm (deepest joint inside a changed object), unreachable_frac (contact frames
+foot_skate_added_cm (mean per output of ``trumans.metrics.foot_skate_cm`` after minus before, feet
+in floor contact), joint_centre_inside_max_cm (deepest joint centre inside a changed object,
+``trumans.metrics.joint_centre_inside_cm``; not the body penetration figure ``penetration_max_cm``
+of ``trumans.metrics``), unreachable_frac (contact frames
 with an unreachable target / contact frames), frames_per_s (augmented frames per CPU second of this
 single-threaded process: pose, contact detection, variation sampling and mapping, both IK passes,
 IK batched over all clips' frames; CPU time so that other jobs on a shared machine do not count;
@@ -23,16 +26,16 @@ import time
 import numpy as np
 
 from trumans.contacts.rule import FLOOR_NAME
-from trumans.skeleton import JOINT_INDEX, bone_lengths
-from trumans.metrics import foot_skate_cm
+from trumans.metrics import bone_length_dev_mm, foot_skate_cm, joint_centre_inside_cm
+from trumans.skeleton import FEET
 
 from .core import AugmentConfig, augment_many, sequence_contacts
-from .pipeline import contacted_objects, penetration_cm
+from .pipeline import contacted_objects
 from .variations import KINDS, sample_variation
 
 __all__ = ["add_arguments", "run", "evaluate_cases"]
 
-_FEET = [JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"]]
+_FEET = list(FEET)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -57,20 +60,20 @@ def evaluate_cases(cases, n_var: int, rng: np.random.Generator, libraries, cfg: 
                    batch_frames: int = 20000, max_pen_cm: float = 3.0, tries: int = 4) -> dict:
     """cases: [(label, Sequence, Scene)]; libraries: category -> {name: mesh} for replacements.
     Variations are augmented in batches of about ``batch_frames`` frames (one IK batch each); a
-    variation whose motion goes deeper than max(original, ``max_pen_cm``) into the changed object
-    is redrawn (``tries`` rounds; the last draw is kept whatever it gives)."""
+    variation whose motion puts a joint centre deeper than max(original, ``max_pen_cm``) into the
+    changed object is redrawn (``tries`` rounds; the last draw is kept whatever it gives)."""
     cfg = cfg or AugmentConfig()
     t0, c0 = time.perf_counter(), time.process_time()
     jobs = []  # (label, SequenceContacts, Variation, library)
-    pen0: dict = {}  # (sequence, object) -> penetration of the original motion, cm
+    pen0: dict = {}  # (sequence, object) -> joint_centre_inside_cm of the original motion
     for label, seq, scene in cases:
         sc = sequence_contacts(seq, scene, cfg)
         for name in contacted_objects(sc.intervals, scene):
             lib = libraries.get(scene.objects[name].category, {})
-            pen0[(id(sc), name)] = penetration_cm(sc.joints, scene, [name])
+            pen0[(id(sc), name)] = joint_centre_inside_cm(sc.joints, scene, [name])
             for _ in range(n_var):
                 jobs.append((label, sc, sample_variation(scene.objects[name], rng, KINDS, lib), lib))
-    # augment in frame batches; a draw that puts a joint deeper than max(original, max_pen_cm)
+    # augment in frame batches; a draw that puts a joint centre deeper than max(original, max_pen_cm)
     # inside the changed object is redrawn, as the pipeline does (up to ``tries`` rounds)
     outs: list = [None] * len(jobs)
     todo = list(range(len(jobs)))
@@ -92,7 +95,7 @@ def evaluate_cases(cases, n_var: int, rng: np.random.Generator, libraries, cfg: 
         again = []
         for k, out in zip(todo, res):
             label, sc, var, lib = jobs[k]
-            pen = penetration_cm(out.sequence.joints, out.scene, [var.object])
+            pen = joint_centre_inside_cm(out.sequence.joints, out.scene, [var.object])
             if round_ + 1 < tries and pen > max(pen0[(id(sc), var.object)], max_pen_cm):
                 rejected += 1
                 jobs[k] = (label, sc, sample_variation(sc.scene.objects[var.object], rng, KINDS, lib), lib)
@@ -118,21 +121,22 @@ def evaluate_cases(cases, n_var: int, rng: np.random.Generator, libraries, cfg: 
         e = np.linalg.norm(r.joints - r.contact_target, axis=-1)[cm]
         err_sum += float(e.sum())
         err_n += e.size
-        bone = max(bone, float(np.abs(bone_lengths(r.joints) - bone_lengths(P0)).max() * 1000))
+        bone = max(bone, bone_length_dev_mm(r.joints, sc.offsets))
         smooth = max(smooth, float(r.smooth.max()) if r.smooth.size else 0.0)
         moved = np.linalg.norm(r.targets - P0, axis=-1) > 1e-6  # targets that the variation moved
         mv = r.smooth[(moved[1:] | moved[:-1]) & r.window[1:] & r.window[:-1]]
         smooth_moved = max(smooth_moved, float(mv.max()) if mv.size else 0.0)
         feet = _floor_feet(out.intervals, len(P0))
         skate.append(foot_skate_cm(r.joints[:, _FEET], feet) - foot_skate_cm(P0[:, _FEET], feet))
-        pk = penetration_cm(r.joints, out.scene, [name])
+        pk = joint_centre_inside_cm(r.joints, out.scene, [name])
         pen = max(pen, pk)
         un = int((r.unreachable & cm).any(1).sum())
         unreach += un
         cframes += int(cm.any(1).sum())
-        d = per_case.setdefault(f"{label}/{var.kind}", {"contact_err_cm": [], "penetration_cm": [], "unreachable": []})
+        d = per_case.setdefault(f"{label}/{var.kind}", {"contact_err_cm": [], "joint_centre_inside_cm": [],
+                                                                  "unreachable": []})
         d["contact_err_cm"].append(float(e.mean() * 100) if e.size else 0.0)
-        d["penetration_cm"].append(pk)
+        d["joint_centre_inside_cm"].append(pk)
         d["unreachable"].append(un / max(int(cm.any(1).sum()), 1))
     return {
         "contact_err_cm": err_sum / max(err_n, 1) * 100,
@@ -141,7 +145,7 @@ def evaluate_cases(cases, n_var: int, rng: np.random.Generator, libraries, cfg: 
         "smooth_ratio_moved": smooth_moved,
         "foot_skate_added_cm": float(np.mean(skate)) if skate else 0.0,
         "foot_skate_added_max_cm": float(np.max(skate)) if skate else 0.0,
-        "penetration_max_cm": pen,
+        "joint_centre_inside_max_cm": pen,
         "unreachable_frac": unreach / max(cframes, 1),
         "frames_per_s": frames / max(cpu, 1e-9),
         "frames_per_wall_s": frames / max(elapsed, 1e-9),

@@ -20,12 +20,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from trumans.contacts.intervals import runs
 from trumans.skeleton import NUM_JOINTS
 
 __all__ = [
     "ContactInterval",
     "Tracks",
-    "runs",
+    "runs",  # re-exported from trumans.contacts.intervals (its home)
     "fade",
     "contact_tracks",
     "handover",
@@ -87,21 +88,6 @@ class Tracks:
     def window(self) -> np.ndarray:
         """(T, 24) bool: frames where some track of the joint has weight > 0."""
         return self.strength() > 0
-
-
-def runs(mask: np.ndarray, max_gap: int = 0, min_len: int = 1) -> list[tuple[int, int]]:
-    """Maximal runs [start, end) of True in a (T,) mask; gaps of <= max_gap frames are closed,
-    runs shorter than min_len dropped."""
-    m = np.asarray(mask, dtype=bool)
-    d = np.diff(np.concatenate([[0], m.astype(np.int8), [0]]))
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    out: list[tuple[int, int]] = []
-    for s, e in zip(starts, ends):
-        if out and s - out[-1][1] <= max_gap:
-            out[-1] = (out[-1][0], int(e))
-        else:
-            out.append((int(s), int(e)))
-    return [(s, e) for s, e in out if e - s >= min_len]
 
 
 def fade(T: int, start: int, end: int, W: float) -> np.ndarray:

@@ -21,17 +21,17 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from scenes.distance import SceneDistance
 from scenes.io import save_scene
 from scenes.scene import Scene
-from trumans.contacts.rule import FLOOR_NAME
+from trumans.contacts.rule import FLOOR_NAME, HOLD_THRESHOLD
 from trumans.dataset import Dataset, content_hash, write_index
+from trumans.metrics import joint_centre_inside_cm
 from trumans.sequence import Sequence, atomic_write, save_sequence
 
 from .core import AugmentConfig, augment_many, sequence_contacts
 from .variations import KINDS, sample_variation
 
-__all__ = ["PipelineConfig", "augment_dataset", "contacted_objects", "penetration_cm", "vary_sequence"]
+__all__ = ["PipelineConfig", "augment_dataset", "contacted_objects", "vary_sequence"]
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,8 @@ class PipelineConfig:
     """data: source dataset folder; out: output folder; variations: per touched object (the paper
     uses 2); splits: source splits to augment; kinds: variation kinds to draw from; workers:
     processes (0 = CPU count); occupancy: also cache each new scene's occupancy grid;
-    max_penetration: a variation whose new motion puts a joint deeper than this (m) inside the
-    changed object is redrawn (up to ``tries`` times) and otherwise skipped; so is one whose IK
+    max_penetration: a variation whose new motion puts a joint centre deeper than this (m) inside
+    the changed object (``trumans.metrics.joint_centre_inside_cm``) is redrawn (up to ``tries`` times) and otherwise skipped; so is one whose IK
     leaves more than ``max_unreachable`` of its contact frames unreachable (1.0 = keep all)."""
 
     data: str
@@ -52,7 +52,7 @@ class PipelineConfig:
     workers: int = 0
     occupancy: bool = False
     window_s: float = 1.0
-    threshold: float = 0.03
+    threshold: float = HOLD_THRESHOLD
     max_penetration: float = 0.03
     max_unreachable: float = 0.1
     tries: int = 4
@@ -81,23 +81,6 @@ def contacted_objects(intervals, scene: Scene) -> list[str]:
     return sorted({iv.obj for iv in intervals if iv.obj != FLOOR_NAME and iv.obj in scene.objects})
 
 
-def penetration_cm(joints: np.ndarray, scene: Scene, names: list[str]) -> float:
-    """Deepest joint centre inside the objects ``names`` of ``scene`` (cm; 0 if none inside).
-    joints: (T, 24, 3) m world."""
-    if not names:
-        return 0.0
-    pts = np.asarray(joints, np.float64).reshape(-1, 3)
-    meshes = {n: scene.objects[n].world_mesh() for n in names}
-    near = np.zeros(len(pts), bool)
-    for m in meshes.values():  # only joints inside an object's box can be inside the object
-        lo, hi = m.bounds
-        near |= np.all((pts >= lo) & (pts <= hi), axis=1)
-    if not near.any():
-        return 0.0
-    s = SceneDistance(meshes).query(pts[near]).signed
-    return float(max(0.0, -float(s.min())) * 100.0)
-
-
 def _library(ds: Dataset, cache: dict) -> dict[str, dict[str, trimesh.Trimesh]]:
     """category -> {"<scene>/<object>": mesh} over every scene of the dataset (cached per process)."""
     if "lib" not in cache:
@@ -115,8 +98,8 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
     """All augmentations of one sequence: [(object, k, AugmentOutput or None if every draw failed)].
 
     Contacts are found once; all variations are solved in one IK batch, and draws that put a joint
-    deeper than max(original, ``cfg.max_penetration``) inside the changed object, or leave more than
-    ``cfg.max_unreachable`` of their contact frames unreachable, are redrawn."""
+    centre deeper than max(original, ``cfg.max_penetration``) inside the changed object, or leave
+    more than ``cfg.max_unreachable`` of their contact frames unreachable, are redrawn."""
     acfg = acfg or AugmentConfig(window_s=cfg.window_s, threshold=cfg.threshold)
     sc = sequence_contacts(seq, scene, acfg)
     objs = contacted_objects(sc.intervals, scene)
@@ -125,7 +108,7 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
                          "nothing to augment")
     libs = {name: {k: m for k, m in library.get(scene.objects[name].category, {}).items()
                    if k != f"{scene.name}/{name}"} for name in objs}
-    pen0 = {name: penetration_cm(sc.joints, scene, [name]) for name in objs}
+    pen0 = {name: joint_centre_inside_cm(sc.joints, scene, [name]) for name in objs}
     slots = [(name, k) for name in objs for k in range(n)]
     done: dict[tuple[str, int], object] = {}
     todo = slots
@@ -137,8 +120,8 @@ def vary_sequence(seq: Sequence, scene: Scene, n: int, rng: np.random.Generator,
         outs = augment_many([(sc, [v]) for v in draws], lib, acfg)
         again = []
         for slot, out in zip(todo, outs):
-            pen = penetration_cm(out.sequence.joints, out.scene, [slot[0]])
-            out.report["penetration_cm"] = pen
+            pen = joint_centre_inside_cm(out.sequence.joints, out.scene, [slot[0]])
+            out.report["joint_centre_inside_cm"] = pen
             unreach = out.report["unreachable_frames"] / max(out.report["contact_frames"], 1)
             if pen <= max(pen0[slot[0]], cfg.max_penetration * 100) and unreach <= cfg.max_unreachable:
                 done[slot] = out
@@ -176,7 +159,7 @@ def _process(args: tuple[PipelineConfig, int, str, str]) -> dict:
         err = ""
     for name, k, res in results:
         if res is None:
-            items.append({"object": name, "k": k, "skipped": "every draw penetrated the changed object"})
+            items.append({"object": name, "k": k, "skipped": "every draw put a joint centre inside the changed object or left too many contacts unreachable"})
             continue
         sid = f"{scene.name}__{stem}__{name}_v{k}"
         res.scene.name = sid

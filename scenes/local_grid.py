@@ -42,16 +42,22 @@ def _axes(n: int, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (t - 0.5) * e[0], (t - 0.5) * e[1], t * e[2]
 
 
+def _cell_coords(c: np.ndarray, y: np.ndarray, n: int, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World x (B, n, n), y (B, n, n) and z (B, n) of the cells of the grids at floor points c
+    (B, 3) turned by yaw y (B,): the turn is about z, so x, y depend on (b, i, j) and z on (b, k)."""
+    u, v, w = _axes(n, e)
+    cos, sin = np.cos(y)[:, None, None], np.sin(y)[:, None, None]
+    x = c[:, 0, None, None] + cos * u[None, :, None] - sin * v[None, None, :]
+    yy = c[:, 1, None, None] + sin * u[None, :, None] + cos * v[None, None, :]
+    return x, yy, c[:, 2, None] + w[None]
+
+
 def local_points(
     centers: np.ndarray, yaw: np.ndarray, n: int = 32, extent: tuple[float, float, float] = (1.2, 1.2, 1.2)
 ) -> np.ndarray:
     """World positions of the local grid cells: (B, n, n, n, 3) float32 (reference/visualisation)."""
     c, y, e = _check(centers, yaw, n, extent)
-    u, v, w = _axes(n, e)
-    cos, sin = np.cos(y)[:, None, None], np.sin(y)[:, None, None]
-    x = c[:, 0, None, None] + cos * u[None, :, None] - sin * v[None, None, :]  # (B, n, n)
-    yy = c[:, 1, None, None] + sin * u[None, :, None] + cos * v[None, None, :]  # (B, n, n)
-    z = c[:, 2, None] + w[None]  # (B, n)
+    x, yy, z = _cell_coords(c, y, n, e)
     B = len(c)
     return np.stack(np.broadcast_arrays(x[..., None], yy[..., None], z[:, None, None, :]), -1).reshape(B, n, n, n, 3)
 
@@ -77,13 +83,9 @@ def local_grids(
     """
     c, y, e = _check(centers, yaw, n, extent)
     B = len(c)
-    u, v, w = _axes(n, e)
     o = occ.origin.astype(np.float32)
     inv = np.float32(1.0 / occ.voxel)
-    cos, sin = np.cos(y)[:, None, None], np.sin(y)[:, None, None]
-    x = c[:, 0, None, None] + cos * u[None, :, None] - sin * v[None, None, :]  # (B, n, n)
-    yy = c[:, 1, None, None] + sin * u[None, :, None] + cos * v[None, None, :]  # (B, n, n)
-    z = c[:, 2, None] + w[None]  # (B, n)
+    x, yy, z = _cell_coords(c, y, n, e)
     pad = occ.padded()  # (Nx+2, Ny+2, Nz+2), border True; padded index = voxel index + 1
     nx, ny, nz = pad.shape
     # nearest voxel index + 1, clipped into the padded grid: anything outside lands on the border

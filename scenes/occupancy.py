@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import trimesh
 
+from .atomic import atomic_write
 from .raycast import Watertight, bodies_inside, check_mesh, split_bodies
 
 if TYPE_CHECKING:
@@ -83,8 +84,6 @@ class OccupancyGrid:
 
     def save(self, path: str | Path, key: str | None = None) -> None:
         """Write ``grid``, ``origin``, ``voxel`` (and an optional cache ``key``) to .npz atomically."""
-        from trumans.sequence import atomic_write
-
         arrays = {"grid": self.grid, "origin": self.origin, "voxel": np.asarray(self.voxel)}
         if key is not None:
             arrays["key"] = np.asarray(key)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from trumans.ik.ccd import IKConfig, rodrigues, rotvec, solve_ik
+from trumans.ik.ccd import IKConfig, solve_ik
 from trumans.skeleton import JOINT_INDEX as J, bone_lengths, forward_kinematics, rest_offsets
 from trumans.synth.poses import pose
 
@@ -14,12 +14,6 @@ def _sitting(T: int):
     P, _ = forward_kinematics(rot[:1], np.zeros((1, 3)), OFF)
     root = np.tile([0.0, 0.0, 0.04 - P[0, [J["left_foot"], J["right_foot"]], 2].min()], (T, 1))
     return forward_kinematics(rot, root, OFF)
-
-
-def test_rotvec_rodrigues_round_trip():
-    v = np.random.default_rng(0).normal(0, 1, (50, 3))
-    v *= (np.random.default_rng(1).uniform(0, 3.0, 50) / np.linalg.norm(v, axis=1))[:, None]
-    assert np.allclose(rotvec(rodrigues(v)), v, atol=1e-9)
 
 
 def test_reachable_hand_targets_within_1mm_and_bones_rigid():

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from augment.offsets import (ContactInterval, Tracks, blend_tracks, contact_tracks, fade, handover, runs,
+from augment.offsets import (ContactInterval, Tracks, blend_tracks, contact_tracks, fade, handover,
                              smooth_ratio)
 
 
@@ -13,13 +13,6 @@ def test_fade_is_a3_linear_window():
     assert w[30] == 0.0 and w[59] == 0.0 and w[:30].sum() == 0.0
     with pytest.raises(ValueError, match="W must be > 0"):
         fade(10, 2, 4, 0)
-
-
-def test_runs_closes_small_gaps_and_drops_short_runs():
-    m = np.zeros(30, bool)
-    m[2:6] = m[7:12] = m[20:21] = True
-    assert runs(m, max_gap=1) == [(2, 12), (20, 21)]
-    assert runs(m, max_gap=0, min_len=2) == [(2, 6), (7, 12)]
 
 
 def test_a5_norm_weighted_mean_of_two_offsets():

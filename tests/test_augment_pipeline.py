@@ -93,7 +93,7 @@ def test_eval_cli_prints_figures_last(capsys):
 
     assert main(["eval", "augment", "--cases", "1", "--variations", "1", "--seed", "1", "--json"]) == 0
     fig = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    for k in ("contact_err_cm", "bone_length_err_mm", "smooth_ratio", "foot_skate_added_cm", "penetration_max_cm",
+    for k in ("contact_err_cm", "bone_length_err_mm", "smooth_ratio", "foot_skate_added_cm", "joint_centre_inside_max_cm",
               "unreachable_frac", "frames_per_s"):
         assert np.isfinite(fig[k]), k
     assert fig["outputs"] == 5 and fig["bone_length_err_mm"] < 0.1 and fig["smooth_ratio"] <= 1.0 + 1e-9

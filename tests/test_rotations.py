@@ -6,7 +6,7 @@ from scipy.spatial.transform import Rotation
 
 from trumans.rotations import (
     axis_angle_to_matrix, euler_to_matrix, matrix_to_6d, matrix_to_axis_angle, matrix_to_quat,
-    quat_to_matrix, sixd_to_matrix, yaw_matrix,
+    quat_to_matrix, sixd_to_matrix, yaw_matrix, rodrigues, unit, fit_yaw,
 )
 
 
@@ -109,3 +109,54 @@ def test_euler_and_yaw():
 def test_bad_shapes_raise(fn, arg):
     with pytest.raises(ValueError, match="must be"):
         fn(arg)
+
+
+def test_rotvec_rodrigues_round_trip():
+    v = np.random.default_rng(0).normal(0, 1, (50, 3))
+    v *= (np.random.default_rng(1).uniform(0, 3.0, 50) / np.linalg.norm(v, axis=1))[:, None]
+    assert np.allclose(matrix_to_axis_angle(axis_angle_to_matrix(v)), v, atol=1e-9)
+
+
+def test_rotvec_exact_near_half_turn():
+    axes = np.random.default_rng(2).normal(size=(20, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    ang = np.pi - np.geomspace(1e-8, 1e-3, 20)
+    v = axes * ang[:, None]
+    got = matrix_to_axis_angle(Rotation.from_rotvec(v).as_matrix())
+    np.testing.assert_allclose(got, v, atol=1e-7)
+
+
+def test_rodrigues_matches_scipy_numpy_and_torch():
+    rng = np.random.default_rng(3)
+    axis, angle = rng.normal(size=(30, 3)), rng.uniform(-4, 4, 30)
+    ref = Rotation.from_rotvec(axis / np.linalg.norm(axis, axis=1, keepdims=True) * angle[:, None]).as_matrix()
+    np.testing.assert_allclose(rodrigues(axis, angle), ref, atol=1e-12)
+    got = rodrigues(torch.as_tensor(axis), torch.as_tensor(angle))
+    assert isinstance(got, torch.Tensor)
+    np.testing.assert_allclose(got.numpy(), ref, atol=1e-12)
+    # one axis, many angles; a zero axis is the identity
+    np.testing.assert_allclose(rodrigues(np.array([0.0, 0.0, 2.0]), angle[:4]), yaw_matrix(angle[:4]), atol=1e-12)
+    np.testing.assert_allclose(rodrigues(np.zeros(3), 1.0), np.eye(3))
+
+
+def test_unit_vectors():
+    v = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(unit(v), [[0.6, 0.8, 0.0], [0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(unit(torch.as_tensor(v)).numpy(), unit(v))
+
+
+def test_fit_yaw_recovers_a_turn_and_weights():
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(5, 8, 3))
+    a -= a.mean(1, keepdims=True)
+    th = rng.uniform(-3, 3, 5)
+    b = np.einsum("nij,nkj->nki", yaw_matrix(th), a)
+    np.testing.assert_allclose(fit_yaw(a, b), th, atol=1e-12)
+    # a zero-weight outlier does not move the fit
+    b2 = b.copy()
+    b2[:, 0] += 5.0
+    w = np.ones((5, 8))
+    w[:, 0] = 0.0
+    np.testing.assert_allclose(fit_yaw(a, b2, w), th, atol=1e-12)
+    with pytest.raises(ValueError, match="a and b"):
+        fit_yaw(a, b[:, :4])

@@ -113,3 +113,56 @@ def test_fk_bad_shapes(rot, root):
         forward_kinematics(rot, root)
     with pytest.raises(ValueError, match="24, 3"):
         bone_lengths(np.zeros((5, 22, 3)))
+
+
+def test_depth_subtree_and_groups():
+    from trumans.skeleton import DEPTH, FEET, HINGE_AXES, LIMB_CHAINS, SUBTREE, TORSO, WRISTS
+
+    assert DEPTH[0] == 0 and all(DEPTH[j] == DEPTH[PARENTS[j]] + 1 for j in range(1, NUM_JOINTS))
+    assert SUBTREE[0].tolist() == list(range(NUM_JOINTS))
+    for j in range(NUM_JOINTS):  # a joint's subtree = itself + its children's subtrees
+        kids = [SUBTREE[c] for c in children(j)]
+        assert sorted([j, *np.concatenate(kids).tolist()] if kids else [j]) == SUBTREE[j].tolist()
+    assert [JOINT_NAMES[j] for j in FEET] == ["left_foot", "right_foot"]
+    assert [JOINT_NAMES[j] for j in WRISTS] == ["left_wrist", "right_wrist"]
+    assert 0 in TORSO and JOINT_INDEX["head"] in TORSO
+    # every limb is a parent -> child chain whose middle joint is a hinge
+    for a, b, c in LIMB_CHAINS.values():
+        assert PARENTS[b] == a and PARENTS[c] == b and b in HINGE_AXES
+    assert len(HINGE_AXES) == 4
+
+
+def test_hinge_axes_bend_limbs_the_anatomical_way():
+    from trumans.skeleton import HINGE_AXES, LIMB_CHAINS
+
+    off = rest_offsets()
+    rot = np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)).copy()
+    for name, (a, b, c) in LIMB_CHAINS.items():
+        r = rot.copy()
+        r[b] = axis_angle_to_matrix(HINGE_AXES[b] * 0.5)
+        P, _ = forward_kinematics(r, np.zeros(3), off)
+        move = P[c] - forward_kinematics(rot, np.zeros(3), off)[0][c]
+        if name.endswith("leg"):
+            assert move[0] < -0.05  # the shin swings backwards
+        else:
+            assert move[0] > 0.05  # the forearm swings forwards
+
+
+def test_global_to_local_and_offsets_invert_fk():
+    from trumans.skeleton import bone_offsets, global_to_local, offsets_from_joints, offsets_from_pose, rest_root
+
+    R, root = _random_pose(6, seed=3)
+    off = rest_offsets(1.1)
+    P, G = forward_kinematics(R, root, off)
+    np.testing.assert_allclose(global_to_local(G), R, atol=1e-12)
+    per_frame = bone_offsets(P, G)
+    np.testing.assert_allclose(per_frame[:, 1:], np.broadcast_to(off[1:], (6, 23, 3)), atol=1e-12)
+    est = offsets_from_pose(P, G)
+    np.testing.assert_allclose(est[1:], off[1:], atol=1e-12)
+    np.testing.assert_allclose(est[0], rest_root(off))
+    # the rest root puts the rest pose's lowest foot at the canonical foot height
+    rest, _ = forward_kinematics(np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)).copy(), est[0], est)
+    assert abs(rest[[10, 11], 2].min() - REST_JOINTS[[10, 11], 2].min()) < 1e-12
+    np.testing.assert_allclose(np.linalg.norm(offsets_from_joints(P)[1:], axis=-1), np.linalg.norm(off[1:], axis=-1))
+    with pytest.raises(ValueError, match="global_rot"):
+        bone_offsets(P, G[:, :5])

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .contacts.intervals import run_bounds
+
 __all__ = ["ActionInterval", "labels_from_intervals", "intervals_from_labels", "remap_labels"]
 
 
@@ -47,9 +49,8 @@ def intervals_from_labels(labels: np.ndarray, vocab: list[str]) -> list[ActionIn
     out = []
     on = labels > 0
     for a in range(labels.shape[1]):
-        d = np.diff(np.concatenate([[0], on[:, a].astype(np.int8), [0]]))
-        for s, e in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1):
-            out.append(ActionInterval(vocab[a], int(s), int(e)))
+        starts, ends = run_bounds(on[:, a])  # half-open runs; ActionInterval's end is inclusive
+        out += [ActionInterval(vocab[a], int(s), int(e) - 1) for s, e in zip(starts, ends)]
     return sorted(out, key=lambda iv: (iv.start, iv.name))
 
 

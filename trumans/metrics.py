@@ -1,12 +1,20 @@
-"""Quality figures of synthetic motion (issue #2 targets): bone lengths, foot skate, penetration, grasp.
+"""Motion quality figures, one definition each (synthetic data, augmentation, later the sampler):
+bone lengths, foot skate, penetration, joint centres inside objects, grasp distance.
 
-Each figure is a pure function of arrays, plus a per-sequence ``*_parts`` variant returning the
-raw terms so that a dataset-level figure can be aggregated exactly over many sequences.
+Two depth figures, not to be confused:
+- ``penetration_max_cm``: how deep the *body* (the skin around each joint, radii of
+  ``trumans.contacts.rule``) goes into the scene -- a seated pelvis 8 cm above the seat gives 2 cm.
+- ``joint_centre_inside_cm``: how deep a *joint centre* lies inside given objects (0 unless the
+  skeleton itself is inside) -- the augmentation's test that a variation did not swallow a limb.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from scenes.distance import SceneDistance
+from scenes.scene import Scene
+
+from .contacts.intervals import run_bounds
 from .contacts.rule import body_penetration
 from .skeleton import NUM_JOINTS, bone_lengths
 
@@ -16,6 +24,7 @@ __all__ = [
     "foot_skate_cm",
     "penetration_depth",
     "penetration_max_cm",
+    "joint_centre_inside_cm",
     "grasp_dist_cm",
 ]
 
@@ -54,8 +63,7 @@ def foot_slides(foot: np.ndarray, contact: np.ndarray) -> np.ndarray:
     step = np.linalg.norm(np.diff(foot[..., :2], axis=0), axis=-1)  # (T-1, F) per-frame horizontal move
     both = contact[1:] & contact[:-1]  # the foot is in contact at both ends of the frame step
     for f in range(foot.shape[1]):
-        d = np.diff(np.concatenate([[0], contact[:, f].astype(np.int8), [0]]))
-        starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)  # run = frames [s, e)
+        starts, ends = run_bounds(contact[:, f])  # run = frames [s, e)
         if len(starts) == 0:
             continue
         cum = np.concatenate([[0.0], np.cumsum(np.where(both[:, f], step[:, f], 0.0))])
@@ -88,6 +96,28 @@ def penetration_max_cm(penetration: np.ndarray) -> float:
     the pelvis/back joints are measured against the seat/bed like any other surface."""
     d = np.asarray(penetration, dtype=np.float64)
     return float(d.max() * 100.0) if d.size else 0.0
+
+
+def joint_centre_inside_cm(joints: np.ndarray, scene: Scene, names: list[str]) -> float:
+    """Deepest joint centre inside the objects ``names`` of ``scene`` (objects at their scene
+    poses), cm; 0 if no joint centre is inside. joints: (T, 24, 3) m world. Unlike
+    ``penetration_max_cm`` this ignores the body's thickness (module doc)."""
+    joints = _check_joints(joints)
+    unknown = [n for n in names if n not in scene.objects]
+    if unknown:
+        raise ValueError(f"objects {unknown} are not in scene {scene.name!r}; it has {sorted(scene.objects)}")
+    if not names:
+        return 0.0
+    pts = joints.reshape(-1, 3)
+    meshes = {n: scene.objects[n].world_mesh() for n in names}
+    near = np.zeros(len(pts), bool)
+    for m in meshes.values():  # only joints inside an object's box can be inside the object
+        lo, hi = m.bounds
+        near |= np.all((pts >= lo) & (pts <= hi), axis=1)
+    if not near.any():
+        return 0.0
+    s = SceneDistance(meshes).query(pts[near]).signed
+    return float(max(0.0, -float(s.min())) * 100.0)
 
 
 def grasp_dist_cm(gaps: np.ndarray) -> float:

@@ -6,6 +6,11 @@ Conventions (owned here, used everywhere):
   ``r6 = [R[:, 0], R[:, 1]]`` -> shape ``(..., 6)``. (pytorch3d keeps rows; we never do.)
 - Quaternions are scalar-last ``(x, y, z, w)``, as scipy's ``Rotation``.
 - Axis-angle is a rotation vector ``(..., 3)``: unit axis times angle in radians.
+- Yaw is the angle (radians) about world +z, measured from +x towards +y.
+
+The one definition of each: ``unit`` (unit vectors), ``rodrigues`` (axis + angle -> matrix),
+``axis_angle_to_matrix`` / ``matrix_to_axis_angle`` (rotation vectors), ``yaw_matrix`` (rotation
+about +z) and ``fit_yaw`` (best planar turn between two point sets).
 """
 from __future__ import annotations
 
@@ -22,6 +27,10 @@ __all__ = [
     "axis_angle_to_matrix",
     "euler_to_matrix",
     "yaw_matrix",
+    "fit_yaw",
+    "unit",
+    "skew",
+    "rodrigues",
 ]
 
 
@@ -73,28 +82,88 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(*q.shape[:-1], 3, 3)
 
 
+def unit(v: np.ndarray | torch.Tensor, eps: float = 1e-9) -> np.ndarray | torch.Tensor:
+    """(..., 3) vectors -> unit vectors along them; a vector shorter than ``eps`` is divided by
+    ``eps`` instead (so a zero vector stays zero)."""
+    if isinstance(v, torch.Tensor):
+        return v / v.norm(dim=-1, keepdim=True).clamp_min(eps)
+    v = np.asarray(v, dtype=np.float64)
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
+
+
+def skew(v: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+    """(..., 3) -> (..., 3, 3) cross-product matrices: ``skew(v) @ x == cross(v, x)``."""
+    if isinstance(v, torch.Tensor):
+        K = torch.zeros(*v.shape[:-1], 3, 3, dtype=v.dtype, device=v.device)
+    else:
+        v = np.asarray(v, dtype=np.float64)
+        K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    return K
+
+
+def rodrigues(axis: np.ndarray | torch.Tensor, angle: np.ndarray | torch.Tensor | float) -> np.ndarray | torch.Tensor:
+    """Rotation by ``angle`` (...,) radians about ``axis`` (..., 3) (normalised here; a zero axis
+    gives the identity) -> (..., 3, 3), by Rodrigues' formula ``R = c I + s [k]x + (1 - c) k k^T``.
+    Leading shapes broadcast; torch in -> torch out (differentiable), numpy in -> numpy out."""
+    if axis.shape[-1] != 3:
+        raise ValueError(f"axis must be (..., 3), got {tuple(axis.shape)}")
+    if isinstance(axis, torch.Tensor):
+        k = unit(axis, 1e-12)
+        ang = torch.as_tensor(angle, dtype=axis.dtype, device=axis.device)
+        k, ang = torch.broadcast_tensors(k, ang[..., None])
+        s, c = torch.sin(ang[..., 0])[..., None, None], torch.cos(ang[..., 0])[..., None, None]
+        K = skew(k)
+        eye = torch.eye(3, dtype=k.dtype, device=k.device).expand_as(K)
+        return eye + s * K + (1 - c) * (K @ K)
+    axis = np.asarray(axis, dtype=np.float64)
+    n = np.linalg.norm(axis, axis=-1, keepdims=True)
+    k, ang = np.broadcast_arrays(axis / np.maximum(n, 1e-12), np.where(n > 0, np.asarray(angle, dtype=np.float64)[..., None], 0.0))
+    ang = ang[..., 0]  # zero axis: angle 0 (the form below needs k k^T = I + [k]x^2)
+    s, c = np.sin(ang), np.cos(ang)
+    R = (1 - c)[..., None, None] * (k[..., :, None] * k[..., None, :])
+    R[..., 0, 0] += c
+    R[..., 1, 1] += c
+    R[..., 2, 2] += c
+    sk = s[..., None] * k
+    R[..., 0, 1] -= sk[..., 2]
+    R[..., 0, 2] += sk[..., 1]
+    R[..., 1, 0] += sk[..., 2]
+    R[..., 1, 2] -= sk[..., 0]
+    R[..., 2, 0] -= sk[..., 1]
+    R[..., 2, 1] += sk[..., 0]
+    return R
+
+
 def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) -> (..., 3) rotation vectors (radians)."""
-    flat, lead = _flat(np.asarray(R, dtype=np.float64))
-    return Rotation.from_matrix(flat).as_rotvec().reshape(*lead, 3)
+    """(..., 3, 3) -> (..., 3) rotation vectors (radians, angle in [0, pi]).
+
+    Closed form from the trace and the skew part; within 1e-3 rad of a half turn (where that is
+    ill-conditioned) scipy's quaternion route is used."""
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape[-2:] != (3, 3):
+        raise ValueError(f"rotation matrices must be (..., 3, 3), got {R.shape}")
+    tr = np.trace(R, axis1=-2, axis2=-1)
+    ang = np.arccos(np.clip((tr - 1) / 2, -1.0, 1.0))
+    w = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    s = np.sin(ang)
+    out = w * np.where(s > 1e-9, ang / np.maximum(2 * s, 1e-12), 0.5)[..., None]
+    near_pi = ang > np.pi - 1e-3
+    if near_pi.any():
+        out[near_pi] = Rotation.from_matrix(R[near_pi]).as_rotvec()
+    return out
 
 
 def axis_angle_to_matrix(v: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
-    """(..., 3) rotation vectors -> (..., 3, 3). The torch path is differentiable (Rodrigues)."""
+    """(..., 3) rotation vectors -> (..., 3, 3) (``rodrigues``; differentiable in torch)."""
     if v.shape[-1] != 3:
         raise ValueError(f"axis-angle must be (..., 3), got {tuple(v.shape)}")
     if isinstance(v, torch.Tensor):
-        angle = v.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-        k = v / angle
-        K = torch.zeros(*v.shape[:-1], 3, 3, dtype=v.dtype, device=v.device)
-        K[..., 0, 1], K[..., 0, 2] = -k[..., 2], k[..., 1]
-        K[..., 1, 0], K[..., 1, 2] = k[..., 2], -k[..., 0]
-        K[..., 2, 0], K[..., 2, 1] = -k[..., 1], k[..., 0]
-        s, c = torch.sin(angle)[..., None], torch.cos(angle)[..., None]
-        eye = torch.eye(3, dtype=v.dtype, device=v.device).expand_as(K)
-        return eye + s * K + (1 - c) * (K @ K)
+        return rodrigues(v, v.norm(dim=-1))
     v = np.asarray(v, dtype=np.float64)
-    return Rotation.from_rotvec(v.reshape(-1, 3)).as_matrix().reshape(*v.shape[:-1], 3, 3)
+    return rodrigues(v, np.linalg.norm(v, axis=-1))
 
 
 def euler_to_matrix(angles: np.ndarray, order: str = "xyz") -> np.ndarray:
@@ -112,3 +181,16 @@ def yaw_matrix(yaw: np.ndarray | float) -> np.ndarray:
     R[..., 1, 0], R[..., 1, 1] = s, c
     R[..., 2, 2] = 1.0
     return R
+
+
+def fit_yaw(a: np.ndarray, b: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """Yaw (radians) of the turn about +z that best maps the centred points ``a`` onto ``b`` in the
+    ground plane (weighted least squares, Kabsch in 2D): a, b (..., N, 3) or (..., N, 2) with
+    centroids already removed; w (..., N) weights (default 1) -> (...,)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if a.shape != b.shape or a.shape[-1] not in (2, 3):
+        raise ValueError(f"a and b must both be (..., N, 2 or 3), got {a.shape} and {b.shape}")
+    w = np.ones(a.shape[:-1]) if w is None else np.asarray(w, dtype=np.float64)
+    cross = (w * (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])).sum(-1)
+    dot = (w * (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1])).sum(-1)
+    return np.arctan2(cross, dot)

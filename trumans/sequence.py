@@ -8,13 +8,13 @@ Keys: ``joints (T,24,3) float32`` (m, z-up world), ``fps ()``, optional ``rotati
 """
 from __future__ import annotations
 
-import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from scenes.atomic import atomic_write  # the one implementation; re-exported here
 
 from .skeleton import NUM_JOINTS
 
@@ -80,21 +80,6 @@ class Sequence:
                 raise ValueError(f"object name {name!r} must be non-empty and contain no '/'")
             if np.shape(ob.pose) != (T, 4, 4):
                 raise ValueError(f"objects/{name}/pose must be ({T}, 4, 4), got {np.shape(ob.pose)}")
-
-
-def atomic_write(path: str | Path, write_fn) -> None:
-    """Call ``write_fn(tmp_path)`` then rename onto ``path``: readers never see a half-written file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        write_fn(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def save_sequence(seq: Sequence, path: str | Path) -> None:

@@ -22,6 +22,16 @@ __all__ = [
     "forward_kinematics",
     "heading",
     "children",
+    "HIPS", "KNEES", "ANKLES", "FEET", "SHOULDERS", "ELBOWS", "WRISTS", "INDEX1", "SEAT", "SPINE", "TORSO",
+    "LIMB_CHAINS",
+    "HINGE_AXES",
+    "DEPTH",
+    "SUBTREE",
+    "global_to_local",
+    "bone_offsets",
+    "offsets_from_pose",
+    "offsets_from_joints",
+    "rest_root",
 ]
 
 JOINT_NAMES: tuple[str, ...] = (
@@ -68,9 +78,68 @@ def _rest_joints() -> np.ndarray:
 REST_JOINTS: np.ndarray = _rest_joints()  # (24, 3) world rest pose, facing +x, ~1.70 m tall
 
 
+def _idx(*names: str) -> tuple[int, ...]:
+    return tuple(JOINT_INDEX[n] for n in names)
+
+
+# Joint groups; paired groups are (left, right).
+HIPS: tuple[int, int] = _idx("left_hip", "right_hip")
+KNEES: tuple[int, int] = _idx("left_knee", "right_knee")
+ANKLES: tuple[int, int] = _idx("left_ankle", "right_ankle")
+FEET: tuple[int, int] = _idx("left_foot", "right_foot")  # toe-base joints
+SHOULDERS: tuple[int, int] = _idx("left_shoulder", "right_shoulder")
+ELBOWS: tuple[int, int] = _idx("left_elbow", "right_elbow")
+WRISTS: tuple[int, int] = _idx("left_wrist", "right_wrist")
+INDEX1: tuple[int, int] = _idx("left_index1", "right_index1")  # index-finger base, one per hand
+SEAT: tuple[int, ...] = _idx("pelvis", "left_hip", "right_hip")  # what rests on a seat
+SPINE: tuple[int, ...] = _idx("spine1", "spine2", "spine3")
+# The rigid trunk: pelvis, hips, spine, neck, head, collars and shoulders.
+TORSO: tuple[int, ...] = _idx("pelvis", "left_hip", "right_hip", "spine1", "spine2", "spine3", "neck", "head",
+                              "left_collar", "right_collar", "left_shoulder", "right_shoulder")
+# Two-bone limbs: name -> (upper, middle (the hinge), end) joints.
+LIMB_CHAINS: dict[str, tuple[int, int, int]] = {
+    "left_arm": _idx("left_shoulder", "left_elbow", "left_wrist"),
+    "right_arm": _idx("right_shoulder", "right_elbow", "right_wrist"),
+    "left_leg": _idx("left_hip", "left_knee", "left_ankle"),
+    "right_leg": _idx("right_hip", "right_knee", "right_ankle"),
+}
+# Flexion axis of each hinge joint (knee, elbow), in its own frame, which is also its parent's
+# (rest) frame, since turning about the axis leaves it fixed: a positive turn bends the limb the
+# anatomical way. Rest pose faces +x, left +y, z up: knees flex about +y (shin backwards); in the
+# T-pose rest the elbows flex about -z (left, arm along +y) / +z (right), forearm forwards (+x).
+HINGE_AXES: dict[int, np.ndarray] = {
+    JOINT_INDEX["left_knee"]: np.array([0.0, 1.0, 0.0]),
+    JOINT_INDEX["right_knee"]: np.array([0.0, 1.0, 0.0]),
+    JOINT_INDEX["left_elbow"]: np.array([0.0, 0.0, -1.0]),
+    JOINT_INDEX["right_elbow"]: np.array([0.0, 0.0, 1.0]),
+}
+for _axis in HINGE_AXES.values():
+    _axis.flags.writeable = False
+
+
 def children(j: int) -> list[int]:
     """Indices of joint j's children."""
     return [int(c) for c in np.flatnonzero(PARENTS == j)]
+
+
+def _depth(j: int) -> int:
+    d = 0
+    while PARENTS[j] >= 0:
+        j, d = int(PARENTS[j]), d + 1
+    return d
+
+
+def _subtree(j: int) -> np.ndarray:
+    out, todo = [j], [j]
+    while todo:
+        kids = children(todo.pop())
+        out += kids
+        todo += kids
+    return np.array(sorted(out), dtype=np.int64)
+
+
+DEPTH: np.ndarray = np.array([_depth(j) for j in range(NUM_JOINTS)])  # bones to the root: pelvis 0 ... index1 8
+SUBTREE: tuple[np.ndarray, ...] = tuple(_subtree(j) for j in range(NUM_JOINTS))  # joint j and its descendants, sorted
 
 
 def rest_offsets(scale: float | np.ndarray = 1.0) -> np.ndarray:
@@ -131,6 +200,64 @@ def forward_kinematics(
     if is_torch:
         return torch.stack(P, dim=-2), torch.stack(G, dim=-3)
     return np.stack(P, axis=-2), np.stack(G, axis=-3)
+
+
+def global_to_local(global_rot: np.ndarray) -> np.ndarray:
+    """(..., 24, 3, 3) global joint rotations -> local ones: ``R_local[j] = G[parent]^T G[j]``
+    (the root's is its global rotation)."""
+    G = np.asarray(global_rot)
+    if G.shape[-3:] != (NUM_JOINTS, 3, 3):
+        raise ValueError(f"global_rot must be (..., 24, 3, 3), got {G.shape}")
+    L = G.copy()
+    L[..., 1:, :, :] = np.swapaxes(G[..., PARENTS[1:], :, :], -1, -2) @ G[..., 1:, :, :]
+    return L
+
+
+def bone_offsets(joints: np.ndarray, global_rot: np.ndarray) -> np.ndarray:
+    """Per-frame bones in their parent's frame, ``G[parent]^T (p[j] - p[parent])``: joints
+    (..., 24, 3) m with their global rotations (..., 24, 3, 3) -> (..., 24, 3) m (root entry 0).
+    For a pose made by FK these are exactly the offsets it was made with."""
+    P, G = np.asarray(joints, dtype=np.float64), np.asarray(global_rot, dtype=np.float64)
+    if P.shape[-2:] != (NUM_JOINTS, 3) or G.shape != P.shape[:-1] + (3, 3):
+        raise ValueError(f"joints must be (..., 24, 3) and global_rot (..., 24, 3, 3), got {P.shape} and {G.shape}")
+    off = np.zeros_like(P)
+    off[..., 1:, :] = np.einsum("...jik,...ji->...jk", G[..., PARENTS[1:], :, :], P[..., 1:, :] - P[..., PARENTS[1:], :])
+    return off
+
+
+def rest_root(offsets: np.ndarray) -> np.ndarray:
+    """Rest root position (3,) for bone ``offsets (24, 3)``: under the rest pelvis in x, y = 0, and
+    high enough that the rest pose's lowest foot joint is at the canonical rest foot height."""
+    off = np.asarray(offsets, dtype=np.float64)
+    rest, _ = forward_kinematics(np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)).copy(), np.zeros(3), off)
+    foot_h = REST_JOINTS[list(FEET), 2].min()
+    return np.array([REST_JOINTS[0, 0], 0.0, foot_h - rest[list(FEET), 2].min()])
+
+
+def offsets_from_pose(joints: np.ndarray, global_rot: np.ndarray) -> np.ndarray:
+    """Rest offsets (24, 3) m of a posed clip: each bone in its parent's frame
+    (``bone_offsets``) averaged over frames; the root entry is ``rest_root``.
+    joints: (T, 24, 3) m; global_rot: (T, 24, 3, 3)."""
+    P = np.asarray(joints, dtype=np.float64)
+    if P.ndim != 3 or len(P) == 0:
+        raise ValueError(f"joints must be (T, 24, 3) with T >= 1, got {P.shape}")
+    off = bone_offsets(P, global_rot).mean(0)
+    off[0] = rest_root(off)
+    return off
+
+
+def offsets_from_joints(joints: np.ndarray) -> np.ndarray:
+    """Rest offsets (24, 3) for a clip of joint positions only: median bone lengths of ``joints
+    (T, 24, 3)`` (m) along the rest directions of ``rest_offsets()``; root entry ``rest_root``."""
+    P = np.asarray(joints, np.float64)
+    if P.ndim != 3 or P.shape[1:] != (NUM_JOINTS, 3) or len(P) == 0:
+        raise ValueError(f"joints must be (T, 24, 3) with T >= 1, got {P.shape}")
+    L = np.median(np.linalg.norm(P[:, 1:] - P[:, PARENTS[1:]], axis=-1), axis=0)
+    base = rest_offsets()
+    off = np.zeros((NUM_JOINTS, 3))
+    off[1:] = base[1:] / np.linalg.norm(base[1:], axis=-1, keepdims=True) * L[:, None]
+    off[0] = rest_root(off)
+    return off
 
 
 def heading(joints: np.ndarray) -> np.ndarray:

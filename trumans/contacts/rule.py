@@ -34,7 +34,8 @@ import trimesh
 from scenes.distance import DistanceResult, SceneDistance
 from scenes.scene import Scene
 
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
+from trumans.rotations import unit
+from trumans.skeleton import INDEX1, JOINT_INDEX, KNEES, NUM_JOINTS, SEAT, WRISTS
 
 __all__ = [
     "JOINT_RADIUS",
@@ -42,6 +43,7 @@ __all__ = [
     "body_penetration",
     "FACING_COS",
     "CONTACT_THRESHOLD",
+    "HOLD_THRESHOLD",
     "FLOOR_NAME",
     "ContactResult",
     "ContactScene",
@@ -52,6 +54,10 @@ __all__ = [
 
 FACING_COS = 0.5  # cos(60 deg), TRUMANS appendix B.6
 CONTACT_THRESHOLD = 0.02  # m beyond the body surface (TRUMANS leaves the value open; 2 cm)
+# m beyond the body surface within which the augmentation holds a joint to its surface: wider than
+# CONTACT_THRESHOLD so that near-contacts the labels leave out (a hand hovering on a handle) still
+# follow a changed object instead of drifting off it.
+HOLD_THRESHOLD = 0.03
 FLOOR_NAME = "floor_plane"
 
 _RADIUS = {
@@ -79,16 +85,12 @@ JOINT_CORE_RADIUS: np.ndarray = np.array([_CORE[n] for n in JOINT_INDEX], dtype=
 _J = JOINT_INDEX
 _TORSO_BACK = [_J[n] for n in ("spine1", "spine2", "spine3", "neck", "left_collar", "right_collar",
                                 "head", "left_shoulder", "right_shoulder")]
-_SEAT = [_J[n] for n in ("pelvis", "left_hip", "right_hip")]
+_SEAT = list(SEAT)
 _DOWN = [_J[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot", "left_elbow", "right_elbow")]
-_KNEES = [_J["left_knee"], _J["right_knee"]]
-_HANDS = {_J["left_wrist"]: (+1.0, _J["left_index1"]), _J["right_wrist"]: (-1.0, _J["right_index1"]),
-          _J["left_index1"]: (+1.0, _J["left_index1"]), _J["right_index1"]: (-1.0, _J["right_index1"])}
+_KNEES = list(KNEES)
+# hand joint -> (side: +1 left / -1 right, the hand's wrist, its index1)
+_HANDS = {j: (side, w, i) for side, w, i in ((+1.0, WRISTS[0], INDEX1[0]), (-1.0, WRISTS[1], INDEX1[1])) for j in (w, i)}
 _NDIR = 3  # outward directions per joint (unused slots are zero vectors, which never face)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
 
 
 def outward_directions(joints: np.ndarray, global_rot: np.ndarray | None = None) -> np.ndarray:
@@ -105,9 +107,9 @@ def outward_directions(joints: np.ndarray, global_rot: np.ndarray | None = None)
     if joints.ndim != 3 or joints.shape[1:] != (NUM_JOINTS, 3):
         raise ValueError(f"joints must be (T, 24, 3), got {joints.shape}")
     T = joints.shape[0]
-    up = _unit(joints[:, _J["spine3"]] - joints[:, _J["pelvis"]])  # (T, 3) body up (spine axis)
+    up = unit(joints[:, _J["spine3"]] - joints[:, _J["pelvis"]])  # (T, 3) body up (spine axis)
     left = joints[:, _J["left_hip"]] - joints[:, _J["right_hip"]]
-    left = _unit(left - (left * up).sum(-1, keepdims=True) * up)
+    left = unit(left - (left * up).sum(-1, keepdims=True) * up)
     fwd = np.cross(left, up)  # x = y cross z: (forward, left, up) is right-handed
     down_w = np.broadcast_to(np.array([0.0, 0.0, -1.0]), (T, 3))
     d = np.zeros((T, NUM_JOINTS, _NDIR, 3))
@@ -118,14 +120,13 @@ def outward_directions(joints: np.ndarray, global_rot: np.ndarray | None = None)
     d[:, _DOWN, 0] = down_w[:, None]
     d[:, _KNEES, 0] = down_w[:, None]
     d[:, _KNEES, 1] = fwd[:, None]
-    for j, (side, tip) in _HANDS.items():
+    for j, (side, wrist, tip) in _HANDS.items():
         if global_rot is not None:
             R = np.asarray(global_rot)[:, j]
             d[:, j, 0] = R @ np.array([0.0, 0.0, -1.0])  # palm normal
             d[:, j, 1] = R @ np.array([0.0, side, 0.0])  # finger axis (left hand along +y at rest)
         else:
-            wrist = _J["left_wrist"] if side > 0 else _J["right_wrist"]
-            d[:, j, 0] = _unit(joints[:, tip] - joints[:, wrist])
+            d[:, j, 0] = unit(joints[:, tip] - joints[:, wrist])
             d[:, j, 1] = down_w
     return d
 
@@ -177,7 +178,7 @@ def contact_rule(
     if res.signed.shape != joints.shape[:2]:
         raise ValueError(f"distance result has batch shape {res.signed.shape}, expected {joints.shape[:2]}")
     s = res.signed.astype(np.float64)
-    to_obj = _unit(res.closest.astype(np.float64) - joints)  # (T, 24, 3)
+    to_obj = unit(res.closest.astype(np.float64) - joints)  # (T, 24, 3)
     dirs = outward_directions(joints, global_rot)  # (T, 24, K, 3)
     cos = np.einsum("tjkc,tjc->tjk", dirs, to_obj).max(-1)
     facing = (cos > FACING_COS) | (res.dist < 1e-6)

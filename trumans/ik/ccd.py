@@ -25,32 +25,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
+from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle, yaw_matrix
+from trumans.skeleton import (DEPTH, HINGE_AXES, JOINT_INDEX, LIMB_CHAINS, NUM_JOINTS, PARENTS, SPINE, SUBTREE, TORSO,
+                              bone_offsets, global_to_local)
 
-__all__ = ["IKConfig", "IKResult", "ROOT_GROUP", "CHAINS", "DEPTH", "solve_ik", "rodrigues", "rotvec"]
+__all__ = ["IKConfig", "IKResult", "ROOT_GROUP", "CHAINS", "solve_ik"]
 
 _J = JOINT_INDEX
 
-
-def _depth(j: int) -> int:
-    d = 0
-    while PARENTS[j] >= 0:
-        j, d = int(PARENTS[j]), d + 1
-    return d
-
-
-DEPTH: np.ndarray = np.array([_depth(j) for j in range(NUM_JOINTS)])  # pelvis 0 ... index1 8
-
-# Joints moved by translating the root (seat / bed contacts).
-ROOT_GROUP: tuple[int, ...] = tuple(_J[n] for n in (
-    "pelvis", "left_hip", "right_hip", "spine1", "spine2", "spine3", "neck", "head",
-    "left_collar", "right_collar", "left_shoulder", "right_shoulder"))
-
-
-# middle joints of the two-bone limbs -> flexion axis in their own frame (see trumans.ik.limb)
-HINGES: dict[int, np.ndarray] = {_J["left_knee"]: np.array([0.0, 1.0, 0.0]), _J["right_knee"]: np.array([0.0, 1.0, 0.0]),
-                                 _J["left_elbow"]: np.array([0.0, 0.0, -1.0]), _J["right_elbow"]: np.array([0.0, 0.0, 1.0])}
-SPINE: frozenset[int] = frozenset(_J[n] for n in ("spine1", "spine2", "spine3"))
+# Joints moved by translating the root (seat / bed contacts): the rigid trunk.
+ROOT_GROUP: tuple[int, ...] = TORSO
+_SPINE = frozenset(SPINE)
 # root-group joints above spine1: contacts that bending the spine would tear off
 _UPPER: list[int] = [_J[n] for n in ("spine2", "spine3", "neck", "head", "left_collar", "right_collar",
                                       "left_shoulder", "right_shoulder")]
@@ -68,19 +53,6 @@ def _chain(e: int) -> tuple[int, ...]:
 # Effector -> chain of joints whose rotation CCD adjusts, distal first.
 CHAINS: dict[int, tuple[int, ...]] = {e: _chain(e) for e in range(NUM_JOINTS)}
 _ROTATED: list[int] = sorted({j for c in CHAINS.values() for j in c})
-
-
-def _descendants(j: int) -> np.ndarray:
-    out, todo = [j], [j]
-    while todo:
-        k = todo.pop()
-        kids = [int(c) for c in np.flatnonzero(PARENTS == k)]
-        out += kids
-        todo += kids
-    return np.array(sorted(out))
-
-
-SUBTREE: list[np.ndarray] = [_descendants(j) for j in range(NUM_JOINTS)]
 
 
 @dataclass
@@ -119,36 +91,6 @@ class IKResult:
     local_rot: np.ndarray
     error: np.ndarray
     unreachable: np.ndarray
-
-
-def rodrigues(axis_angle: np.ndarray) -> np.ndarray:
-    """(..., 3) rotation vectors (rad) -> (..., 3, 3) matrices: c I + s [k]x + (1 - c) k k^T."""
-    v = np.asarray(axis_angle, dtype=np.float64)
-    ang = _norm(v)
-    k = v / np.maximum(ang, 1e-12)[..., None]
-    s, c = np.sin(ang), np.cos(ang)
-    R = (1 - c)[..., None, None] * (k[..., :, None] * k[..., None, :])
-    R[..., 0, 0] += c
-    R[..., 1, 1] += c
-    R[..., 2, 2] += c
-    sk = s[..., None] * k
-    R[..., 0, 1] -= sk[..., 2]
-    R[..., 0, 2] += sk[..., 1]
-    R[..., 1, 0] += sk[..., 2]
-    R[..., 1, 2] -= sk[..., 0]
-    R[..., 2, 0] -= sk[..., 1]
-    R[..., 2, 1] += sk[..., 0]
-    return R
-
-
-def rotvec(R: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotation matrices -> (..., 3) rotation vectors (rad); exact away from angle pi."""
-    tr = np.trace(R, axis1=-2, axis2=-1)
-    ang = np.arccos(np.clip((tr - 1) / 2, -1.0, 1.0))
-    w = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
-    s = np.sin(ang)
-    scale = np.where(s > 1e-9, ang / np.maximum(2 * s, 1e-12), 0.5)
-    return w * scale[..., None]
 
 
 _RING: dict[tuple[int, int], np.ndarray] = {}
@@ -223,12 +165,12 @@ def _sweep(P, G, target, e, chain, limits, gain, spine_gain) -> None:
     ops = []
     for j in chain:
         pj = P[:, j]
-        g = gain * spine_gain if j in SPINE else gain
-        if j in HINGES and len(ops) == 0 and len(chain) > 1:
-            rv = _bend(P[:, chain[1]], pj, pe, target, G[:, j] @ HINGES[j], limits[j])
+        g = gain * spine_gain if j in _SPINE else gain
+        if j in HINGE_AXES and len(ops) == 0 and len(chain) > 1:
+            rv = _bend(P[:, chain[1]], pj, pe, target, G[:, j] @ HINGE_AXES[j], limits[j])
         else:
             rv = _aim(pe - pj, target - pj, limits[j])
-        dA = rodrigues(g[:, None] * rv)
+        dA = axis_angle_to_matrix(g[:, None] * rv)
         pe = np.einsum("nij,nj->ni", dA, pe - pj) + pj
         ops.append((j, dA))
     # compose from the proximal end: C_m = C_{m+1} o T_m; apply C_m to subtree(j_m) \ subtree(j_{m-1})
@@ -246,7 +188,7 @@ def _sweep(P, G, target, e, chain, limits, gain, spine_gain) -> None:
             G[:, gsub] = Rc[:, None] @ G[:, gsub]
 
 
-_LEGS = ((_J["left_hip"], _J["left_knee"], _J["left_ankle"]), (_J["right_hip"], _J["right_knee"], _J["right_ankle"]))
+_LEGS = (LIMB_CHAINS["left_leg"], LIMB_CHAINS["right_leg"])
 
 
 def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
@@ -267,10 +209,8 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
     cp = (p * w[..., None]).sum(1) / ws[:, None]
     ct = (t * w[..., None]).sum(1) / ws[:, None]
     a, b = p - cp[:, None], t - ct[:, None]
-    th = np.arctan2((w * (a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])).sum(1),
-                    (w * (a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1])).sum(1))
-    th = np.clip(th, -yaw_limit, yaw_limit)
-    Rz = yaw_rotation(th)
+    th = np.clip(fit_yaw(a, b, w), -yaw_limit, yaw_limit)
+    Rz = yaw_matrix(th)
     res = ct - cp
     s = np.ones(len(idx))
     for (h, _, an), L in zip(_LEGS, leg_len):
@@ -298,21 +238,13 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
 def _regularise(P, G, R0, off, reg) -> None:
     """Pull every CCD joint's local rotation toward the original by the fraction ``reg`` (geodesic),
     then redo FK from the root (in place). off: (n, 24, 3) per-frame bone offsets."""
-    L = _local(G)
-    rv = rotvec(R0[:, _ROTATED] @ np.swapaxes(L[:, _ROTATED], -1, -2))
-    L[:, _ROTATED] = rodrigues(reg * rv) @ L[:, _ROTATED]
+    L = global_to_local(G)
+    rv = matrix_to_axis_angle(R0[:, _ROTATED] @ np.swapaxes(L[:, _ROTATED], -1, -2))
+    L[:, _ROTATED] = axis_angle_to_matrix(reg * rv) @ L[:, _ROTATED]
     for j in range(1, NUM_JOINTS):
         p = PARENTS[j]
         G[:, j] = G[:, p] @ L[:, j]
         P[:, j] = P[:, p] + np.einsum("nij,nj->ni", G[:, p], off[:, j])
-
-
-def yaw_rotation(theta: np.ndarray) -> np.ndarray:
-    """(n,) radians -> (n, 3, 3) rotations about world z."""
-    c, s = np.cos(theta), np.sin(theta)
-    R = np.zeros(theta.shape + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1], R[..., 2, 2] = c, -s, s, c, 1.0
-    return R
 
 
 def solve_ik(
@@ -352,9 +284,8 @@ def solve_ik(
         raise ValueError(f"targets must be {P0.shape} and active ({T}, 24), got {tgt.shape}, {wt.shape}")
     if not np.isfinite(tgt[act]).all():
         raise ValueError("targets contain NaN/inf at active joints")
-    R0 = _local(G0) if rest_local is None else np.asarray(rest_local, dtype=np.float64)
-    off = np.zeros_like(P0)  # per-frame bone offsets in the parent's frame (exact for this input)
-    off[:, 1:] = np.einsum("tjik,tji->tjk", G0[:, PARENTS[1:]], P0[:, 1:] - P0[:, PARENTS[1:]])
+    R0 = global_to_local(G0) if rest_local is None else np.asarray(rest_local, dtype=np.float64)
+    off = bone_offsets(P0, G0)  # per-frame bone offsets in the parent's frame (exact for this input)
     limits = cfg.limits()
     leg_len = [np.linalg.norm(P0[:, k] - P0[:, h], axis=-1).mean() + np.linalg.norm(P0[:, a] - P0[:, k], axis=-1).mean()
                for h, k, a in _LEGS]
@@ -414,12 +345,6 @@ def solve_ik(
         p = PARENTS[j]
         G[:, j] = G[:, p] @ (np.swapaxes(G0[:, p], -1, -2) @ G0[:, j])
     err = np.where(act, np.linalg.norm(P - tgt, axis=-1), 0.0)
-    return IKResult(joints=P, global_rot=G, local_rot=_local(G) if local else None, error=err,
+    return IKResult(joints=P, global_rot=G, local_rot=global_to_local(G) if local else None, error=err,
                     unreachable=act & (err > cfg.unreachable_tol))
 
-
-def _local(G: np.ndarray) -> np.ndarray:
-    """(T, 24, 3, 3) global -> local rotations."""
-    L = G.copy()
-    L[:, 1:] = np.swapaxes(G[:, PARENTS[1:]], -1, -2) @ G[:, 1:]
-    return L

@@ -22,38 +22,17 @@ import logging
 import numpy as np
 import torch
 
-from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, REST_JOINTS, children, forward_kinematics, rest_offsets
+from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix, skew, unit
+from trumans.skeleton import (HINGE_AXES, NUM_JOINTS, PARENTS, children, forward_kinematics, global_to_local,
+                              offsets_from_joints, offsets_from_pose)
 
+# offsets_from_joints lives in trumans.skeleton; re-exported here, where it was first defined
 __all__ = ["fit_rotations", "offsets_from_joints", "fit_error", "kabsch", "rotation_between"]
 
 log = logging.getLogger(__name__)
 
 _CHILDREN = [children(j) for j in range(NUM_JOINTS)]
-# Hinge axes of the knees and elbows, in the rest frame of the joint above them (hip / shoulder;
-# = world rest frame: facing +x, left +y, z up), keyed by that joint. A positive turn about the axis
-# bends the limb the anatomical way: knees flex about +y (shin backwards, -x); in the T-pose rest
-# the elbows flex about -z (left) / +z (right), bringing the forearm forwards (+x). The rest-frame
-# bend direction of the limb is axis x (rest child bone).
-_HINGE_AXES: dict[int, np.ndarray] = {
-    JOINT_INDEX["left_hip"]: np.array([0.0, 1.0, 0.0]),
-    JOINT_INDEX["right_hip"]: np.array([0.0, 1.0, 0.0]),
-    JOINT_INDEX["left_shoulder"]: np.array([0.0, 0.0, -1.0]),
-    JOINT_INDEX["right_shoulder"]: np.array([0.0, 0.0, 1.0]),
-}
 _BEND_LO, _BEND_HI = 0.05, 0.25  # sin(bend angle) below which the limb plane is ignored / fully trusted
-
-
-def _unit(v: np.ndarray, eps: float = 1e-12) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    K = np.zeros(v.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
-    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
-    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
-    return K
 
 
 def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -62,9 +41,9 @@ def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     Zero vectors give the identity; opposite vectors a half turn about an axis perpendicular to u."""
     u, v = np.broadcast_arrays(np.asarray(u, np.float64), np.asarray(v, np.float64))
     nu, nv = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
-    a, b = _unit(u), _unit(v)
+    a, b = unit(u), unit(v)
     c = (a * b).sum(-1)
-    K = _skew(np.cross(a, b))
+    K = skew(np.cross(a, b))
     eye = np.broadcast_to(np.eye(3), K.shape)
     denom = np.maximum(1.0 + c, 1e-12)[..., None, None]
     R = eye + K + K @ K / denom
@@ -72,7 +51,7 @@ def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     if anti.any():  # half turn about any axis n perpendicular to a: R = 2 n n^T - I
         aa = a[anti]
         helper = np.where(np.abs(aa[:, :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
-        n = _unit(np.cross(aa, helper))
+        n = unit(np.cross(aa, helper))
         R[anti] = 2 * n[:, :, None] * n[:, None, :] - np.eye(3)
     degenerate = (nu < 1e-9) | (nv < 1e-9)
     R[degenerate] = np.eye(3)
@@ -96,30 +75,10 @@ def kabsch(a: np.ndarray, b: np.ndarray, w: np.ndarray | None = None) -> np.ndar
     return U @ D @ Vt
 
 
-def offsets_from_joints(joints: np.ndarray) -> np.ndarray:
-    """Rest offsets (24, 3) for a clip: median bone lengths of ``joints (T, 24, 3)`` (m) along the
-    rest directions of ``rest_offsets()``; the root entry puts the rest feet on the floor."""
-    P = np.asarray(joints, np.float64)
-    L = np.median(np.linalg.norm(P[:, 1:] - P[:, PARENTS[1:]], axis=-1), axis=0)
-    base = rest_offsets()
-    off = np.zeros((NUM_JOINTS, 3))
-    off[1:] = _unit(base[1:]) * L[:, None]
-    off[0] = _root_rest(off, base[0])
-    return off
-
-
-def _root_rest(off: np.ndarray, root_xy: np.ndarray) -> np.ndarray:
-    """Root rest position that puts the rest pose's lowest foot joint at the canonical foot height."""
-    rest, _ = forward_kinematics(np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)).copy(), np.zeros(3), off)
-    foot_h = REST_JOINTS[[10, 11], 2].min()
-    return np.array([root_xy[0], 0.0, foot_h - rest[[10, 11], 2].min()])
-
-
 def _analytic(P: np.ndarray, off: np.ndarray) -> np.ndarray:
     """Analytic local rotations (T, 24, 3, 3) for joints P (T, 24, 3) with offsets off (24, 3)."""
     T = P.shape[0]
     G = np.zeros((T, NUM_JOINTS, 3, 3))
-    R = np.zeros((T, NUM_JOINTS, 3, 3))
     eye = np.broadcast_to(np.eye(3), (T, 3, 3))
     for j in range(NUM_JOINTS):
         Gp = eye if j == 0 else G[:, PARENTS[j]]
@@ -132,13 +91,12 @@ def _analytic(P: np.ndarray, off: np.ndarray) -> np.ndarray:
             b1 = P[:, c] - P[:, j]
             Gj = rotation_between(Gp @ off[c], b1) @ Gp
             gk = _CHILDREN[c]
-            if j in _HINGE_AXES and len(gk) == 1 and np.linalg.norm(off[c]) > 1e-9:
-                Gj = _hinge_twist(Gj, off[c], off[gk[0]], _HINGE_AXES[j], b1, P[:, gk[0]] - P[:, c])
+            if c in HINGE_AXES and len(gk) == 1 and np.linalg.norm(off[c]) > 1e-9:
+                Gj = _hinge_twist(Gj, off[c], off[gk[0]], HINGE_AXES[c], b1, P[:, gk[0]] - P[:, c])
         else:
             Gj = Gp
         G[:, j] = Gj
-        R[:, j] = np.swapaxes(Gp, -1, -2) @ Gj
-    return R
+    return global_to_local(G)
 
 
 def _hinge_twist(Gs: np.ndarray, a1: np.ndarray, a2: np.ndarray, axis: np.ndarray, b1: np.ndarray,
@@ -151,10 +109,10 @@ def _hinge_twist(Gs: np.ndarray, a1: np.ndarray, a2: np.ndarray, axis: np.ndarra
     rest frame. Of the two twists that make a hinge, the one nearer to putting the rest bend
     direction (axis x a1) into the observed limb plane is kept, so the limb bends the anatomical
     way. The turn is faded out as the limb straightens (the hinge is then unobservable)."""
-    h = _unit(np.asarray(axis, np.float64))
-    c0 = h @ _unit(a2)  # h . unit(a2): what a hinge about h keeps constant
-    k = _unit(b1)
-    nb2 = _unit(b2)
+    h = unit(np.asarray(axis, np.float64))
+    c0 = h @ unit(a2)  # h . unit(a2): what a hinge about h keeps constant
+    k = unit(b1)
+    nb2 = unit(b2)
     # A pure hinge about h at the child joint keeps (G h) . unit(b2) = h . unit(a2) (= c0), where G is
     # this joint's global frame (the child turns about h, which it leaves fixed) and
     # G = Rot(k, theta) @ Gs. With n = Gs h and Rodrigues' formula this reads
@@ -172,11 +130,11 @@ def _hinge_twist(Gs: np.ndarray, a1: np.ndarray, a2: np.ndarray, axis: np.ndarra
     phi = np.arctan2(B, A)
     delta = np.arccos(np.clip((c0 - D) / np.maximum(Rab, 1e-12), -1.0, 1.0))
     # limb-plane angle: turns the rest bend direction onto the observed bend direction of b2
-    hp = _unit(np.cross(h, a1))
+    hp = unit(np.cross(h, a1))
     perp = b2 - (b2 * k).sum(-1, keepdims=True) * k
     s = np.linalg.norm(perp, axis=-1) / np.maximum(np.linalg.norm(b2, axis=-1), 1e-12)  # sin of the bend angle
     u = Gs @ hp
-    v = _unit(perp)
+    v = unit(perp)
     plane = np.arctan2((k * np.cross(u, v)).sum(-1), (u * v).sum(-1))
     cand = np.stack([phi + delta, phi - delta], -1)
     dist = np.abs(np.angle(np.exp(1j * (cand - plane[:, None]))))
@@ -248,11 +206,7 @@ def fit_rotations(
         off = offsets_from_joints(P)
         R = _analytic(P, off)
         _, G = forward_kinematics(R, root, off)
-        d = P[:, 1:] - P[:, PARENTS[1:]]
-        off = off.copy()
-        # mean of G_parent^T (p_j - p_parent): the data's bone in the fitted parent frame
-        off[1:] = np.einsum("tjki,tjk->ji", G[:, PARENTS[1:]], d) / len(P)
-        off[0] = _root_rest(off, off[0])
+        off = offsets_from_pose(P, G)  # the data's bones in the fitted parent frames
     else:
         off = np.asarray(offsets, dtype=np.float64)
         if off.shape != (NUM_JOINTS, 3):

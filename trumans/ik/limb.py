@@ -13,24 +13,17 @@ from typing import Literal
 
 import numpy as np
 
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, forward_kinematics
+from trumans.rotations import rodrigues, unit
+from trumans.skeleton import HINGE_AXES, INDEX1, JOINT_INDEX, LIMB_CHAINS, NUM_JOINTS, PARENTS, forward_kinematics
 
 __all__ = ["LIMBS", "Limb", "solve_limb", "set_global_rotation", "limb_reach"]
 
 Limb = Literal["left_arm", "right_arm", "left_leg", "right_leg"]
 
-# (upper, middle, end, tip or -1, flexion axis of the middle joint in its parent's frame)
-# Rest pose faces +x, left = +y, z up. Knee flexion (+y) swings the shin backwards; elbow flexion
-# swings the forearm forwards in the T-pose (-z for the left arm along +y, +z for the right arm).
+# (upper, middle, end, tip or -1, flexion axis of the middle joint: trumans.skeleton.HINGE_AXES)
 LIMBS: dict[str, tuple[int, int, int, int, np.ndarray]] = {
-    "left_arm": (JOINT_INDEX["left_shoulder"], JOINT_INDEX["left_elbow"], JOINT_INDEX["left_wrist"],
-                 JOINT_INDEX["left_index1"], np.array([0.0, 0.0, -1.0])),
-    "right_arm": (JOINT_INDEX["right_shoulder"], JOINT_INDEX["right_elbow"], JOINT_INDEX["right_wrist"],
-                  JOINT_INDEX["right_index1"], np.array([0.0, 0.0, 1.0])),
-    "left_leg": (JOINT_INDEX["left_hip"], JOINT_INDEX["left_knee"], JOINT_INDEX["left_ankle"],
-                 -1, np.array([0.0, 1.0, 0.0])),
-    "right_leg": (JOINT_INDEX["right_hip"], JOINT_INDEX["right_knee"], JOINT_INDEX["right_ankle"],
-                  -1, np.array([0.0, 1.0, 0.0])),
+    name: (a, b, c, INDEX1[name.startswith("right")] if name.endswith("arm") else -1, HINGE_AXES[b])
+    for name, (a, b, c) in LIMB_CHAINS.items()
 }
 # Default pole directions in the pelvis frame (forward, left, up): knees forward, elbows back-down-out.
 _DEFAULT_POLE = {
@@ -40,17 +33,6 @@ _DEFAULT_POLE = {
     "right_leg": np.array([1.0, 0.0, 0.0]),
 }
 _EPS = 1e-9
-
-
-def _normalize(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
-
-
-def _axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Unit axis (3,) and angles (T,) -> (T, 3, 3) by Rodrigues."""
-    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
 
 
 def _hinge_terms(u: np.ndarray, v: np.ndarray, h: np.ndarray) -> tuple[float, float, float, float]:
@@ -169,30 +151,30 @@ def solve_limb(
     D = np.clip(dist, dmin, dmax)
     cos_arg = np.clip((D**2 - base) / (2.0 * max(rho, _EPS)), -1.0, 1.0)
     phi = psi + np.arccos(cos_arg)  # phi = psi is straight; increasing phi flexes
-    Rb = _axis_angle(h, phi)  # (N, 3, 3) middle joint local rotation
+    Rb = rodrigues(h, phi)  # (N, 3, 3) middle joint local rotation
 
     # Upper joint: map the local chain frame E onto the world frame F (target direction, pole side).
     v_ac = u[None] + Rb @ v  # (N, 3) upper->end in the upper joint's frame
-    e1 = _normalize(v_ac)
-    e3 = _normalize(h[None] - (e1 @ h)[:, None] * e1)
+    e1 = unit(v_ac)
+    e3 = unit(h[None] - (e1 @ h)[:, None] * e1)
     e2 = np.cross(e3, e1)
     # Sign so that a flexed chain's middle joint lies on the pole side.
-    Rb_test = _axis_angle(h, np.array([psi + 1.0]))[0]
-    t1 = _normalize(u + Rb_test @ v)
-    t3 = _normalize(h - (t1 @ h) * t1)
+    Rb_test = rodrigues(h, psi + 1.0)
+    t1 = unit(u + Rb_test @ v)
+    t3 = unit(h - (t1 @ h) * t1)
     k = u - (u @ t1) * t1
     sigma = 1.0 if k @ np.cross(t3, t1) >= 0 else -1.0
     f1 = d / np.maximum(dist, _EPS)[:, None]
     degenerate = dist < _EPS
     if degenerate.any():  # target on the upper joint: any direction; use the current chain direction
-        f1[degenerate] = _normalize(P[degenerate, c] - P[degenerate, a])
+        f1[degenerate] = unit(P[degenerate, c] - P[degenerate, a])
     pv = pole_w - P[:, a]
     pv = pv - (pv * f1).sum(-1, keepdims=True) * f1
     bad = np.linalg.norm(pv, axis=-1) < 1e-6
     if bad.any():  # pole on the target line: keep the current bend side
         cur = P[bad, b] - P[bad, a]
         pv[bad] = cur - (cur * f1[bad]).sum(-1, keepdims=True) * f1[bad]
-    f2 = sigma * _normalize(pv)
+    f2 = sigma * unit(pv)
     f3 = np.cross(f1, f2)
     # E = [e1, e2, e3] is right-handed and the middle joint lies on its sigma*e2 side, so mapping
     # e2 -> sigma * pole direction puts the elbow/knee on the pole side.

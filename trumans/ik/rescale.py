@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
+from trumans.skeleton import ANKLES, FEET, KNEES, NUM_JOINTS, forward_kinematics
 
 __all__ = ["retarget", "scale_offsets", "leg_length"]
 
-_LEG = [JOINT_INDEX[n] for n in ("left_knee", "left_ankle", "right_knee", "right_ankle")]
-_FEET = [JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot")]
+_LEG = [*KNEES, *ANKLES]  # the thigh and shin bones end at these joints
+_FEET = [*ANKLES, *FEET]
 
 
 def _check_offsets(off: np.ndarray, name: str) -> np.ndarray:

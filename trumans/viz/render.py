@@ -1,7 +1,8 @@
 """Render sequences for a person to look at: animated skeleton + scene (GIF/MP4) and a top-down PNG.
 
-Matplotlib (Agg) only, so it runs headless. Scene meshes are drawn once; per frame only the bones,
-the moving objects and the camera limits change.
+Matplotlib figures on the Agg canvas (never pyplot, so importing this module leaves the global
+backend alone and it runs headless). Scene meshes are drawn once; per frame only the bones, the
+moving objects and the camera limits change.
 """
 from __future__ import annotations
 
@@ -9,16 +10,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-import matplotlib
+import numpy as np
+import trimesh
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import trimesh  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
-
-from trumans.sequence import Sequence, atomic_write  # noqa: E402
-from trumans.skeleton import JOINT_NAMES, PARENTS  # noqa: E402
+from trumans.sequence import Sequence, atomic_write
+from trumans.skeleton import JOINT_NAMES, PARENTS
 
 __all__ = ["SceneView", "render_animation", "render_still", "render_topdown"]
 
@@ -38,6 +37,13 @@ class SceneView:
     grid: np.ndarray | None = None
     origin: np.ndarray | None = None
     voxel: float | None = None
+
+
+def _figure(width_in: float, height_in: float) -> Figure:
+    """A figure drawn by the Agg canvas (no pyplot, no global backend)."""
+    fig = Figure(figsize=(width_in, height_in), dpi=100)
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def _decimate(m: trimesh.Trimesh, max_faces: int = 4000) -> np.ndarray:
@@ -73,7 +79,7 @@ class _Panels:
                  titles: list[str] | None) -> None:
         n = len(seqs)
         self.seqs, self.camera = seqs, camera
-        self.fig = plt.figure(figsize=(size_px / 100 * n, size_px / 100), dpi=100)
+        self.fig = _figure(size_px / 100 * n, size_px / 100)
         self.axes, self.bones, self.objs = [], [], []
         self.fixed = _frame_bounds([s.joints for s in seqs])
         for k, (s, scene) in enumerate(zip(seqs, scenes)):
@@ -120,7 +126,7 @@ class _Panels:
         return np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
 
     def close(self) -> None:
-        plt.close(self.fig)
+        self.fig.clear()
 
 
 def _check_seqs(seqs: list[Sequence]) -> int:
@@ -196,7 +202,8 @@ def render_topdown(seq: Sequence, out: str | Path, scene: SceneView | None = Non
     """Top-down PNG: occupancy between ``z_range`` (grey), the pelvis path coloured by time,
     start / end markers, optional goals (K, 2 or 3), and joints in contact (orange)."""
     out = Path(out)
-    fig, ax = plt.subplots(figsize=(6, 6), dpi=100)
+    fig = _figure(6, 6)
+    ax = fig.add_subplot()
     if scene is not None and scene.grid is not None:
         v, o = float(scene.voxel), np.asarray(scene.origin)
         k0 = max(int(np.floor((z_range[0] - o[2]) / v)), 0)
@@ -230,5 +237,4 @@ def render_topdown(seq: Sequence, out: str | Path, scene: SceneView | None = Non
         fig.savefig(tmp, format="png", bbox_inches="tight")
 
     atomic_write(out, _write)
-    plt.close(fig)
     return out

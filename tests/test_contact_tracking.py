@@ -6,7 +6,8 @@ import pytest
 
 from trumans.contacts.objects import (free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
                                       signed_angle, two_hand_motion)
-from trumans.contacts.postprocess import PostprocessConfig, contact_mask, contact_segments, fill_gaps, runs
+from trumans.contacts.intervals import runs
+from trumans.contacts.postprocess import PostprocessConfig, contact_mask, contact_segments, fill_gaps
 from trumans.contacts.scores import average_precision, binary_scores
 from trumans.contacts.trajectory import TrajectoryConfig, correct_trajectory, turning_angles
 
@@ -19,12 +20,9 @@ def _mask(s: str) -> np.ndarray:
 
 def test_runs_half_open_and_gap_merging():
     m = _mask("0110010001")
-    assert runs(m).tolist() == [[1, 3], [5, 6], [9, 10]]
-    assert runs(m, max_gap=2).tolist() == [[1, 6], [9, 10]]  # gap of 2 filled, gap of 3 kept
-    assert runs(m, max_gap=3).tolist() == [[1, 10]]
-    assert runs(m, min_len=2).tolist() == [[1, 3]]
-    assert runs(np.zeros(5, bool)).shape == (0, 2)
-    assert runs(np.ones(4, bool)).tolist() == [[0, 4]]
+    assert runs(m) == [(1, 3), (5, 6), (9, 10)]
+    assert runs(m, max_gap=2) == [(1, 6), (9, 10)]  # gap of 2 filled, gap of 3 kept
+    assert runs(m, max_gap=3) == [(1, 10)]
 
 
 def test_fill_gaps_keeps_edges():
@@ -43,11 +41,11 @@ def test_contact_mask_fills_gaps_up_to_half_a_second():
     p[136:150, 1] = 0.8  # gap 120..136 = 16 frames > 0.5 s: kept
     p[30, 0] = 0.49  # below threshold inside a run: a one-frame gap, filled
     m = contact_mask(p, fps)
-    assert runs(m[:, 0]).tolist() == [[10, 80]]
-    assert runs(m[:, 1]).tolist() == [[100, 120], [136, 150]]
+    assert runs(m[:, 0]) == [(10, 80)]
+    assert runs(m[:, 1]) == [(100, 120), (136, 150)]
     # a higher threshold removes the 0.7 run; min_len drops short stretches
     m2 = contact_mask(p, fps, PostprocessConfig(threshold=0.75, min_len_s=0.5))
-    assert runs(m2[:, 1]).tolist() == [] and runs(m2[:, 0]).tolist() == [[10, 80]]
+    assert runs(m2[:, 1]) == [] and runs(m2[:, 0]) == [(10, 80)]
 
 
 def test_segments_split_when_the_hands_change():
@@ -66,7 +64,7 @@ def test_segments_split_when_the_hands_change():
 
 def test_postprocess_bad_inputs():
     with pytest.raises(ValueError, match="boolean"):
-        runs(np.array([0, 1, 1]))
+        fill_gaps(np.array([0, 1, 1]), 2)
     with pytest.raises(ValueError, match="probabilities"):
         contact_mask(np.full((4, 2), 1.5), 30.0)
     with pytest.raises(ValueError, match="threshold"):

@@ -14,7 +14,7 @@ from scipy.ndimage import maximum_filter1d
 
 from trumans.sequence import Sequence
 
-from .postprocess import runs
+from .intervals import runs
 from .predictor import CLASSES, HAND_JOINTS, HANDS
 
 __all__ = ["hand_labels", "object_moving", "moving_intervals", "sequence_labels"]
@@ -41,7 +41,7 @@ def object_moving(pose: np.ndarray) -> np.ndarray:
 
 def moving_intervals(pose: np.ndarray, max_gap: int = 15) -> np.ndarray:
     """(N, 2) half-open frame ranges in which the object moves (gaps <= max_gap frames bridged)."""
-    r = runs(object_moving(pose), max_gap=max_gap)
+    r = np.asarray(runs(object_moving(pose), max_gap=max_gap), dtype=np.int64).reshape(-1, 2)
     r[:, 1] = np.minimum(r[:, 1] + 1, len(pose))  # the pose reached at the last step's end
     return r
 

@@ -4,7 +4,7 @@ Threshold the probabilities, fill gaps of at most ``max_gap_s`` (0.5 s in the pa
 active stretches of a hand, then cut the timeline into *segments* in which the set of hands in
 contact is constant: when one hand lets go while the other holds on, a two-handed interaction is
 split into a two-handed and a one-handed one (hands swapping are treated the same way).
-Intervals are half-open frame ranges ``[start, end)``.
+Intervals are half-open frame ranges ``[start, end)`` (``trumans.contacts.intervals.runs``).
 """
 from __future__ import annotations
 
@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PostprocessConfig", "ContactSegment", "runs", "fill_gaps", "contact_mask", "contact_segments"]
+from .intervals import runs
+
+__all__ = ["PostprocessConfig", "ContactSegment", "fill_gaps", "contact_mask", "contact_segments"]
 
 
 @dataclass(frozen=True)
@@ -59,25 +61,9 @@ def _check_mask(mask: np.ndarray, ndim: int) -> np.ndarray:
     return m
 
 
-def runs(mask: np.ndarray, max_gap: int = 0, min_len: int = 1) -> np.ndarray:
-    """Half-open [start, end) frame ranges (N, 2) int64 of the True runs of ``mask`` (T,) bool,
-    after merging runs separated by gaps of at most ``max_gap`` frames and then dropping runs
-    shorter than ``min_len`` frames."""
-    m = _check_mask(mask, 1)
-    if max_gap < 0 or min_len < 1:
-        raise ValueError(f"max_gap must be >= 0 and min_len >= 1 frames, got {max_gap}, {min_len}")
-    d = np.diff(np.concatenate([[0], m.astype(np.int8), [0]]))
-    r = np.stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)], axis=1).astype(np.int64)
-    if len(r) > 1 and max_gap > 0:
-        keep_break = (r[1:, 0] - r[:-1, 1]) > max_gap  # (N-1,) gap too long to fill
-        first = np.concatenate([[True], keep_break])
-        last = np.concatenate([keep_break, [True]])
-        r = np.stack([r[first, 0], r[last, 1]], axis=1)
-    return r[(r[:, 1] - r[:, 0]) >= min_len]
-
-
-def _paint(r: np.ndarray, T: int) -> np.ndarray:
-    """(N, 2) half-open ranges -> (T,) bool, True inside any range."""
+def _paint(ranges: list[tuple[int, int]], T: int) -> np.ndarray:
+    """Half-open [start, end) ranges -> (T,) bool, True inside any range."""
+    r = np.asarray(ranges, dtype=np.int64).reshape(-1, 2)
     d = np.zeros(T + 1, np.int64)
     np.add.at(d, r[:, 0], 1)
     np.add.at(d, r[:, 1], -1)
@@ -117,7 +103,7 @@ def contact_segments(mask: np.ndarray) -> list[ContactSegment]:
     change = np.flatnonzero(np.diff(np.concatenate([[0], code, [0]])) != 0)  # run boundaries
     starts, ends = change[:-1], change[1:]
     codes = code[starts] if len(starts) else np.zeros(0, np.int64)
-    union = runs(code > 0)
-    interval_of = np.searchsorted(union[:, 0], starts, side="right") - 1
+    union_starts = np.asarray([s for s, _ in runs(code > 0)], dtype=np.int64)
+    interval_of = np.searchsorted(union_starts, starts, side="right") - 1
     return [ContactSegment(int(s), int(e), (bool(c & 1), bool(c & 2)), int(i))
             for s, e, c, i in zip(starts, ends, codes, interval_of) if c > 0]

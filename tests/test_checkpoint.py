@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.model.checkpoint import FORMAT_VERSION, Checkpoint, load_checkpoint, save_checkpoint
+from trumans.model.checkpoint import (FORMAT_VERSION, KINDS, Checkpoint, KindSpec, load_checkpoint, register_kind,
+                                      save_checkpoint)
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import Normalizer
 from trumans.model.nets import ActionEncoderConfig, Denoiser, DenoiserConfig
@@ -59,13 +60,29 @@ def test_missing_and_corrupt_files(tmp_path: Path) -> None:
         trunc.write_bytes(raw[: int(len(raw) * frac)])
         with pytest.raises(ValueError, match="not a readable trumans checkpoint"):
             load_checkpoint(trunc)
+    # altered tensor bytes: torch's zip reader does not notice them, the checkpoint's digest does
+    w = ck.model_state["out_proj.weight"].contiguous().numpy().tobytes()
+    at = raw.find(w)
+    assert at > 0
     flipped = bytearray(raw)
-    flipped[len(raw) // 3: len(raw) // 3 + 64] = bytes(64)  # zeroed bytes inside the archive
+    flipped[at + 8] ^= 0xFF
     trunc.write_bytes(bytes(flipped))
-    try:
-        load_checkpoint(trunc)  # zip may still parse if only tensor bytes were hit; then the load is clean
-    except ValueError as e:
-        assert "checkpoint" in str(e)
+    assert not torch.equal(torch.load(trunc, weights_only=True)["model"]["out_proj.weight"], ck.model_state["out_proj.weight"])
+    with pytest.raises(ValueError, match="does not match the digest"):
+        load_checkpoint(trunc)
+    # anywhere else: a flipped byte is refused, or (zip padding, timestamps) changes nothing that loads
+    for pos in range(0, len(raw), max(1, len(raw) // 40)):
+        flipped = bytearray(raw)
+        flipped[pos] ^= 0xFF
+        trunc.write_bytes(bytes(flipped))
+        try:
+            back = load_checkpoint(trunc)
+        except ValueError as e:
+            assert "checkpoint" in str(e)
+            continue
+        assert all(torch.equal(back.model_state[k], v) for k, v in ck.model_state.items()), pos
+        assert all(torch.equal(back.ema_state[k], v) for k, v in ck.ema_state.items()), pos
+        assert back.vocabulary == ck.vocabulary and np.array_equal(back.normalizer.std, ck.normalizer.std), pos
 
 
 def test_foreign_files_are_refused(tmp_path: Path) -> None:
@@ -84,7 +101,8 @@ def test_foreign_files_are_refused(tmp_path: Path) -> None:
         load_checkpoint(evil)
 
 
-def test_wrong_kind_version_and_inconsistent(tmp_path: Path) -> None:
+def test_wrong_kind_version_and_inconsistent(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setitem(KINDS, "filter", KINDS["generator"])  # a filter built like the generator, for this test
     ck, _ = _ckpt(kind="filter")
     p = tmp_path / "f.pt"
     save_checkpoint(p, ck)
@@ -113,7 +131,80 @@ def test_wrong_kind_version_and_inconsistent(tmp_path: Path) -> None:
         load_checkpoint(p)
 
     d = torch.load(p, weights_only=True)
-    del d["norm"]
+    del d["norm"], d["digest"]  # as an older writer would have left it
     torch.save(d, p)
     with pytest.raises(ValueError, match="lacks"):
+        load_checkpoint(p)
+
+
+def test_kinds_registry_required_fields_and_old_files(tmp_path: Path, monkeypatch) -> None:
+    from dataclasses import asdict, dataclass
+
+    @dataclass(frozen=True)
+    class TinyConfig:
+        width: int = 4
+
+        def to_dict(self) -> dict:
+            return asdict(self)
+
+    def check(c: Checkpoint) -> None:
+        if c.extra["classes"] != 2:
+            raise ValueError(f"classes must be 2, got {c.extra['classes']}")
+
+    p = tmp_path / "c.pt"
+    torch.manual_seed(0)
+    lin = torch.nn.Linear(4, 2)
+    contact = Checkpoint(kind="contact", model_config=TinyConfig(), model_state=lin.state_dict(), fps=30.0,
+                         extra={"classes": 2})
+    with pytest.raises(ValueError, match="no model builder is registered for 'contact'"):
+        save_checkpoint(p, contact)
+    monkeypatch.setitem(KINDS, "contact", KindSpec(config_from_dict=lambda d: TinyConfig(**d),
+                                                   build=lambda c: torch.nn.Linear(c.width, 2),
+                                                   required=("fps",), required_extra=("classes",), check=check))
+    save_checkpoint(p, contact)
+    back = load_checkpoint(p, kind="contact")
+    assert back.model_config == TinyConfig() and back.normalizer is None and back.vocabulary is None and back.fps == 30.0
+    x = torch.randn(3, 4)
+    assert torch.equal(back.build_model()(x), lin(x))
+    with pytest.raises(ValueError, match="'contact' checkpoint, but a 'generator'"):
+        load_checkpoint(p)
+    with pytest.raises(ValueError, match="no diffusion config"):
+        back.build_diffusion()
+    with pytest.raises(ValueError, match=r"without \['extra.classes'\]"):
+        save_checkpoint(p, Checkpoint(kind="contact", model_config=TinyConfig(), model_state=lin.state_dict(), fps=30.0))
+    d = torch.load(p, weights_only=True)
+    d["extra"]["classes"] = 3
+    del d["digest"]  # a file written before digests: loaded unchecked, but the kind's check still runs
+    torch.save(d, p)
+    with pytest.raises(ValueError, match="classes must be 2"):
+        load_checkpoint(p, kind="contact")
+    with pytest.raises(ValueError, match="kind must be one of"):
+        register_kind("tracker", KINDS["contact"])
+    # a generator without the generator's fields cannot be saved
+    ck, _ = _ckpt()
+    ck.normalizer = None
+    with pytest.raises(ValueError, match="norm"):
+        save_checkpoint(p, ck)
+    # files from before kinds were typed (no "kind", no "digest", no "extra") load as generators
+    ck, model = _ckpt()
+    save_checkpoint(p, ck)
+    d = torch.load(p, weights_only=True)
+    for key in ("kind", "digest", "extra"):
+        del d[key]
+    torch.save(d, p)
+    old = load_checkpoint(p)
+    assert old.kind == "generator" and old.extra == {} and old.L_epi == 16
+    d["kind"] = "tracker"
+    torch.save(d, p)
+    with pytest.raises(ValueError, match="unknown checkpoint kind 'tracker'"):
+        load_checkpoint(p, kind=None)
+
+
+def test_non_finite_weights_are_refused(tmp_path: Path) -> None:
+    ck, _ = _ckpt()
+    ck.ema_state = {k: v.clone() for k, v in ck.ema_state.items()}
+    ck.ema_state["out_proj.bias"][0] = float("nan")
+    p = tmp_path / "nan.pt"
+    save_checkpoint(p, ck)
+    with pytest.raises(ValueError, match=r"non-finite \(NaN or inf\) ema weights in \['out_proj.bias'\]"):
         load_checkpoint(p)

@@ -137,3 +137,62 @@ def test_tiny_model_overfits_one_batch() -> None:
         loss.backward()
         opt.step()
     assert loss.item() < 0.05 * first, (first, loss.item())
+
+
+def test_precomputed_condition_embedding_gives_identical_outputs() -> None:
+    """forward(cond_emb=encode_conditions(...)) == forward(raw conditions), bit for bit, also under inference_mode."""
+    torch.manual_seed(2)
+    m = _denoiser().eval()
+    x, t = torch.randn(3, 16, 72), torch.tensor([0, 40, 99])
+    s, a = torch.rand(3, 32, 32, 32) > 0.5, torch.rand(3, 16, 5)
+    mask = torch.rand(3, 16, 72) > 0.7
+    drop = torch.tensor([True, False, True])
+    with torch.no_grad():
+        for kw in ({"scene": s, "actions": a}, {"scene": s}, {}, {"scene": s, "actions": a, "drop_scene": drop},
+                   {"actions": a, "drop_action": drop}):
+            ref = m(x, t, mask=mask, **kw)
+            emb = m.encode_conditions(batch=3, **kw)
+            assert emb.shape == (3, 32)
+            assert torch.equal(m(x, t, mask=mask, cond_emb=emb), ref), kw
+        ref = m(x, t, mask=mask, scene=s, actions=a)
+    with torch.inference_mode():
+        emb = m.encode_conditions(scene=s, actions=a)
+        assert torch.equal(m(x, t, mask=mask, cond_emb=emb), ref)
+        assert torch.equal(m(x, 7, cond_emb=emb[:1].expand(3, -1)), m(x, torch.full((3,), 7), scene=s[:1].expand(3, -1, -1, -1),
+                                                                       actions=a[:1].expand(3, -1, -1)))
+    # a model without condition encoders: the embedding is zeros and changes nothing
+    plain = Denoiser(DenoiserConfig(d_model=32, layers=1, heads=4, ff=64, dropout=0.0)).eval()
+    with torch.no_grad():
+        z = plain.encode_conditions(batch=3)
+        assert torch.equal(z, torch.zeros(3, 32)) and torch.equal(plain(x, t, cond_emb=z), plain(x, t))
+    with pytest.raises(ValueError, match="not both"):
+        m(x, t, scene=s, cond_emb=emb)
+    with pytest.raises(ValueError, match="cond_emb must be"):
+        m(x, t, cond_emb=torch.zeros(2, 32))
+    with pytest.raises(ValueError, match="same batch size"):
+        m.encode_conditions(scene=s, actions=a[:2])
+    with pytest.raises(ValueError, match="batch"):
+        m.encode_conditions()
+
+
+def test_guidance_with_precomputed_embeddings() -> None:
+    torch.manual_seed(3)
+    m = _denoiser().eval()
+    x, t = torch.randn(2, 16, 72), torch.tensor([5, 50])
+    s, a = torch.rand(2, 32, 32, 32) > 0.5, torch.rand(2, 16, 5)
+    with torch.inference_mode():
+        for scales in ((1.0, 1.0), (2.5, 3.0), (0.0, 0.0)):
+            g = GuidedDenoiser(m, *scales)
+            emb = g.encode_conditions(scene=s, actions=a)
+            assert emb.shape == ((2, 32) if scales == (1.0, 1.0) else (6, 32))
+            assert torch.equal(g(x, t, cond_emb=emb), g(x, t, scene=s, actions=a))
+        g = GuidedDenoiser(m, 2.5, 3.0)
+        emb = g.encode_conditions(scene=s, actions=a)
+        # the stacked embeddings are the model's own for (∅,∅), (S,∅), (S,A)
+        assert torch.equal(emb[:2], m.encode_conditions(batch=2))
+        assert torch.equal(emb[2:4], m.encode_conditions(scene=s))
+        assert torch.equal(emb[4:], m.encode_conditions(scene=s, actions=a))
+        ref = m(x, t) + 2.5 * (m(x, t, scene=s) - m(x, t)) + 3.0 * (m(x, t, scene=s, actions=a) - m(x, t, scene=s))
+        assert torch.allclose(g(x, t, cond_emb=emb), ref, atol=1e-5)
+        with pytest.raises(ValueError, match="3B"):
+            g(x, t, cond_emb=m.encode_conditions(scene=s, actions=a))

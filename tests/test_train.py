@@ -189,7 +189,7 @@ def test_resume_equals_uninterrupted_run(tiny, tmp_path: Path) -> None:
 
 def test_cli_train_json_and_eval(tiny, tmp_path: Path, capsys) -> None:
     from trumans.model.checkpoint import load_checkpoint
-    from trumans.cli import main
+    from trumans.cli import console_main, main
 
     root, cfg_path = tiny
     out = tmp_path / "run"
@@ -206,9 +206,10 @@ def test_cli_train_json_and_eval(tiny, tmp_path: Path, capsys) -> None:
     assert rc == 0
     ev = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert np.isclose(ev["val_loss"], res["val_loss"], rtol=1e-5) and ev["data_hash_match"] is True
-    assert main(["eval", "train", str(tmp_path / "missing.pt")]) == 2
-    assert "does not exist" in capsys.readouterr().err
-    assert main(["train", "--config", "nope", "--data", str(root), "--out", str(out)]) == 2
+    assert console_main(["eval", "train", str(tmp_path / "missing.pt")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("trumans: error: checkpoint") and "does not exist" in err and err.count("\n") == 1
+    assert console_main(["train", "--config", "nope", "--data", str(root), "--out", str(out)]) == 2
 
 
 def test_scene_grids_place_dynamic_objects_at_episode_start() -> None:

@@ -1,5 +1,8 @@
-"""Training of the generator: configs, data, loop, DDP; `trumans train` / `python -m train`."""
-from .config import TrainConfig, load_config
+"""Training: the task protocol and registry, the generator task, configs, data, the loop, DDP;
+`trumans train` / `python -m train`."""
+from .config import GeneratorConfig, TrainConfig, load_config
 from .loop import TrainResult, train
+from .tasks import Task, TaskLoss, make_task, register_task, task_names
 
-__all__ = ["TrainConfig", "load_config", "TrainResult", "train"]
+__all__ = ["GeneratorConfig", "TrainConfig", "load_config", "TrainResult", "train", "Task", "TaskLoss", "make_task",
+           "register_task", "task_names"]

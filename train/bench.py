@@ -13,31 +13,25 @@ __all__ = ["bench_steps", "main"]
 
 
 def bench_steps(config: str, steps: int = 1, batch_size: int | None = None, num_actions: int = 16, seed: int = 0) -> dict:
-    """Run ``steps`` Adam steps of ``config`` on random data; returns timing and size figures."""
+    """Run ``steps`` Adam steps of the generator task with ``config`` on random data; returns timing and size figures."""
     import torch
 
-    from trumans.model.diffusion import GaussianDiffusion
-    from trumans.model.masks import MaskSampler
-    from trumans.model.nets import Denoiser
+    from .generator import GeneratorTask
+    from .loop import initial_model
 
-    from .config import load_config
-    from .loop import _cond, _mask_sampler, model_config
-
-    torch.manual_seed(seed)
-    cfg = load_config(config)
+    task = GeneratorTask.from_config(config)
+    task.vocabulary = [f"action{i}" for i in range(num_actions)]
+    cfg = task.config
     B = batch_size or cfg.train.batch_size
-    mcfg = model_config(cfg, num_actions)
-    model = Denoiser(mcfg).train()
-    diffusion = GaussianDiffusion(cfg.diffusion)
+    model = initial_model(task, seed).train()
     opt = torch.optim.Adam(model.parameters(), lr=cfg.train.lr)
-    sampler: MaskSampler = _mask_sampler(cfg)
-    L, n = cfg.data.episode_frames, cfg.data.grid
+    g = torch.Generator().manual_seed(seed)
+    dev = torch.device("cpu")
     times, losses = [], []
     for _ in range(steps):
-        x = torch.randn(B, L, mcfg.feature_dim)
-        cond = _cond(mcfg, torch.rand(B, n, n, n) > 0.7, torch.rand(B, L, num_actions) + 1)
+        batch = task.random_batch(B, g)
         t0 = time.perf_counter()
-        loss = diffusion.training_loss(model, x, mask=sampler(B), **cond).loss
+        loss = task.loss(model, batch, g, dev).loss
         opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.train.grad_clip)

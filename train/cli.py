@@ -1,21 +1,25 @@
-"""`trumans train` / `python -m train`: train the generator from a config (CLI module contract)."""
+"""`trumans train` / `python -m train`: train a task (default: the generator) from a config.
+
+Bad input (unknown task, config or ablation, bad values, missing data) raises ValueError /
+FileNotFoundError; the console script prints it as the one line ``trumans: error: ...`` (exit 2).
+"""
 from __future__ import annotations
 
 import argparse
 import json
-import sys
+import math
+import os
 
 __all__ = ["add_arguments", "run", "main"]
 
-ABLATIONS = {
-    "progress": ("data", "progress_indicator"),
-    "scene": ("model", "scene_condition"),
-    "augmented": ("data", "augmented"),
-}
+DEVICES = ("cpu", "cuda")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--config", default="cpu-small", help="built-in config (cpu-small, paper) or a TOML file")
+    p.add_argument("--task", default="generator",
+                   help="what to train: a registered task (generator; the filter and contact tasks register theirs)")
+    p.add_argument("--config", default=None,
+                   help="built-in config of the task (generator: cpu-small (default), paper) or a TOML file")
     p.add_argument("--data", required=True, help="dataset folder (with index.json)")
     p.add_argument("--out", required=True, help="run folder: checkpoint.pt, loss.png, cache/")
     p.add_argument("--augmented", action="append", default=[], metavar="DIR",
@@ -23,8 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=None, help="total optimisation steps (default: the config's)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--seed", type=int, default=0, help="random seed (data order, noise, init)")
-    p.add_argument("--ablate", action="append", default=[], choices=sorted(ABLATIONS),
-                   help="switch off: progress (indicator), scene (condition), augmented (data); repeatable")
+    p.add_argument("--ablate", action="append", default=[], metavar="NAME",
+                   help="switch off a part (generator: progress (indicator), scene / action (condition), "
+                        "augmented (data)); repeatable")
     p.add_argument("--time-limit", type=float, default=None, help="stop after this many seconds (overrides config)")
     p.add_argument("--device", default=None, help="cpu or cuda (default: cuda if available)")
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
@@ -35,40 +40,39 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
-    from .config import load_config
     from .loop import train
+    from .tasks import make_task
 
-    if args.threads:
+    if args.threads is not None:
+        if args.threads < 1:
+            raise ValueError(f"--threads must be >= 1, got {args.threads}")
         torch.set_num_threads(args.threads)
-    try:
-        cfg = load_config(args.config)
-        over: dict[str, dict] = {}
-        for a in args.ablate:
-            sec, key = ABLATIONS[a]
-            over.setdefault(sec, {})[key] = False
-        if args.time_limit is not None:
-            over.setdefault("train", {})["time_limit_s"] = float(args.time_limit)
-        if over:
-            cfg = cfg.with_overrides(**over)
-        res = train(cfg, args.data, args.out, steps=args.steps, resume=args.resume, seed=args.seed,
-                    progress=not args.no_progress, device=args.device,
-                    augmented_dirs=args.augmented)
-    except (ValueError, FileNotFoundError) as e:
-        print(f"trumans train: {e}", file=sys.stderr)
-        return 2
-    d = res.to_dict()
-    import os
+    if args.steps is not None and args.steps < 0:
+        raise ValueError(f"--steps must be >= 0, got {args.steps}")
+    if args.device is not None and args.device not in DEVICES:
+        raise ValueError(f"--device must be one of {list(DEVICES)}, got {args.device!r}")
+    over: dict[str, dict] = {}
+    if args.time_limit is not None:
+        if not (math.isfinite(args.time_limit) and args.time_limit >= 0):
+            raise ValueError(f"--time-limit must be >= 0 seconds (0 = none), got {args.time_limit}")
+        over["train"] = {"time_limit_s": float(args.time_limit)}
+    task = make_task(args.task, args.config, overrides=over, ablate=args.ablate)
+    res = train(task, args.data, args.out, steps=args.steps, resume=args.resume, seed=args.seed,
+                progress=not args.no_progress, device=args.device, augmented_dirs=args.augmented)
     if int(os.environ.get("RANK", "0")) != 0:
         return 0
     print(f"{res.steps} steps, {res.samples_per_s:.1f} samples/s, train loss {res.train_loss:.4f}, "
           f"val loss {res.val_loss:.4f} (zero baseline {res.val_loss_zero_baseline:.4f}, ratio {res.val_ratio:.3f}); "
           f"checkpoint {res.checkpoint}")
     if args.json:
-        print(json.dumps(d))
+        print(json.dumps(res.to_dict()))
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m train", description="train the TRUMANS generator")
-    add_arguments(p)
-    return run(p.parse_args(argv))
+    """`python -m train ARGS` (also under torchrun) = `trumans train ARGS`, errors on the same channel."""
+    import sys
+
+    from trumans.cli import console_main
+
+    return console_main(["train", *(sys.argv[1:] if argv is None else argv)])

@@ -2,7 +2,8 @@
 
 Every sequence of a split is resampled to ``DataSection.fps`` (10 Hz), cut into windows of
 ``episode_frames`` frames every ``stride`` frames, and each window is put in its canonical frame
-(``trumans.model.episodes``). Its scene condition is the local occupancy grid (``scenes.local_grid``)
+(``trumans.model.episodes``). Its conditions come from ``trumans.model.conditions.episode_condition``
+(the one definition the sampler uses too): the scene condition is the local occupancy grid
 around the episode subgoal - the pelvis floor point at the last frame - turned to the heading of
 the first frame, with the scene's dynamic objects where they are at the episode's first frame
 (``scenes.scene_grids``; TRUMANS §4.3). Grids are computed once per split and cached bit-packed in
@@ -25,7 +26,8 @@ import torch
 
 from trumans.actions import remap_labels
 from trumans.dataset import Dataset
-from trumans.model.episodes import PELVIS, FeatureLayout, Normalizer, canonical_frame, canonicalize, episode_starts
+from trumans.model.conditions import episode_condition, episode_scene_grids
+from trumans.model.episodes import FeatureLayout, Normalizer, canonicalize, episode_starts
 from trumans.resample import resample_sequence
 from trumans.sequence import atomic_write
 
@@ -81,7 +83,12 @@ def _cut(seq, cfg: DataSection, layout: FeatureLayout, vocab: list[str]):
         return None
     win = starts[:, None] + np.arange(L)[None]  # (N, L)
     joints = seq.joints[win]  # (N, L, 24, 3)
-    origin, yaw = canonical_frame(joints)
+    if seq.actions is not None and len(seq.action_names):
+        labels = remap_labels(np.asarray(seq.actions, np.float32), seq.action_names, vocab)
+    else:
+        labels = np.zeros((seq.num_frames, len(vocab)), np.float32)
+    cond = episode_condition(joints, labels[win], progress_indicator=cfg.progress_indicator)
+    origin, yaw = cond.origin, cond.yaw
     if layout.rotations:
         if seq.rotations is None:
             raise ValueError("the feature layout has rotations but a sequence has none; set data.rotations = false")
@@ -89,16 +96,7 @@ def _cut(seq, cfg: DataSection, layout: FeatureLayout, vocab: list[str]):
         feats = layout.pack(cj, cr)
     else:
         feats = layout.pack(canonicalize(joints, origin, yaw))
-    if seq.actions is not None and len(seq.action_names):
-        labels = remap_labels(np.asarray(seq.actions, np.float32), seq.action_names, vocab)
-    else:
-        labels = np.zeros((seq.num_frames, len(vocab)), np.float32)
-    acts = labels[win]
-    if not cfg.progress_indicator:  # ablation: plain multi-hot labels
-        acts = (acts > 0).astype(np.float32)
-    goal = joints[:, -1, PELVIS].astype(np.float64).copy()  # subgoal: pelvis floor point at the last frame
-    goal[:, 2] = 0.0
-    return feats, acts, origin, yaw, goal, starts
+    return feats, cond, starts
 
 
 def _scene_grids(ds: Dataset, scene_id: str, dynamic: bool) -> SceneGrids:
@@ -134,16 +132,16 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
         cut = _cut(seq, cfg, layout, vocab)
         if cut is None:
             continue
-        feats, acts, origin, yaw, goal, starts = cut
+        feats, cond, starts = cut
         if seq.scene:
             if seq.scene not in occ_cache:
                 occ_cache[seq.scene] = _scene_grids(ds, seq.scene, cfg.dynamic_objects)
             poses = {k: o.pose[starts] for k, o in seq.objects.items()} if cfg.dynamic_objects else None
-            grids = occ_cache[seq.scene].query(goal, yaw, poses, n=n, extent=cfg.extent)
+            grids = episode_scene_grids(occ_cache[seq.scene], cond, poses, n=n, extent=cfg.extent)
         else:  # no scene recorded: open floor (nothing occupied above z = 0)
             grids = np.zeros((len(feats), n, n, n), dtype=bool)
         packed = np.packbits(grids.reshape(len(grids), -1), axis=1)
-        parts.append((feats, acts, packed, origin, yaw, np.full(len(feats), si), starts))
+        parts.append((feats, cond.actions, packed, cond.origin, cond.yaw, np.full(len(feats), si), starts))
     if not parts:
         raise ValueError(f"split {split!r} of {ds.root} has no sequence with >= {cfg.episode_frames} frames at "
                          f"{cfg.fps} fps; use a larger dataset or shorter episodes")

@@ -34,6 +34,8 @@ class DistInfo:
 
 def setup(device: str | None = None) -> DistInfo:
     """Join the process group if WORLD_SIZE > 1 (torchrun); device: 'cpu', 'cuda' or None (auto)."""
+    if device not in (None, "cpu", "cuda"):
+        raise ValueError(f"device must be 'cpu' or 'cuda' (or None: cuda if available), got {device!r}")
     world = int(os.environ.get("WORLD_SIZE", "1"))
     rank = int(os.environ.get("RANK", "0"))
     local = int(os.environ.get("LOCAL_RANK", str(rank)))

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 __all__ = ["add_arguments", "run", "evaluate_checkpoint"]
 
@@ -15,15 +14,15 @@ def evaluate_checkpoint(path: str, data: str | None = None, ema: bool = True, se
     from trumans.model.checkpoint import load_checkpoint
     from trumans.dataset import Dataset
 
-    from .config import TrainConfig
+    from .config import GeneratorConfig
     from .data import BatchStream, load_episodes
-    from .loop import validation_loss
+    from .generator import validation_loss
 
     torch.manual_seed(seed)
     ck = load_checkpoint(path)
     if ck.train_state is None or "config" not in ck.train_state:
         raise ValueError(f"{path} carries no training config; evaluate the RUN/checkpoint.pt written by `trumans train`")
-    cfg = TrainConfig.from_dict(ck.train_state["config"])
+    cfg = GeneratorConfig.from_dict(ck.train_state["config"], source=f"{path}'s training config")
     data = data or ck.data.get("path")
     if not data:
         raise ValueError(f"{path} does not record its dataset folder; pass --data DIR")
@@ -50,11 +49,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        res = evaluate_checkpoint(args.checkpoint, args.data, ema=not args.raw, seed=args.seed)
-    except (ValueError, FileNotFoundError) as e:
-        print(f"trumans eval train: {e}", file=sys.stderr)
-        return 2
+    """Bad input raises ValueError / FileNotFoundError: the console script prints it as ``trumans: error: ...``."""
+    res = evaluate_checkpoint(args.checkpoint, args.data, ema=not args.raw, seed=args.seed)
     print(f"val loss {res['val_loss']:.4f} (zero baseline {res['val_loss_zero_baseline']:.4f}, "
           f"ratio {res['val_ratio']:.3f}) on {res['val_episodes']} episodes")
     if args.json:

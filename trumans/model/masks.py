@@ -81,8 +81,8 @@ class MaskSampler:
         m = m | (pelvis_goal_mask(L, self.layout)[None] & pelvis[:, None, None])
         which = torch.randint(0, len(HAND_JOINTS), (batch,), generator=generator)
         frame = torch.randint(self.k, L, (batch,), generator=generator)
-        joint = torch.as_tensor(HAND_JOINTS)[which]
-        cols = 3 * joint[:, None] + torch.arange(3)[None]  # (B, 3) position features of the hand
+        hand_cols = torch.tensor([self.layout.position_index(j) for j in HAND_JOINTS])  # (hands, 3)
+        cols = hand_cols[which]  # (B, 3) position features of the chosen hand
         hand_m = torch.zeros(batch, L, F, dtype=torch.bool)
         b = torch.arange(batch)[:, None].expand(-1, 3)
         hand_m[b, frame[:, None].expand(-1, 3), cols] = True

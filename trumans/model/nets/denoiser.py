@@ -6,7 +6,11 @@ contains timestep information"), then one token per frame: a linear projection o
 noisy features concatenated with the frame's inpainting mask (so the network knows which entries
 are given, which the authors' code did not do), plus an optional per-frame condition (the HOI
 filter's tracked input). The frame tokens' outputs are projected back to the features: the
-predicted noise ε̂ (B, L, F).
+prediction (B, L, F) of the diffusion config's type (ε̂, x̂0 or v̂).
+
+The condition encoders are separate from the per-step network: ``encode_conditions`` gives the
+(B, d_model) condition embedding once per episode, and ``forward(..., cond_emb=...)`` takes it
+instead of the raw conditions (same result), so a sampler does not rerun them at every step.
 
 Classifier-free guidance (Ho & Salimans 2022): each condition can be replaced by a learned null
 embedding (``drop_scene`` / ``drop_action`` per sample, or by passing ``None``);
@@ -75,8 +79,20 @@ class DenoiserConfig:
         return cls(**d)
 
 
+def _batch_size(scene: torch.Tensor | None, actions: torch.Tensor | None, batch: int | None) -> int:
+    sizes = {len(v) for v in (scene, actions) if v is not None}
+    if len(sizes) > 1:
+        raise ValueError(f"scene and actions must have the same batch size, got {sorted(sizes)}")
+    if sizes:
+        return sizes.pop()
+    if batch is None:
+        raise ValueError("encoding conditions needs scene, actions or batch= to know the batch size")
+    return batch
+
+
 class Denoiser(nn.Module):
-    """model(x_t, t, mask=..., scene=..., actions=..., frame_cond=...) -> ε̂; shapes in ``forward``."""
+    """model(x_t, t, mask=..., scene=... | cond_emb=..., actions=..., frame_cond=...) -> prediction;
+    shapes in ``forward``."""
 
     def __init__(self, config: DenoiserConfig) -> None:
         super().__init__()
@@ -93,16 +109,51 @@ class Denoiser(nn.Module):
         self.encoder = encoder_stack(c.d_model, c.layers, c.heads, c.ff, c.dropout, post_ln=True)
         self.out_proj = nn.Linear(c.d_model, F)
 
-    def _condition(self, name: str, encoder, null, value, drop, B: int) -> torch.Tensor | None:
+    def condition_embedding(self, name: str, value: torch.Tensor | None, drop: torch.Tensor | None,
+                            batch: int) -> torch.Tensor | None:
+        """One condition's (batch, d_model) embedding: the encoder's output, or the learned null
+        embedding where ``value`` is None or ``drop`` (B,) is True; None if the model lacks it."""
+        if name not in ("scene", "actions"):
+            raise ValueError(f"condition name must be 'scene' or 'actions', got {name!r}")
+        encoder, null = ((self.scene_encoder, self.null_scene) if name == "scene"
+                         else (self.action_encoder, self.null_action))
         if encoder is None:
             if value is not None:
                 raise ValueError(f"this model has no {name} condition (its config has {name}=None); do not pass {name}")
             return None
         if value is None:
-            return null.expand(B, -1)
+            return null.expand(batch, -1)
         emb = encoder(value)
         if drop is not None:
-            emb = torch.where(drop.to(emb.device).reshape(B, 1), null.expand(B, -1), emb)
+            emb = torch.where(drop.to(emb.device).reshape(-1, 1), null.expand(len(emb), -1), emb)
+        return emb
+
+    def encode_conditions(
+        self,
+        *,
+        scene: torch.Tensor | None = None,
+        actions: torch.Tensor | None = None,
+        drop_scene: torch.Tensor | None = None,
+        drop_action: torch.Tensor | None = None,
+        batch: int | None = None,
+    ) -> torch.Tensor:
+        """The condition embedding added to the first token: (B, d_model) = scene + action embedding
+        (null embeddings where absent or dropped; zeros if the model has no condition encoder).
+        Compute it once per episode and pass it to every step as ``forward(..., cond_emb=...)``.
+        scene: (B, n, n, n) bool; actions: (B, L, N_A); drop_*: (B,) bool; batch: B when neither
+        scene nor actions is given."""
+        B = _batch_size(scene, actions, batch)
+        return self.sum_embeddings(self.condition_embedding("scene", scene, drop_scene, B),
+                                   self.condition_embedding("actions", actions, drop_action, B), batch=B)
+
+    def sum_embeddings(self, *parts: torch.Tensor | None, batch: int) -> torch.Tensor:
+        """The sum of the (B, d_model) condition embeddings that are not None, in order (zeros if none)."""
+        present = [p for p in parts if p is not None]
+        if not present:
+            return self.pos.new_zeros(batch, self.config.d_model)
+        emb = present[0]
+        for p in present[1:]:
+            emb = emb + p
         return emb
 
     def forward(
@@ -116,14 +167,25 @@ class Denoiser(nn.Module):
         frame_cond: torch.Tensor | None = None,
         drop_scene: torch.Tensor | None = None,
         drop_action: torch.Tensor | None = None,
+        cond_emb: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """x: (B, L, F) noisy normalised features; t: (B,) int diffusion steps; mask: (B, L, F)
-        bool, True = given; scene: (B, n, n, n) bool local grid; actions: (B, L, N_A) labels;
-        frame_cond: (B, L, C); drop_*: (B,) bool, True = use the null embedding. -> ε̂ (B, L, F)."""
+        """x: (B, L, F) noisy normalised features; t: (B,) or scalar int diffusion steps; mask:
+        (B, L, F) bool, True = given; scene: (B, n, n, n) bool local grid; actions: (B, L, N_A)
+        labels; frame_cond: (B, L, C); drop_*: (B,) bool, True = use the null embedding;
+        cond_emb: (B, d_model) from ``encode_conditions`` INSTEAD of scene / actions / drop_*
+        (same result). -> the prediction (ε̂, x̂0 or v̂ per the diffusion config) (B, L, F)."""
         c = self.config
         if x.dim() != 3 or tuple(x.shape[1:]) != (c.frames, c.feature_dim):
             raise ValueError(f"x must be (B, {c.frames}, {c.feature_dim}), got {tuple(x.shape)}")
         B = x.shape[0]
+        if cond_emb is None:
+            cond_emb = self.encode_conditions(scene=scene, actions=actions, drop_scene=drop_scene,
+                                              drop_action=drop_action, batch=B)
+        elif any(v is not None for v in (scene, actions, drop_scene, drop_action)):
+            raise ValueError("pass either cond_emb or the raw conditions (scene, actions, drop_*), not both")
+        if tuple(cond_emb.shape) not in ((B, c.d_model), (1, c.d_model)):
+            raise ValueError(f"cond_emb must be (B, d_model) = ({B}, {c.d_model}), got {tuple(cond_emb.shape)}; "
+                             f"compute it with encode_conditions on the same batch")
         h = x
         if c.mask_input:
             m = torch.zeros_like(x) if mask is None else mask.expand_as(x).to(x.dtype)
@@ -136,11 +198,8 @@ class Denoiser(nn.Module):
             h = h + self.cond_proj(frame_cond)
         elif frame_cond is not None:
             raise ValueError("this model takes no frame_cond (frame_cond_dim = 0)")
-        first = self.step_embed(sinusoidal_embedding(t.reshape(-1).expand(B), c.d_model))  # (B, d)
-        for emb in (self._condition("scene", self.scene_encoder, self.null_scene, scene, drop_scene, B),
-                    self._condition("actions", self.action_encoder, self.null_action, actions, drop_action, B)):
-            if emb is not None:
-                first = first + emb
+        t = torch.as_tensor(t, device=x.device).reshape(-1).expand(B)
+        first = self.step_embed(sinusoidal_embedding(t, c.d_model)) + cond_emb  # (B, d)
         tokens = torch.cat([first[:, None], h], dim=1) + self.pos  # (B, 1 + L, d)
         return self.out_proj(self.encoder(tokens)[:, 1:])
 
@@ -148,25 +207,51 @@ class Denoiser(nn.Module):
 class GuidedDenoiser(nn.Module):
     """Classifier-free guidance with separate scales (compositional form, Liu et al. 2022):
     ε = ε(∅,∅) + s_scene (ε(S,∅) - ε(∅,∅)) + s_action (ε(S,A) - ε(S,∅)).
-    Scales 1, 1 give the plain conditional prediction in one pass."""
+    Scales 1, 1 give the plain conditional prediction in one pass. The combination is linear, so
+    it applies to any prediction type (ε, x0, v)."""
 
     def __init__(self, model: Denoiser, scene_scale: float = 1.0, action_scale: float = 1.0) -> None:
         super().__init__()
         self.model, self.scene_scale, self.action_scale = model, float(scene_scale), float(action_scale)
 
-    def forward(self, x: torch.Tensor, t: torch.Tensor, *, mask=None, scene=None, actions=None, frame_cond=None) -> torch.Tensor:
-        if self.scene_scale == 1.0 and self.action_scale == 1.0:
-            return self.model(x, t, mask=mask, scene=scene, actions=actions, frame_cond=frame_cond)
+    @property
+    def guided(self) -> bool:
+        return not (self.scene_scale == 1.0 and self.action_scale == 1.0)
+
+    def encode_conditions(self, *, scene: torch.Tensor | None = None, actions: torch.Tensor | None = None,
+                          batch: int | None = None) -> torch.Tensor:
+        """The embeddings ``forward(cond_emb=...)`` takes: (B, d_model) conditional when not guided;
+        else (3B, d_model) = [(∅,∅); (S,∅); (S,A)] stacked, each encoder run once on B samples."""
+        m = self.model
+        if not self.guided:
+            return m.encode_conditions(scene=scene, actions=actions, batch=batch)
+        B = _batch_size(scene, actions, batch)
+        s = m.condition_embedding("scene", scene, None, B)
+        a = m.condition_embedding("actions", actions, None, B)
+        null_s = m.condition_embedding("scene", None, None, B)
+        null_a = m.condition_embedding("actions", None, None, B)
+        return torch.cat([m.sum_embeddings(null_s, null_a, batch=B), m.sum_embeddings(s, null_a, batch=B),
+                          m.sum_embeddings(s, a, batch=B)])
+
+    def forward(self, x: torch.Tensor, t: torch.Tensor, *, mask=None, scene=None, actions=None, frame_cond=None,
+                cond_emb: torch.Tensor | None = None) -> torch.Tensor:
+        """As ``Denoiser.forward``; cond_emb: the output of ``self.encode_conditions`` (instead of scene / actions)."""
         B = x.shape[0]
+        if cond_emb is None:
+            cond_emb = self.encode_conditions(scene=scene, actions=actions, batch=B)
+        elif scene is not None or actions is not None:
+            raise ValueError("pass either cond_emb or the raw conditions (scene, actions), not both")
+        if not self.guided:
+            return self.model(x, t, mask=mask, frame_cond=frame_cond, cond_emb=cond_emb)
+        if len(cond_emb) != 3 * B:
+            raise ValueError(f"guided cond_emb must be (3B, d_model) = ({3 * B}, ...) from GuidedDenoiser.encode_conditions, "
+                             f"got {tuple(cond_emb.shape)}")
 
         def rep(v):
             return None if v is None else torch.cat([v] * 3)
 
-        ones, zeros = torch.ones(B, dtype=torch.bool), torch.zeros(B, dtype=torch.bool)
-        drop_s = torch.cat([ones, zeros, zeros]) if scene is not None else None
-        drop_a = torch.cat([ones, ones, zeros]) if actions is not None else None
-        eps = self.model(rep(x), rep(t.reshape(-1).expand(B)), mask=rep(None if mask is None else mask.expand_as(x)),
-                         scene=rep(scene), actions=rep(actions), frame_cond=rep(frame_cond),
-                         drop_scene=drop_s, drop_action=drop_a)
-        e00, es0, esa = eps.chunk(3)
+        t = torch.as_tensor(t, device=x.device).reshape(-1).expand(B)
+        out = self.model(rep(x), rep(t), mask=rep(None if mask is None else mask.expand_as(x)),
+                         frame_cond=rep(frame_cond), cond_emb=cond_emb)
+        e00, es0, esa = out.chunk(3)
         return e00 + self.scene_scale * (es0 - e00) + self.action_scale * (esa - es0)

@@ -118,8 +118,13 @@ def test_checkpoint_round_trip(tmp_path):
         load_predictor(tmp_path / "missing.pt")
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a checkpoint")
-    with pytest.raises(ValueError, match="not a readable checkpoint"):
+    with pytest.raises(ValueError, match="not a readable"):
         load_predictor(bad)
-    torch.save({"kind": "generator"}, tmp_path / "gen.pt")
-    with pytest.raises(ValueError, match="not a contact-predictor"):
+    torch.save({"format": "trumans-checkpoint", "format_version": 1, "kind": "generator"}, tmp_path / "gen.pt")
+    with pytest.raises(ValueError, match="'contact' checkpoint is needed"):
         load_predictor(tmp_path / "gen.pt")
+    state = torch.load(path, weights_only=True)
+    state["model"]["contact_head.bias"] += 1.0  # altered bytes no longer match the digest
+    torch.save(state, tmp_path / "altered.pt")
+    with pytest.raises(ValueError, match="digest"):
+        load_predictor(tmp_path / "altered.pt")

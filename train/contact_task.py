@@ -1,69 +1,40 @@
-"""Training the contact predictor (iReplica §4.2): data windows, labels, loss, and a plain loop.
+"""Training the contact predictor (iReplica §4.2) as a ``train.tasks.Task``: ``trumans train --task contact``.
 
 Labels per frame of a dataset sequence (at the model's fps): ``trumans.contacts.labels`` (hand
 contact = wrist or index1 in contact; class = dof of the object moving near the frame).
 Loss: binary cross-entropy on both hands' contacts over every frame of each window (the network
 is sequence-to-sequence, §4.2) plus ``class_weight`` x cross-entropy on the class. Each window is
 mirrored left/right with probability ``mirror_p`` (``mirror_rotations``; hand labels swapped).
+The shared loop (``train.loop``) runs Adam, EMA, clipping, checkpoints and validation; the
+validation loss is compared with a constant predictor of the training set's label frequencies.
+Config: ``ContactTaskConfig`` (its defaults, or a TOML file whose [model], [data], [train] tables
+override them; unknown keys are errors). Ablations: ``mirror`` (no mirroring), ``class`` (no class loss).
 """
 from __future__ import annotations
 
-import math
-import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch import nn
 
 from trumans.contacts.labels import sequence_labels
-from trumans.contacts.model_io import save_predictor
+from trumans.contacts.model_io import KIND, predictor_checkpoint
 from trumans.contacts.predictor import (CLASSES, ContactPredictor, ContactPredictorConfig, mirror_rotations,
                                         pose_windows, window_indices)
 from trumans.contacts.scores import binary_scores
 from trumans.dataset import Dataset
 from trumans.resample import resample_sequence
-from trumans.sequence import Sequence
+from trumans.model.checkpoint import Checkpoint
 
-__all__ = ["ContactTrainConfig", "ContactData", "load_contact_data", "sample_batch",
-           "contact_loss", "evaluate_contacts", "train_contact"]
+from .config import TrainSection, build_config, load_toml
+from .tasks import TaskLoss
 
-
-@dataclass(frozen=True)
-class ContactTrainConfig:
-    """steps, batch_size (windows), lr (Adam), mirror_p, class_weight, moving_dilate_s (s),
-    val_every (steps), val_stride (frames between validated centres), time_limit_s (None = no
-    limit), model: the predictor's config."""
-
-    steps: int = 4000
-    batch_size: int = 64
-    lr: float = 1e-3
-    mirror_p: float = 0.5
-    class_weight: float = 0.5
-    moving_dilate_s: float = 0.5
-    val_every: int = 500
-    val_stride: int = 3
-    time_limit_s: float | None = None
-    model: ContactPredictorConfig = field(default_factory=ContactPredictorConfig)
-
-    def __post_init__(self) -> None:
-        if self.steps < 1 or self.batch_size < 1 or self.val_every < 1 or self.val_stride < 1:
-            raise ValueError("steps, batch_size, val_every and val_stride must be >= 1, got "
-                             f"{self.steps}, {self.batch_size}, {self.val_every}, {self.val_stride}")
-        if not (self.lr > 0 and 0 <= self.mirror_p <= 1 and self.class_weight >= 0 and self.moving_dilate_s >= 0):
-            raise ValueError("need lr > 0, 0 <= mirror_p <= 1, class_weight >= 0, moving_dilate_s >= 0")
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "ContactTrainConfig":
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown contact training config keys {unknown}; known keys are {sorted(known)}")
-        d = dict(d)
-        if isinstance(d.get("model"), dict):
-            d["model"] = ContactPredictorConfig.from_dict(d["model"])
-        return cls(**d)
+__all__ = ["ContactDataSection", "ContactTaskConfig", "ContactTask", "ContactData", "load_contact_data",
+           "sample_batch", "contact_loss", "evaluate_contacts", "ABLATIONS"]
 
 
 @dataclass
@@ -151,72 +122,146 @@ def evaluate_contacts(model: ContactPredictor, data: ContactData, stride: int = 
     return out
 
 
-def train_contact(data_dir: str | Path, out: str | Path, config: ContactTrainConfig = ContactTrainConfig(),
-                  seed: int = 0, progress: bool = True) -> dict:
-    """Train on the train split, validate on val, write ``out`` (a contact checkpoint). Returns a
-    summary dict (steps, seconds, losses, val figures, parameter count)."""
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    ds = Dataset(data_dir)
-    mc = config.model
-    train = load_contact_data(ds, "train", mc.fps, config.moving_dilate_s)
-    val = load_contact_data(ds, "val", mc.fps, config.moving_dilate_s)
-    model = ContactPredictor(mc)
-    opt = torch.optim.Adam(model.parameters(), lr=config.lr)
-    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s / config.steps, 1.0))))
-    t0, history, best = time.time(), [], None
-    step = 0
-    for step in range(1, config.steps + 1):
-        model.train()
-        centers = rng.integers(0, len(train), config.batch_size)
-        x, y, c = sample_batch(train, centers, mc.window, rng.random(config.batch_size) < config.mirror_p)
-        losses = contact_loss(model, x, y, c, config.class_weight)
-        opt.zero_grad()
-        losses["loss"].backward()
-        opt.step()
-        sched.step()
-        history.append(losses["loss"].item())
-        done = step == config.steps or (config.time_limit_s is not None and time.time() - t0 > config.time_limit_s)
-        if step % config.val_every == 0 or done:
-            fig = evaluate_contacts(model, val, config.val_stride)
-            if progress:
-                print(f"step {step}: train loss {np.mean(history[-config.val_every:]):.4f}, val ap {fig['ap']:.3f}, "
-                      f"acc {fig['accuracy']:.3f}, class acc {fig['class_accuracy']:.3f} ({time.time() - t0:.0f} s)",
-                      flush=True)
-        if done:
-            break
-    n_params = sum(p.numel() for p in model.parameters())
-    summary = {"steps": step, "seconds": time.time() - t0, "train_loss": float(np.mean(history[-100:])),
-               "val": fig, "parameters": n_params, "train_frames": len(train), "val_frames": len(val)}
-    cfg = asdict(config)
-    save_predictor(model, out, data={"name": ds.name, "hash": ds.hash},
-                   meta={"train_config": cfg, "summary": summary, "seed": seed})
-    return summary
+ABLATIONS = {"mirror": ("data", "mirror_p", 0.0), "class": ("data", "class_weight", 0.0)}
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m train.contact_task --data DIR --out FILE [--steps N] [--time-limit S] [--seed S] [--json]``."""
-    import argparse
-    import json
+@dataclass(frozen=True)
+class ContactDataSection:
+    """mirror_p: probability of mirroring a window; class_weight: weight of the class loss;
+    moving_dilate_s (s): class labels reach this far around object motion; val_stride: frames
+    between validated window centres."""
 
-    p = argparse.ArgumentParser(prog="python -m train.contact_task", description="train the contact predictor")
-    p.add_argument("--data", required=True, help="dataset folder (index.json; sequences with rotations and contacts)")
-    p.add_argument("--out", required=True, help="checkpoint file to write (.pt)")
-    p.add_argument("--steps", type=int, default=ContactTrainConfig.steps, help="optimisation steps")
-    p.add_argument("--batch-size", type=int, default=ContactTrainConfig.batch_size, help="windows per step")
-    p.add_argument("--time-limit", type=float, default=None, help="stop after this many seconds")
-    p.add_argument("--seed", type=int, default=0, help="random seed")
-    p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
-    args = p.parse_args(argv)
-    cfg = ContactTrainConfig(steps=args.steps, batch_size=args.batch_size, time_limit_s=args.time_limit)
-    summary = train_contact(args.data, args.out, cfg, seed=args.seed)
-    print(f"{summary['steps']} steps in {summary['seconds']:.0f} s, val ap {summary['val']['ap']:.3f}; wrote {args.out}")
-    if args.json:
-        print(json.dumps(summary))
-    return 0
+    mirror_p: float = 0.5
+    class_weight: float = 0.5
+    moving_dilate_s: float = 0.5
+    val_stride: int = 3
+
+    def __post_init__(self) -> None:
+        if not (0 <= self.mirror_p <= 1 and self.class_weight >= 0 and self.moving_dilate_s >= 0 and self.val_stride >= 1):
+            raise ValueError(f"need 0 <= mirror_p <= 1, class_weight >= 0, moving_dilate_s >= 0, val_stride >= 1; got "
+                             f"{self.mirror_p}, {self.class_weight}, {self.moving_dilate_s}, {self.val_stride}")
 
 
-if __name__ == "__main__":
-    import sys
+def _contact_train() -> TrainSection:
+    return TrainSection(steps=1500, batch_size=64, lr=1e-3, ema_decay=0.99, grad_clip=1.0, checkpoint_every=500,
+                        val_every=500)
 
-    sys.exit(main())
+
+@dataclass(frozen=True)
+class ContactTaskConfig:
+    """name; model: the predictor; data: labels / augmentation; train: the shared optimiser section."""
+
+    name: str = "contact"
+    model: ContactPredictorConfig = field(default_factory=ContactPredictorConfig)
+    data: ContactDataSection = field(default_factory=ContactDataSection)
+    train: TrainSection = field(default_factory=_contact_train)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "config") -> "ContactTaskConfig":
+        return build_config(cls, d, source, base=cls())
+
+    def with_overrides(self, **sections: dict) -> "ContactTaskConfig":
+        d = self.to_dict()
+        for sec, vals in sections.items():
+            if sec not in d or not isinstance(d[sec], dict):
+                raise ValueError(f"unknown config section {sec!r}; sections: {sorted(k for k in d if isinstance(d[k], dict))}")
+            d[sec].update(vals)
+        return type(self).from_dict(d)
+
+
+class ContactTask:
+    """The contact predictor as a ``train.tasks.Task`` (kind "contact")."""
+
+    kind = KIND
+
+    def __init__(self, config: ContactTaskConfig) -> None:
+        self.config = config
+        self.train_data: ContactData | None = None
+        self.val_data: ContactData | None = None
+        self.data_record: dict = {}
+        self.seed = 0
+
+    @classmethod
+    def from_config(cls, config: str | Path | None = None, *, overrides: dict[str, dict] | None = None,
+                    ablate: Sequence[str] = ()) -> "ContactTask":
+        """The task factory (``train.tasks.TASKS``): None = the defaults, else a TOML file."""
+        if config is None:
+            cfg = ContactTaskConfig()
+        else:
+            d, p = load_toml(config, config_dir=Path(__file__).parent / "configs" / "contact")
+            cfg = ContactTaskConfig.from_dict(d, source=str(p))
+        over = {k: dict(v) for k, v in (overrides or {}).items()}
+        for a in ablate:
+            if a not in ABLATIONS:
+                raise ValueError(f"unknown ablation {a!r} for the contact task; ablations: {sorted(ABLATIONS)}")
+            sec, key, value = ABLATIONS[a]
+            over.setdefault(sec, {})[key] = value
+        return cls(cfg.with_overrides(**over) if over else cfg)
+
+    def setup(self, data_dir: str | Path, out_dir: Path, *, is_main: bool, barrier: Callable[[], None],
+              prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
+              progress: bool = True) -> None:
+        """The train and val splits of ``data_dir`` (sequences with rotations and contacts)."""
+        if extra_dirs:
+            raise ValueError("the contact task trains on one dataset; --augmented is not supported for it")
+        ds = Dataset(data_dir)
+        if prev is not None and prev.data.get("hash") != ds.hash:
+            raise ValueError(f"the run in {out_dir} was trained on other data (hash {str(prev.data.get('hash'))[:12]}, "
+                             f"now {ds.hash[:12]}); resume with the same --data")
+        self.data_record = {"name": ds.name, "hash": ds.hash, "path": str(Path(data_dir).resolve())}
+        c = self.config
+        self.train_data = load_contact_data(ds, "train", c.model.fps, c.data.moving_dilate_s)
+        self.val_data = load_contact_data(ds, "val", c.model.fps, c.data.moving_dilate_s)
+        self.seed = seed
+        barrier()
+
+    def build_model(self) -> ContactPredictor:
+        return ContactPredictor(self.config.model)
+
+    def batch(self, step: int, rank: int, world: int) -> tuple[torch.Tensor, ...]:
+        """This rank's windows of step ``step``: a pure function of (seed, step, rank)."""
+        rng = np.random.default_rng([self.seed, step, rank, 11])
+        n = max(1, self.config.train.batch_size // world)
+        centers = rng.integers(0, len(self.train_data), n)
+        return sample_batch(self.train_data, centers, self.config.model.window, rng.random(n) < self.config.data.mirror_p)
+
+    def loss(self, model: nn.Module, batch: tuple[torch.Tensor, ...], generator: torch.Generator,
+             device: torch.device) -> TaskLoss:
+        x, y, c = (t.to(device) for t in batch)
+        out = contact_loss(model, x, y, c, self.config.data.class_weight)
+        return TaskLoss(out["loss"], {"bce": out["bce"], "ce": out["ce"]})
+
+    @torch.no_grad()
+    def validate(self, model: nn.Module) -> tuple[float, float]:
+        """(loss on every ``val_stride``-th val window, no mirroring; the same loss of a constant
+        predictor of the training label frequencies)."""
+        d, W = self.val_data, self.config.model.window
+        centers = np.arange(0, len(d), self.config.data.val_stride)
+        dev = next(model.parameters()).device
+        total, n = 0.0, 0
+        for s in range(0, len(centers), 2048):
+            x, y, c = (t.to(dev) for t in sample_batch(d, centers[s:s + 2048], W, np.zeros(len(centers[s:s + 2048]), bool)))
+            total += float(contact_loss(model.eval(), x, y, c, self.config.data.class_weight)["loss"]) * len(x)
+            n += len(x)
+        p = self.train_data.hands.mean(0).clamp(1e-4, 1 - 1e-4)  # (2,)
+        q = torch.bincount(self.train_data.classes, minlength=len(CLASSES)).float().clamp_min(1)
+        q = q / q.sum()
+        yv, cv = d.hands[centers], d.classes[centers]
+        bce0 = F.binary_cross_entropy(p.expand_as(yv), yv)
+        ce0 = F.nll_loss(q.log().expand(len(cv), -1), cv)
+        return total / max(n, 1), float(bce0 + self.config.data.class_weight * ce0)
+
+    def sizes(self) -> tuple[int, int]:
+        return len(self.train_data), len(self.val_data)
+
+    def checkpoint(self, *, model_state: dict, ema_state: dict, meta: dict, train_state: dict) -> Checkpoint:
+        meta = dict(meta)
+        if self.val_data is not None and ema_state:
+            model = ContactPredictor(self.config.model)
+            model.load_state_dict(ema_state)
+            meta["val_figures"] = evaluate_contacts(model, self.val_data, self.config.data.val_stride)
+        return predictor_checkpoint(self.config.model, model_state, ema_state=ema_state, data=self.data_record,
+                                    meta=meta, train_state=train_state)

@@ -69,7 +69,8 @@ class Task(Protocol):
 TaskFactory = Callable[..., Task]
 
 # name -> "module:attribute" (imported when first used) or a factory
-TASKS: dict[str, str | TaskFactory] = {"generator": "train.generator:GeneratorTask.from_config"}
+TASKS: dict[str, str | TaskFactory] = {"generator": "train.generator:GeneratorTask.from_config",
+                                       "contact": "train.contact_task:ContactTask.from_config"}
 
 
 def register_task(name: str, factory: str | TaskFactory) -> None:

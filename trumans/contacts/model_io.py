@@ -1,62 +1,64 @@
-"""Contact-predictor checkpoints (``.pt``, DESIGN.md "Files"; the generator's layout, kind "contact").
+"""Contact-predictor checkpoints: the shared checkpoint format (``trumans.model.checkpoint``) with
+kind "contact".
 
-A plain dict written atomically with ``torch.save`` and read with ``torch.load(weights_only=True)``
-(never executes code): ``format``, ``format_version``, ``kind`` = "contact", ``code_version``,
-``model_config`` (``ContactPredictorConfig.to_dict()``), ``model`` (state dict), ``classes``,
-``hands``, ``fps``, ``data`` ({"name", "hash"}), ``meta`` (training settings and figures).
+Payload: ``model_config`` (``ContactPredictorConfig.to_dict()``), ``model`` / ``ema`` (state
+dicts), ``fps``, ``extra`` = {"classes", "hands"}, ``data`` ({"name", "hash", "path"}), ``meta``,
+``train_state`` (None in an export); written atomically, read with ``torch.load(weights_only=True)``
+(never executes code) and checked against its digest.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-import torch
+from torch import nn
 
 from trumans import __version__
-from trumans.sequence import atomic_write
+from trumans.model.checkpoint import Checkpoint, KindSpec, load_checkpoint, register_kind, save_checkpoint
 
 from .predictor import CLASSES, HANDS, ContactPredictor, ContactPredictorConfig
 
-__all__ = ["save_predictor", "load_predictor", "DEFAULT_CHECKPOINT", "KIND"]
+__all__ = ["save_predictor", "load_predictor", "predictor_checkpoint", "DEFAULT_CHECKPOINT", "KIND"]
 
 KIND = "contact"
 # The shipped model (trained on the embedded synthetic dataset; see README "Interactions").
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[2] / "models" / "contacts.pt"
 
 
-def save_predictor(model: ContactPredictor, path: str | Path, data: dict | None = None, meta: dict | None = None) -> None:
-    """Write ``model`` (weights + config + class/hand names) to ``path`` atomically."""
-    ckpt = {
-        "format": "trumans-checkpoint", "format_version": 1, "kind": KIND, "code_version": __version__,
-        "model_config": model.config.to_dict(),
-        "model": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
-        "classes": list(CLASSES), "hands": list(HANDS), "fps": float(model.config.fps),
-        "data": dict(data or {}), "meta": dict(meta or {}),
-    }
-    atomic_write(path, lambda tmp: torch.save(ckpt, tmp))
+def _check(ck: Checkpoint) -> None:
+    if tuple(ck.extra.get("classes", ())) != CLASSES or tuple(ck.extra.get("hands", ())) != HANDS:
+        raise ValueError(f"it predicts classes {ck.extra.get('classes')} / hands {ck.extra.get('hands')}, this code "
+                         f"expects {list(CLASSES)} / {list(HANDS)}; retrain it")
+    if abs(float(ck.fps) - ck.model_config.fps) > 1e-9:
+        raise ValueError(f"its fps {ck.fps} differs from its model config's {ck.model_config.fps}; the checkpoint is inconsistent")
+
+
+register_kind(KIND, KindSpec(config_from_dict=ContactPredictorConfig.from_dict, build=ContactPredictor,
+                             required=("fps",), required_extra=("classes", "hands"), check=_check))
+
+
+def predictor_checkpoint(model_config: ContactPredictorConfig, model_state: dict, *, ema_state: dict | None = None,
+                         data: dict | None = None, meta: dict | None = None, train_state: dict | None = None) -> Checkpoint:
+    """The Checkpoint of a contact predictor (weights as CPU state dicts)."""
+    return Checkpoint(kind=KIND, model_config=model_config, model_state=model_state, ema_state=ema_state,
+                      fps=float(model_config.fps), extra={"classes": list(CLASSES), "hands": list(HANDS)},
+                      data=dict(data or {}), meta=dict(meta or {}), train_state=train_state, code_version=__version__)
+
+
+def save_predictor(model: nn.Module, path: str | Path, data: dict | None = None, meta: dict | None = None) -> None:
+    """Write ``model`` (a ContactPredictor) as an export (no training state) to ``path`` atomically."""
+    state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
+    save_checkpoint(path, predictor_checkpoint(model.config, state, data=data, meta=meta))
 
 
 def load_predictor(path: str | Path | None = None) -> tuple[ContactPredictor, dict]:
     """Read a contact checkpoint (default: the shipped ``models/contacts.pt``) without executing
-    code. Returns the model in eval mode and the checkpoint dict (without the weights)."""
+    code. Returns the model (EMA weights when present) in eval mode and a dict describing it
+    (kind, model_config, fps, extra, data, meta)."""
     path = Path(path) if path is not None else DEFAULT_CHECKPOINT
     if not path.is_file():
         raise FileNotFoundError(f"contact checkpoint {path} does not exist; train one with "
-                                f"`trumans train --task contact` or use the shipped models/contacts.pt")
-    try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # noqa: BLE001 - any unreadable file is reported the same way
-        raise ValueError(f"{path} is not a readable checkpoint ({type(e).__name__}); re-create it "
-                         f"(weights-only loading is required, unpickling code is refused)") from e
-    if not isinstance(ckpt, dict) or ckpt.get("kind") != KIND:
-        kind = ckpt.get("kind") if isinstance(ckpt, dict) else type(ckpt).__name__
-        raise ValueError(f"{path} is not a contact-predictor checkpoint (kind {kind!r}, expected {KIND!r})")
-    if tuple(ckpt.get("classes", ())) != CLASSES or tuple(ckpt.get("hands", ())) != HANDS:
-        raise ValueError(f"{path} predicts classes {ckpt.get('classes')} / hands {ckpt.get('hands')}, "
-                         f"this code expects {list(CLASSES)} / {list(HANDS)}; retrain it")
-    model = ContactPredictor(ContactPredictorConfig.from_dict(ckpt["model_config"]))
-    try:
-        model.load_state_dict(ckpt["model"])
-    except RuntimeError as e:
-        raise ValueError(f"{path}: weights do not match its model config ({str(e).splitlines()[0]}); retrain it") from e
-    model.eval()
-    return model, {k: v for k, v in ckpt.items() if k != "model"}
+                                f"`trumans train --task contact --data DATA --out RUN` or use the shipped models/contacts.pt")
+    ck = load_checkpoint(path, kind=KIND)
+    info = {"kind": ck.kind, "model_config": ck.model_config.to_dict(), "fps": ck.fps, "extra": ck.extra,
+            "data": ck.data, "meta": ck.meta}
+    return ck.build_model(), info

@@ -70,7 +70,8 @@ TaskFactory = Callable[..., Task]
 
 # name -> "module:attribute" (imported when first used) or a factory
 TASKS: dict[str, str | TaskFactory] = {"generator": "train.generator:GeneratorTask.from_config",
-                                      "filter": "train.filter_task:FilterTask.from_config"}
+                                      "filter": "train.filter_task:FilterTask.from_config",
+                                      "contact": "train.contact_task:ContactTask.from_config"}
 
 
 def register_task(name: str, factory: str | TaskFactory) -> None:

@@ -1,2 +1,8 @@
-"""Contacts between the body and the scene: the TRUMANS joint rule (``rule``) and per-frame runs
-/ intervals, half-open ``[start, end)`` (``intervals``)."""
+"""Contacts between the body and the scene.
+
+``rule`` the TRUMANS joint contact rule; ``intervals`` per-frame runs / intervals, half-open
+``[start, end)``; iReplica's interaction tracking (§4): ``predictor`` the per-hand contact
+transformer, ``labels`` its training labels, ``model_io`` its checkpoints, ``postprocess``
+thresholds / gap filling / contact segments, ``trajectory`` the bending-energy root correction,
+``objects`` object motion driven by the hands, ``scores`` AP and friends.
+"""

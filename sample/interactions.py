@@ -1,0 +1,333 @@
+"""Interaction tracking from body motion (iReplica §4): contacts -> trajectory -> objects.
+
+``track(seq, scene, model)``:
+1. per-hand contact probabilities and the interaction class from the pose windows (§4.2);
+2. threshold, gap filling (<= 0.5 s), contact intervals and hand-set segments (§4.2, supp. §10);
+3. for each interval in time order whose class is a movable dof (slide | hinge | free): the
+   nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
+   none -> the contact is a false positive and ignored); its contact point p_c (the closest
+   object point to the hand) becomes a control point for the root path, which is bent to it by
+   the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
+4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
+   two-hand / one-hand sliding, hinge, free), segment by segment; the object is released at the
+   contact's end and stays where it was left.
+The result is a Sequence with the corrected joints / root and ``objects/<name>/pose`` for every
+dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)``,
+``root_correction (T, 2)`` (m) and ``interactions (N, 5)`` int64 rows, one per hand-set segment,
+``[start, end, object index into extra['interaction_objects'], left, right]``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from scenes.distance import SceneDistance
+from scenes.scene import Scene
+from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, two_hand_motion
+from trumans.contacts.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
+from trumans.contacts.predictor import CLASSES, ContactPredictor, predict_contacts
+from trumans.contacts.trajectory import TrajectoryConfig, correct_trajectory
+from trumans.resample import interp_rotations, resample_times
+from trumans.rotations import matrix_to_6d, sixd_to_matrix
+from trumans.sequence import ObjectTrack, Sequence
+from trumans.skeleton import JOINT_INDEX, forward_kinematics
+
+__all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
+           "select_object", "attach_detach", "drive_object", "track", "track_interactions"]
+
+_WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """post: contact post-processing; trajectory: bending-energy correction; search_radius (m):
+    object search around the hands at contact start (0.5 m in the paper); hand_radius (m): the
+    hand point's distance to the surface it touches (the control point puts it there);
+    correct: run the contact-based trajectory correction (False = the ablation); predict_stride:
+    one prediction window every that many frames (1 = the paper's centre-frame prediction; 3 is
+    about 3x cheaper, see ``predict_contacts``)."""
+
+    post: PostprocessConfig = field(default_factory=PostprocessConfig)
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    search_radius: float = 0.5
+    hand_radius: float = 0.015
+    correct: bool = True
+    predict_stride: int = 3
+
+    def __post_init__(self) -> None:
+        if not self.search_radius > 0 or not self.hand_radius >= 0:
+            raise ValueError(f"search_radius must be > 0 and hand_radius >= 0 (m), got "
+                             f"{self.search_radius}, {self.hand_radius}")
+
+
+@dataclass(frozen=True)
+class Interaction:
+    """One contact interval attached to ``name`` (a scene object of dof ``dof``): frames
+    [start, end), its hand-set segments, and the contact point (world, m) at its start."""
+
+    name: str
+    dof: str
+    start: int
+    end: int
+    segments: tuple[ContactSegment, ...]
+    contact_point: np.ndarray
+
+
+@dataclass
+class TrackResult:
+    """sequence: the output; interactions; prob (T, 2) / mask (T, 2) per hand; classes (N,) the
+    class name of each union contact interval; correction (T, 2) m added to the root path."""
+
+    sequence: Sequence
+    interactions: list[Interaction]
+    prob: np.ndarray
+    mask: np.ndarray
+    classes: list[str]
+    correction: np.ndarray
+
+
+def contact_probabilities(model: ContactPredictor, rotations: np.ndarray, fps: float,
+                          stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 24, 6) rotations at ``fps`` -> contact (T, 2) and class (T, C) probabilities; the poses
+    are resampled to the model's rate and the probabilities interpolated back."""
+    rot = np.asarray(rotations, dtype=np.float32)
+    mfps = model.config.fps
+    if abs(fps - mfps) < 1e-9 or len(rot) < 2:
+        return predict_contacts(model, rot, stride=stride)
+    src = resample_times(len(rot), fps, mfps)
+    rot_m = matrix_to_6d(interp_rotations(sixd_to_matrix(rot.astype(np.float64)), src)).astype(np.float32)
+    prob, cls = predict_contacts(model, rot_m, stride=stride)
+    t = np.arange(len(rot)) * (mfps / fps)  # original frames in model-frame coordinates
+    interp = lambda p: np.stack([np.interp(t, np.arange(len(p)), p[:, k]) for k in range(p.shape[1])], 1)
+    return interp(prob).astype(np.float32), interp(cls).astype(np.float32)
+
+
+def interval_classes(class_prob: np.ndarray, segments: list[ContactSegment]) -> dict[int, str]:
+    """Union interval index -> the class with the largest mean probability over its frames."""
+    out: dict[int, str] = {}
+    for i in sorted({s.interval for s in segments}):
+        frames = np.concatenate([np.arange(s.start, s.end) for s in segments if s.interval == i])
+        out[i] = CLASSES[int(class_prob[frames].mean(0).argmax())]
+    return out
+
+
+class _ObjectQueries:
+    """Closest points on scene objects posed anywhere (each mesh queried in its own frame)."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self._sd: dict[str, SceneDistance] = {}
+
+    def closest(self, name: str, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """points (n, 3) world -> (closest (n, 3) world, distance (n,)) to object ``name`` at ``pose``."""
+        closest, dist, _ = self.contact_target(name, pose, points, 0.0)
+        return closest, dist
+
+    def contact_target(self, name: str, pose: np.ndarray, points: np.ndarray,
+                       gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest points (n, 3), unsigned distances (n,) and where each point should be to touch
+        the object from outside at ``gap`` m (n, 3): off the closest point away from it, or along
+        the outward normal for a point inside the object (all world, object at ``pose``)."""
+        if name not in self._sd:
+            self._sd[name] = SceneDistance({name: self.scene.objects[name].mesh})
+        inv = np.linalg.inv(pose)
+        local = points @ inv[:3, :3].T + inv[:3, 3]
+        r = self._sd[name].query(local)
+        closest = r.closest.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+        normal = r.normal.astype(np.float64) @ pose[:3, :3].T
+        dist = r.dist.astype(np.float64)
+        away = (points - closest) / np.maximum(dist, 1e-9)[:, None]
+        out = np.where((r.signed < 0)[:, None] | (dist < 1e-9)[:, None], normal, away)
+        return closest, dist, closest + gap * out
+
+
+def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: int, hands: np.ndarray,
+                  dof: str, radius: float) -> tuple[str, float] | None:
+    """The object of ``dof`` that the contacting hands come closest to (supp. §10.1: the nearest
+    object of the interaction's class within ``radius``). hands: (n, k, 3) the k contacting hand
+    points over the first n frames of the contact; objects at their ``poses`` at ``frame`` (at
+    rest before the interaction). The closest approach over those frames, not the first frame's
+    distance, decides (the hand reaches for the object during the first frames). Returns (name,
+    closest approach in m) or None when no such object is within ``radius``."""
+    best: tuple[str, float] | None = None
+    for name, obj in queries.scene.objects.items():
+        if obj.dof != dof or name not in poses:
+            continue
+        _, dist = queries.closest(name, poses[name][frame], hands.reshape(-1, 3))
+        d = float(dist.reshape(hands.shape[:2]).mean(1).min())
+        if d <= radius and (best is None or d < best[1]):
+            best = (name, d)
+    return best
+
+
+def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
+    """Frames at the start (and end) of an n-frame contact searched for attaching (detaching)."""
+    return max(1, min(int(round(window_s * fps)), n // 2))
+
+
+def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
+                  window_s: float = 1.0, approach_tol: float = 0.01) -> tuple[int, int]:
+    """Refine a contact interval [start, end) to the frames the object is actually held (not in
+    the paper; the contact labels switch on a few cm before the hand touches and off a few cm after
+    it lets go, and the hands must not drag the object while reaching or retracting).
+    hands: (n, k, 3) contacting hand points over the interval; dist_at_rest: (n,) their mean
+    distance (m) to the object at its pose at ``start``. Attach at the first frame within
+    ``approach_tol`` of the closest approach in the first ``window_s`` (at most half the interval;
+    the first, as a hand lifting an object slides along its side and gets no further from it),
+    detach after the slowest frame of the hands within the last ``window_s`` (the hand stops before
+    it lets go). Returns (attach, detach) frames, start <= attach < detach <= end."""
+    n = end - start
+    w = _attach_window(n, fps, window_s)
+    near = dist_at_rest[:w]
+    attach = start + int(np.argmax(near <= near.min() + approach_tol))
+    if n < 3:
+        return attach, end
+    speed = np.linalg.norm(np.gradient(hands, axis=0), axis=-1).mean(-1)  # (n,) m/frame
+    lo = max(attach - start + 1, n - w)
+    detach = start + lo + int(np.argmin(speed[lo:])) + 1
+    return attach, max(detach, attach + 1)
+
+
+def _clip(segs: tuple[ContactSegment, ...], a: int, d: int) -> tuple[ContactSegment, ...]:
+    return tuple(ContactSegment(max(s.start, a), min(s.end, d), s.hands, s.interval)
+                 for s in segs if min(s.end, d) > max(s.start, a))
+
+
+def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np.ndarray, wrist_pos: np.ndarray,
+                 pose0: np.ndarray, axis: np.ndarray | None, hinge_point: np.ndarray | None) -> np.ndarray:
+    """Motions (n, 4, 4) of an object over a segment (supp. §10). hands: (n, 2, 3) hand points;
+    wrist_rot: (n, 2, 3, 3) / wrist_pos: (n, 2, 3) wrist world poses (a free object rides on the
+    wrist's frame: the fingers move relative to it while grasping); pose0: the object's pose at the segment start;
+    axis / hinge_point: object frame (slide direction or hinge)."""
+    used = [h for h in (0, 1) if seg.hands[h]]
+    main = 1 if seg.hands[1] else 0  # the right hand leads when both hold on
+    if dof == "hinge":
+        return hinge_motion(hands[:, used].mean(1), pose0[:3, :3] @ hinge_point + pose0[:3, 3], pose0[:3, :3] @ axis)
+    if dof == "slide":
+        if axis is not None:  # along one direction (drawer): translation only
+            return one_hand_motion(hands[:, used].mean(1), pose0[:3, :3] @ axis)
+        if seg.two_handed:
+            return two_hand_motion(hands[:, 0], hands[:, 1])
+        return one_hand_motion(hands[:, main])
+    if dof == "free":
+        return free_motion(wrist_rot[:, main], wrist_pos[:, main])
+    raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
+
+
+def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
+               wrist_rot: np.ndarray) -> None:
+    """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
+    released where it was left. joints: (T, 24, 3); wrist_rot: (T, 2, 3, 3)."""
+    obj = scene.objects[it.name]
+    track = poses[it.name]
+    for seg in it.segments:
+        s, e = seg.start, seg.end
+        M = drive_object(it.dof, seg, hand_points(joints[s:e]), wrist_rot[s:e], joints[s:e][:, list(_WRIST)], track[s],
+                         obj.axis, obj.hinge_point)
+        track[s:e] = M @ track[s]
+        track[e:] = track[e - 1]
+
+
+def _drive_all(interactions: list[Interaction], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
+               wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
+    poses = {n: p.copy() for n, p in base.items()}
+    for it in interactions:
+        _drive_one(it, scene, poses, joints, wrist_rot)
+    return poses
+
+
+def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerConfig = TrackerConfig(),
+          anchors: tuple[np.ndarray, np.ndarray] | None = None) -> TrackResult:
+    """Track interactions (module doc). seq: body motion with ``rotations`` (T, 24, 6) and joints in
+    the scene's frame; scene: its objects' dofs and initial poses; anchors: optional (frames (K,),
+    root xy (K, 2)) known positions (e.g. visual localisation) used as extra control points."""
+    if seq.rotations is None:
+        raise ValueError("the sequence has no 'rotations'; the contact predictor needs local joint rotations "
+                         "(fit them from joints with trumans.ik.fit.fit_rotations)")
+    T, fps = seq.num_frames, float(seq.fps)
+    a_frames = np.zeros(0, np.int64) if anchors is None else np.asarray(anchors[0]).astype(np.int64).ravel()
+    a_xy = np.zeros((0, 2)) if anchors is None else np.asarray(anchors[1], np.float64).reshape(-1, 2)
+    if len(a_frames) != len(a_xy) or (len(a_frames) and (a_frames.min() < 0 or a_frames.max() >= T)):
+        raise ValueError(f"anchors must be frames (K,) in [0, {T - 1}] with positions (K, 2), got "
+                         f"{a_frames.shape} / {a_xy.shape}")
+    prob, class_prob = contact_probabilities(model, seq.rotations, fps, config.predict_stride)
+    mask = contact_mask(prob, fps, config.post)
+    segments = contact_segments(mask)
+    cls = interval_classes(class_prob, segments)
+
+    joints0 = np.asarray(seq.joints, np.float64)
+    root0 = joints0[:, 0, :2]
+    _, G = forward_kinematics(sixd_to_matrix(np.asarray(seq.rotations, np.float64)), np.zeros((T, 3)))
+    wrist_rot = G[:, list(_WRIST)]  # (T, 2, 3, 3)
+    base = {n: np.tile(o.pose, (T, 1, 1)) for n, o in scene.objects.items() if o.dof != "static"}
+    queries = _ObjectQueries(scene)
+
+    def corrected(c_frames: list[int], c_xy: list[np.ndarray]) -> np.ndarray:
+        frames = np.r_[a_frames, np.asarray(c_frames, np.int64)].astype(np.int64)
+        pts = np.concatenate([a_xy, np.asarray(c_xy).reshape(-1, 2)])
+        return correct_trajectory(root0, frames, pts, fps, config.trajectory) - root0
+
+    corr = corrected([], [])
+    interactions: list[Interaction] = []
+    c_frames: list[int] = []
+    c_xy: list[np.ndarray] = []
+    poses = {n: p.copy() for n, p in base.items()}
+    for i in sorted(cls):
+        if cls[i] == "none":
+            continue  # a contact with the static scene: nothing to drive
+        segs = tuple(s for s in segments if s.interval == i)
+        s0 = segs[0].start
+        joints = joints0.copy()
+        joints[:, :, :2] += corr[:, None]
+        e1 = segs[-1].end
+        used = [h for h in (0, 1) if segs[0].hands[h]]
+        span = hand_points(joints[s0:e1])[:, used]  # (n, k, 3) contacting hand points
+        found = select_object(queries, poses, s0, span[:_attach_window(len(span), fps)], cls[i], config.search_radius)
+        if found is None:
+            continue  # no object of that class near the hands: a false positive (§4.1)
+        name = found[0]
+        near, dist, target = queries.contact_target(name, poses[name][s0], span.reshape(-1, 3), config.hand_radius)
+        a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, e1, fps)
+        segs = _clip(segs, a, d_end)
+        closest = near.reshape(span.shape)[a - s0]  # p_c of each contacting hand
+        shift = (target.reshape(span.shape)[a - s0] - span[a - s0])[:, :2]  # hand -> hand_radius off p_c
+        interactions.append(Interaction(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
+        if config.correct:
+            step = shift.mean(0)
+            c_frames.append(a)
+            c_xy.append(root0[a] + corr[a] + step)
+            # until the joint solve below, the new offset holds from this contact on (and before the
+            # first one when nothing else pins the start)
+            corr[a if (c_frames[:-1] or len(a_frames)) else 0:] += step
+            joints[:, :, :2] = joints0[:, :, :2] + corr[:, None]
+        _drive_one(interactions[-1], scene, poses, joints, wrist_rot)
+
+    if c_frames:
+        corr = corrected(c_frames, c_xy)  # eq. 2 with every control point
+    joints = joints0.copy()
+    joints[:, :, :2] += corr[:, None]
+    poses = _drive_all(interactions, scene, base, joints, wrist_rot)
+    names = sorted({it.name for it in interactions})
+    rows = np.array([[seg.start, seg.end, names.index(it.name), int(seg.hands[0]), int(seg.hands[1])]
+                     for it in interactions for seg in it.segments], dtype=np.int64).reshape(-1, 5)
+    root_pos = None
+    if seq.root_pos is not None:
+        root_pos = np.asarray(seq.root_pos, np.float64).copy()
+        root_pos[:, :2] += corr
+    extra = dict(seq.extra)
+    extra.update(contact_prob=prob, contact_mask=mask, root_correction=corr.astype(np.float32), interactions=rows,
+                 interaction_objects=np.asarray(names, dtype=np.str_))
+    out = Sequence(
+        joints=joints.astype(np.float32), fps=fps, rotations=seq.rotations, root_pos=root_pos, actions=seq.actions,
+        action_names=list(seq.action_names), contacts=seq.contacts, scene=seq.scene,
+        objects={n: ObjectTrack(pose=p.astype(np.float32), category=scene.objects[n].category) for n, p in poses.items()
+                 if scene.objects[n].dynamic},
+        extra=extra,
+    )
+    return TrackResult(out, interactions, prob, mask, [cls[i] for i in sorted(cls)], corr)
+
+
+def track_interactions(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerConfig = TrackerConfig()) -> Sequence:
+    """The tracked sequence only (``track(...).sequence``)."""
+    return track(seq, scene, model, config).sequence

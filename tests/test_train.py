@@ -259,3 +259,21 @@ def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: 
     assert no_aug.train_episodes == 48
     with pytest.raises(ValueError, match="other data"):
         train(cfg, root, tmp_path / "a", steps=2, resume=True, progress=False)  # resumed without --augmented
+
+
+def test_run_folder_has_one_writer_and_sweeps_killed_temp_files(tiny, tmp_path: Path) -> None:
+    from train.config import load_config
+    from train.loop import train
+    from trumans.io_lock import FolderLock, FolderLocked
+
+    root, cfg_path = tiny
+    cfg = load_config(cfg_path)
+    run = tmp_path / "run"
+    run.mkdir()
+    stale = run / ".checkpoint.pt.abc123.tmp"  # what a kill -9 during a checkpoint write leaves
+    stale.write_bytes(b"partial")
+    train(cfg, root, run, steps=1, seed=1, progress=False)
+    assert not stale.exists() and (run / "checkpoint.pt").is_file()
+    with FolderLock(run, "another trainer"):
+        with pytest.raises(FolderLocked, match="another trainer"):
+            train(cfg, root, run, steps=2, seed=1, resume=True, progress=False)

@@ -24,6 +24,7 @@ import torch
 from torch import nn
 from torch.nn.parallel import DistributedDataParallel
 
+from trumans.io_lock import FolderLock, sweep_temp_files
 from trumans.model.checkpoint import load_checkpoint, save_checkpoint
 from trumans.sequence import atomic_write
 
@@ -145,8 +146,12 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
     if total < 0:
         raise ValueError(f"steps must be >= 0, got {total}")
     info = ddp.setup(device)
+    lock = None
     try:
         out = Path(out_dir)
+        if info.is_main:  # one writer per run folder; a killed run's temp files (.checkpoint.pt.*.tmp) go
+            lock = FolderLock(out, "trumans train").acquire()
+            sweep_temp_files(out)
         ckpt_path = out / CHECKPOINT_NAME
         prev = None
         if ckpt_path.is_file():
@@ -285,6 +290,8 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
             world_size=info.world, weights_sha256=digest, ranks_in_sync=in_sync, checkpoint=str(ckpt_path),
             loss_png=str(out / LOSS_PNG))
     finally:
+        if lock is not None:
+            lock.release()
         ddp.cleanup(info)
 
 

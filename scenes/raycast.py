@@ -60,6 +60,9 @@ def check_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> None:
         raise ValueError(f"{name} is empty (no faces); give a mesh with at least one triangle")
     if not np.all(np.isfinite(mesh.vertices)):
         raise ValueError(f"{name} has non-finite vertices; clean the mesh before using it")
+    if not float(mesh.area) > 1e-10:
+        raise ValueError(f"{name} is degenerate (its {len(mesh.faces)} faces have zero area), so nothing can touch "
+                         f"it; fix or remove the mesh")
 
 
 def to_o3d_scene(*meshes: trimesh.Trimesh) -> tuple[o3d.t.geometry.RaycastingScene, list[int]]:

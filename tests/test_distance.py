@@ -89,3 +89,13 @@ def test_bad_inputs(scene):
         SceneDistance({})
     with pytest.raises(ValueError, match="empty"):
         SceneDistance({"e": trimesh.Trimesh()})
+
+
+def test_degenerate_mesh_is_refused_not_silently_untouchable():
+    import trimesh
+
+    from scenes.distance import SceneDistance
+
+    flat = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [2, 0, 0]], faces=[[0, 1, 2]], process=False)
+    with pytest.raises(ValueError, match="degenerate"):
+        SceneDistance({"sliver": flat})

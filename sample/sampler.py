@@ -27,6 +27,8 @@ from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
 
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 
+HEADING_WEIGHT = 3.0  # the hip-line (heading) term against the position term of the goal guidance
+
 
 @dataclass(frozen=True)
 class Goal:
@@ -190,7 +192,7 @@ class EpisodeSampler:
                 if g.heading is not None:
                     h = g.heading - float(cond.yaw[b])  # canonical heading
                     left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * self.hip_width
-                    terms.append((self.L - 1, hips, diff_w, left))
+                    terms.append((self.L - 1, hips, HEADING_WEIGHT * diff_w, HEADING_WEIGHT * left))
             elif g.guide:
                 local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
                 terms.append((g.frame % self.L, lay.position_index(g.joint), torch.eye(3),

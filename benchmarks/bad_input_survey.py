@@ -520,7 +520,7 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
         "none.toml")
     err("train --ablate bogus", lambda: ["train", "--ablate", "bogus", "--data", base, "--out", w / "t3"], "bogus")
     err("unknown command", lambda: ["frobnicate"], "frobnicate")
-    err("not built: sample", lambda: ["sample"], "not built")
+    err("sample without --out", lambda: ["sample"], "--out")
     err("augment --variations abc", lambda: aug("a_abc")() + ["--variations", "abc"], "--variations")
     return cases
 

@@ -114,3 +114,23 @@ def test_bad_inputs():
     cs = ContactScene(Scene("s", static={"b": trimesh.creation.box((1, 1, 1))}))
     with pytest.raises(ValueError, match="not dynamic objects"):
         joint_contacts(REST_JOINTS[None], cs, object_poses={"nope": np.eye(4)[None]})
+
+
+def test_open_mesh_keeps_its_contacts():
+    """A non-watertight object (two faces missing) is still touched: its contacts are not dropped."""
+    import trimesh
+
+    from scenes.scene import Scene, SceneObject
+    from trumans.contacts.rule import ContactScene, joint_contacts
+    from trumans.skeleton import REST_JOINTS
+
+    box = trimesh.creation.box((1.0, 1.0, 0.7))
+    box.apply_translation([0, 0, 0.35])
+    open_box = trimesh.Trimesh(box.vertices, box.faces[2:], process=False)
+    assert not open_box.is_watertight
+    scene = Scene("t", objects={"table_0": SceneObject("table_0", "table", open_box)})
+    J = np.repeat(REST_JOINTS[None].astype(np.float64), 2, axis=0)
+    J[:, :, 1] += 1.2
+    J[:, 21] = [0.2, 0.1, 0.73]  # right wrist resting on the top
+    r = joint_contacts(J, ContactScene(scene))
+    assert r.contact[:, 21].all() and (r.object_index[:, 21] == r.names.index("table_0")).all()

@@ -53,9 +53,9 @@ def test_joint_contact_intervals_per_joint_and_object():
 
 
 def test_action_labels_and_foot_slides_use_the_same_runs():
-    lab = labels_from_intervals([ActionInterval("walk", 2, 6)], ["walk"], 10)
+    lab = labels_from_intervals([ActionInterval("walk", 2, 7)], ["walk"], 10)
     (iv,) = intervals_from_labels(lab, ["walk"])
-    assert runs(lab[:, 0] > 0) == [(iv.start, iv.end + 1)]  # ActionInterval's end is inclusive
+    assert runs(lab[:, 0] > 0) == [(iv.start, iv.end)] == [(2, 7)]  # one half-open convention
     foot = np.zeros((10, 1, 3))
     foot[:, 0, 0] = np.arange(10) * 0.01  # slides 1 cm per frame
     contact = np.zeros((10, 1), bool)

@@ -16,7 +16,7 @@ def _seq(T=12):
     return Sequence(
         joints=REST_JOINTS[None] + rng.normal(0, 0.01, (T, 24, 3)), fps=30.0,
         rotations=matrix_to_6d(np.tile(np.eye(3), (T, 24, 1, 1))),
-        actions=labels_from_intervals([ActionInterval("walk", 2, 8)], ["sit", "walk"], T),
+        actions=labels_from_intervals([ActionInterval("walk", 2, 9)], ["sit", "walk"], T),
         action_names=["sit", "walk"], contacts=rng.random((T, 24)) > 0.5, scene="room_0001",
         objects={"cup_0": ObjectTrack(pose=pose, category="cup")},
     )
@@ -35,11 +35,11 @@ def test_round_trip(tmp_path):
 
 
 def test_labels_progress():
-    lab = labels_from_intervals([ActionInterval("walk", 2, 6), ActionInterval("sit", 5, 5)], ["sit", "walk"], 10)
+    lab = labels_from_intervals([ActionInterval("walk", 2, 7), ActionInterval("sit", 5, 6)], ["sit", "walk"], 10)
     np.testing.assert_allclose(lab[2:7, 1], [1.0, 1.25, 1.5, 1.75, 2.0])
     assert lab[:2].sum() == 0 and lab[7:, 1].sum() == 0 and lab[5, 0] == 2.0
     ivs = intervals_from_labels(lab, ["sit", "walk"])
-    assert ActionInterval("walk", 2, 6) in ivs and ActionInterval("sit", 5, 5) in ivs
+    assert ActionInterval("walk", 2, 7) in ivs and ActionInterval("sit", 5, 6) in ivs
     with pytest.raises(ValueError, match="unknown action 'run'"):
         labels_from_intervals([ActionInterval("run", 0, 3)], ["sit"], 5)
     np.testing.assert_array_equal(remap_labels(lab, ["sit", "walk"], ["walk", "x", "sit"])[:, [0, 2]], lab[:, [1, 0]])

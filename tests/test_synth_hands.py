@@ -91,7 +91,7 @@ def check_motion(m: Motion, max_step: float = 0.05, joints: list[int] | None = N
     assert step[:, joints if joints is not None else slice(None)].max() < max_step
     assert m.actions
     for a in m.actions:
-        assert a.name in SYNTH_ACTIONS and 0 <= a.start <= a.end <= m.num_frames - 1
+        assert a.name in SYNTH_ACTIONS and 0 <= a.start < a.end <= m.num_frames  # half-open
     for name, tr in m.objects.items():
         assert tr.shape == (m.num_frames, 4, 4) and np.isfinite(tr).all()
         assert np.linalg.norm(np.diff(tr[:, :3, 3], axis=0), axis=1).max() < max_step
@@ -133,7 +133,7 @@ def test_pick_up_contact_at_grasp_frames(carry_chain):
     g = m1.grasp[hands.WRIST["right"]]
     g0 = int(np.flatnonzero(g)[0])
     assert [a.name for a in m1.actions] == ["reach", "grasp", "pick_up", "carry"]
-    assert m1.actions[0].end == g0
+    assert m1.actions[0].end == g0 + 1  # half-open: reach runs up to and including the grasp frame
     palm = hands.palm_points(J)[:, 1]
     # The object has not moved up to the grasp frame.
     assert np.allclose(m1.objects[obj.name][:g0 + 1], pose)

@@ -73,7 +73,7 @@ def make_tiny_dataset(root: Path, num_seqs: int = 6, frames: int = 150, seed: in
         root_pos = np.concatenate([root_xy, np.full((frames, 1), 0.93)], -1)
         joints, _ = forward_kinematics(R, root_pos)
         cut = int(rng.integers(frames // 3, 2 * frames // 3))
-        acts = labels_from_intervals([ActionInterval("walk", 0, cut), ActionInterval("reach", cut - 10, frames - 1)],
+        acts = labels_from_intervals([ActionInterval("walk", 0, cut + 1), ActionInterval("reach", cut - 10, frames)],
                                      VOCAB, frames)
         rel = f"sequences/seq{s}.npz"
         save_sequence(Sequence(joints=joints, fps=30.0, actions=acts, action_names=VOCAB, scene="room0"), root / rel)

@@ -17,7 +17,7 @@ __all__ = ["ActionInterval", "labels_from_intervals", "intervals_from_labels", "
 
 @dataclass(frozen=True)
 class ActionInterval:
-    """Action ``name`` running on frames ``start .. end`` inclusive."""
+    """Action ``name`` running on frames ``[start, end)`` (half-open, like every interval in trumans)."""
 
     name: str
     start: int
@@ -31,13 +31,13 @@ def labels_from_intervals(intervals: list[ActionInterval], vocab: list[str], num
     for iv in intervals:
         if iv.name not in index:
             raise ValueError(f"unknown action {iv.name!r}; the vocabulary is {list(vocab)}")
-        s, e = max(iv.start, 0), min(iv.end, num_frames - 1)
-        if e < s:
+        s, e = max(iv.start, 0), min(iv.end, num_frames)
+        if e <= s:
             continue
-        n = iv.end - iv.start
-        t = np.arange(s, e + 1)
+        n = iv.end - 1 - iv.start  # progress 0 -> 1 from the first to the last frame
+        t = np.arange(s, e)
         prog = (t - iv.start) / n if n > 0 else np.ones(len(t))
-        lab[s:e + 1, index[iv.name]] = 1.0 + prog.astype(np.float32)
+        lab[s:e, index[iv.name]] = 1.0 + prog.astype(np.float32)
     return lab
 
 
@@ -50,7 +50,7 @@ def intervals_from_labels(labels: np.ndarray, vocab: list[str]) -> list[ActionIn
     on = labels > 0
     for a in range(labels.shape[1]):
         starts, ends = run_bounds(on[:, a])  # half-open runs; ActionInterval's end is inclusive
-        out += [ActionInterval(vocab[a], int(s), int(e) - 1) for s, e in zip(starts, ends)]
+        out += [ActionInterval(vocab[a], int(s), int(e)) for s, e in zip(starts, ends)]
     return sorted(out, key=lambda iv: (iv.start, iv.name))
 
 

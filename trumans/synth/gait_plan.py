@@ -98,7 +98,7 @@ class Timeline:
         self.yaw.append(yaw)
         self.speed.append(speed)
         self.swings += [(t0 + c, f, d) for c, f, d in swings]
-        self.labels.append(ActionInterval(label, self.T, self.T + len(xy) - 1))
+        self.labels.append(ActionInterval(label, self.T, self.T + len(xy)))
         self.T += len(xy)
 
     def next_foot(self) -> int | None:

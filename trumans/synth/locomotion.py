@@ -208,4 +208,4 @@ def stand(offsets: np.ndarray, pos: np.ndarray, yaw: float, frames: int, rng: np
     frot = np.broadcast_to(yaw_matrix(yaw), (T, 2, 3, 3))
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=frot)
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=np.ones((T, 2), dtype=bool),
-                  actions=[ActionInterval("stand", 0, T - 1)])
+                  actions=[ActionInterval("stand", 0, T)])

@@ -68,7 +68,7 @@ class Motion:
         flags are reversed with it."""
         return Motion(rot=self.rot[::-1].copy(), root=self.root[::-1].copy(), offsets=self.offsets, fps=self.fps,
                       foot_contact=self.foot_contact[::-1].copy(),
-                      actions=[ActionInterval(label, 0, self.num_frames - 1)],
+                      actions=[ActionInterval(label, 0, self.num_frames)],
                       objects={k: v[::-1].copy() for k, v in self.objects.items()},
                       grasp={k: v[::-1].copy() for k, v in self.grasp.items()})
 

@@ -247,7 +247,7 @@ def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=frot, pole_dir=knee)
     rot[-1], root[-1] = rot1, root1
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=np.ones((T, 2), dtype=bool),
-                  actions=[ActionInterval("sit_down", 0, T - 1)])
+                  actions=[ActionInterval("sit_down", 0, T)])
 
 
 def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray, frames: int,
@@ -263,7 +263,7 @@ def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos:
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=np.broadcast_to(yaw_matrix(sit_yaw), (T, 2, 3, 3)),
                         pole_dir=np.broadcast_to(np.array([np.cos(sit_yaw), np.sin(sit_yaw), 0.0]), (T, 3)))
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=np.ones((T, 2), dtype=bool),
-                  actions=[ActionInterval("sit", 0, T - 1)])
+                  actions=[ActionInterval("sit", 0, T)])
 
 
 def stand_up(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
@@ -331,7 +331,7 @@ def lie_down(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_c
     rot[0], root[0] = rot0, root0
     rot[-1], root[-1] = rot1, root1
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=contact,
-                  actions=[ActionInterval("lie_down", 0, T - 1)])
+                  actions=[ActionInterval("lie_down", 0, T)])
 
 
 def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int, rng: np.random.Generator,
@@ -344,7 +344,7 @@ def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int
     rot = _breathing(rot0, frames, rng, fps, 0.012)
     T = len(rot)
     return Motion(rot=rot, root=np.repeat(root0[None], T, axis=0), offsets=offsets, fps=fps,
-                  foot_contact=np.full((T, 2), leg_reach is not None), actions=[ActionInterval("lie", 0, T - 1)])
+                  foot_contact=np.full((T, 2), leg_reach is not None), actions=[ActionInterval("lie", 0, T)])
 
 
 def get_up(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_center: np.ndarray,

@@ -197,7 +197,7 @@ def _merge_runs(intervals: list[ActionInterval]) -> list[ActionInterval]:
     pick-up and the 'carry' of the walk after it), so progress runs 0 -> 1 once over the run."""
     out: list[ActionInterval] = []
     for iv in sorted(intervals, key=lambda v: (v.name, v.start)):
-        if out and out[-1].name == iv.name and iv.start <= out[-1].end + 1:
+        if out and out[-1].name == iv.name and iv.start <= out[-1].end:
             out[-1] = ActionInterval(iv.name, out[-1].start, max(out[-1].end, iv.end))
         else:
             out.append(iv)

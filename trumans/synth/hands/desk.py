@@ -87,7 +87,7 @@ def type_keyboard(base: Motion, keyboard: SceneObject, pose: np.ndarray, rng: np
         rot, _ = reach_hold_retract(rot, root, off, side, pb, work, np.broadcast_to(Rh[side], (T, 3, 3)), r1, k1,
                                     (palm[side], up), (palm[side], up), 2.5, f"type ({side} hand)")
     grasp = {WRIST[s]: typing.copy() for s in ("left", "right")}
-    return finish_motion(base, rot, root, [ActionInterval("type", 0, T - 1)],
+    return finish_motion(base, rot, root, [ActionInterval("type", 0, T)],
                          {keyboard.name: np.broadcast_to(pose, (T, 4, 4)).copy()}, grasp)
 
 
@@ -159,5 +159,5 @@ def use_mouse(base: Motion, mouse: SceneObject, pose: np.ndarray, rng: np.random
     out = np.broadcast_to(pose, (T, 4, 4)).copy()
     out[working] = H[working] @ offset
     out[t > k1] = out[k1]
-    return finish_motion(base, rot, root, [ActionInterval("use_mouse", 0, T - 1)], {mouse.name: out},
+    return finish_motion(base, rot, root, [ActionInterval("use_mouse", 0, T)], {mouse.name: out},
                          {WRIST[side]: working})

@@ -221,7 +221,7 @@ def _door_close_walk(offsets: np.ndarray, door: SceneObject, closed: np.ndarray,
     # Final check on every frame: the body (arms aside) keeps clear of the swinging leaf.
     require_body_clear(forward_kinematics(rot, root, off)[0], solid_boxes(door, poses, closed),
                        f"{label} {door.name}", "use door_stance")
-    return finish_motion(base, rot, root, [ActionInterval(label, 0, T - 1)], {door.name: poses}, {WRIST[side]: hold})
+    return finish_motion(base, rot, root, [ActionInterval(label, 0, T)], {door.name: poses}, {WRIST[side]: hold})
 
 
 def _check_door_angle(door: SceneObject, angle: float, stance: DoorStance) -> None:

@@ -167,7 +167,7 @@ def _articulate(base: Motion, obj: SceneObject, kin_fn, hand_fn, q0: float, q1: 
                                    (palm[-1], unit(palm[-1] - apply_h(poses[-1], handle))), 2.0, f"{label} {obj.name}")
     require_body_clear(forward_kinematics(rot, root, off)[0], solid_boxes(obj, poses, kin_fn(0.0)),
                        f"{label} {obj.name}", "use the stance from drawer_stance")
-    return finish_motion(base, rot, root, [ActionInterval(label, 0, T - 1)], {obj.name: poses}, {WRIST[side]: hold})
+    return finish_motion(base, rot, root, [ActionInterval(label, 0, T)], {obj.name: poses}, {WRIST[side]: hold})
 
 
 def _move_drawer(base: Motion, drawer: SceneObject, closed: np.ndarray, q0: float, q1: float, label: str,

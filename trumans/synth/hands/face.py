@@ -46,7 +46,7 @@ def _to_face(base: Motion, hold: Hold, kind: str, rng: np.random.Generator, obj_
     rot, reached = place_arm(rot, root, off, side, path, R, np.ones(T), elbow_dir=elbow)
     require_reached(reached, t == a1, f"{kind} {hold.name}")  # the object arrives at the face
     H = hand_world(rot, root, off, side)
-    return finish_motion(base, rot, root, [ActionInterval(kind, 0, T - 1)], {hold.name: H @ hold.offset},
+    return finish_motion(base, rot, root, [ActionInterval(kind, 0, T)], {hold.name: H @ hold.offset},
                    {WRIST[side]: np.ones(T, dtype=bool)})
 
 

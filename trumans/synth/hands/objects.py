@@ -132,7 +132,7 @@ def reach_grasp(base: Motion, obj: SceneObject, pose: np.ndarray, side: Side, rn
     rot, hold = reach_hold_retract(rot, root, off, side, palm_b, np.broadcast_to(palm, (T, 3)),
                                    np.broadcast_to(Rh, (T, 3, 3)), g0, g1, (palm, out), (palm, out), 4.0,
                                    f"reach_grasp {obj.name}")
-    return finish_motion(base, rot, root, [ActionInterval("reach", 0, g0), ActionInterval("grasp", g0, g1)],
+    return finish_motion(base, rot, root, [ActionInterval("reach", 0, g0 + 1), ActionInterval("grasp", g0, g1 + 1)],
                          {obj.name: np.broadcast_to(pose, (T, 4, 4)).copy()}, {WRIST[side]: hold})
 
 
@@ -194,9 +194,9 @@ def pick_up(base: Motion, obj: SceneObject, pose: np.ndarray, side: Side, rng: n
     hold.offset = inv_h(H[g0]) @ pose
     track = np.broadcast_to(pose, (T, 4, 4)).copy()
     track[g0:] = H[g0:] @ hold.offset
-    actions = [ActionInterval("reach", 0, g0), ActionInterval("grasp", g0, g1), ActionInterval("pick_up", g1, p1)]
+    actions = [ActionInterval("reach", 0, g0 + 1), ActionInterval("grasp", g0, g1 + 1), ActionInterval("pick_up", g1, p1 + 1)]
     if p1 < T - 1:
-        actions.append(ActionInterval("carry", p1, T - 1))
+        actions.append(ActionInterval("carry", p1, T))
     return finish_motion(base, rot, root, actions, {obj.name: track}, {WRIST[side]: t >= g0}), hold
 
 
@@ -209,7 +209,7 @@ def carry(base: Motion, hold: Hold) -> Motion:
     rot, _ = place_arm(rot, root, off, hold.side, palm, R, np.ones(T))
     # (an unreached carry target leaves the arm stretched towards it; the object follows the hand)
     H = hand_world(rot, root, off, hold.side)
-    return finish_motion(base, rot, root, [ActionInterval("carry", 0, T - 1)], {hold.name: H @ hold.offset},
+    return finish_motion(base, rot, root, [ActionInterval("carry", 0, T)], {hold.name: H @ hold.offset},
                    {WRIST[hold.side]: np.ones(T, dtype=bool)})
 
 
@@ -266,5 +266,5 @@ def put_down(base: Motion, hold: Hold, target: np.ndarray, rng: np.random.Genera
     H = hand_world(rot, root, off, side)
     track = H @ hold.offset
     track[r0:] = track[r0]
-    return finish_motion(base, rot, root, [ActionInterval("put_down", 0, T - 1)], {hold.name: track},
+    return finish_motion(base, rot, root, [ActionInterval("put_down", 0, T)], {hold.name: track},
                    {WRIST[side]: held})

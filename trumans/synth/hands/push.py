@@ -107,7 +107,7 @@ def push(offsets: np.ndarray, obj: SceneObject, pose: np.ndarray, distance: floa
         rot, grasp[WRIST[side]] = reach_hold_retract(rot, root, off, side, palm_points(P)[:, k], palm[:, k], R[:, k],
                                                      g0, g1, (palm[g0, k], up), (palm[-1, k], up), 2.0,
                                                      f"{label} {obj.name} ({side} hand)")
-    return finish_motion(base, rot, root, [ActionInterval("reach", 0, g0), ActionInterval(label, g0, T - 1)],
+    return finish_motion(base, rot, root, [ActionInterval("reach", 0, g0 + 1), ActionInterval(label, g0, T)],
                          {obj.name: poses}, grasp)
 
 

@@ -167,15 +167,21 @@ class GeneratorConfig:
 
     def with_overrides(self, **sections: dict) -> "GeneratorConfig":
         """A copy with ``section={key: value}`` replaced (keys checked)."""
-        d = self.to_dict()
-        for sec, vals in sections.items():
-            if sec not in d or not isinstance(d[sec], dict):
-                raise ValueError(f"unknown config section {sec!r}; sections: {sorted(k for k in d if isinstance(d[k], dict))}")
-            d[sec].update(vals)
-        return type(self).from_dict(d)
+        return override_sections(self, sections)
 
 
 TrainConfig = GeneratorConfig  # the name the README and older code use
+
+
+def override_sections(config, sections: dict[str, dict]):
+    """A copy of a sectioned config (``to_dict`` / ``from_dict``) with ``section={key: value}``
+    replaced; unknown sections are errors, keys are checked by ``from_dict``."""
+    d = config.to_dict()
+    for sec, vals in sections.items():
+        if sec not in d or not isinstance(d[sec], dict):
+            raise ValueError(f"unknown config section {sec!r}; sections: {sorted(k for k in d if isinstance(d[k], dict))}")
+        d[sec].update(vals)
+    return type(config).from_dict(d)
 
 
 def _migrate(d: Any) -> Any:

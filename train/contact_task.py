@@ -30,7 +30,7 @@ from trumans.dataset import Dataset
 from trumans.resample import resample_sequence
 from trumans.model.checkpoint import Checkpoint
 
-from .config import TrainSection, build_config, load_toml
+from .config import TrainSection, build_config, load_toml, override_sections
 from .tasks import TaskLoss
 
 __all__ = ["ContactDataSection", "ContactTaskConfig", "ContactTask", "ContactData", "load_contact_data",
@@ -164,12 +164,7 @@ class ContactTaskConfig:
         return build_config(cls, d, source, base=cls())
 
     def with_overrides(self, **sections: dict) -> "ContactTaskConfig":
-        d = self.to_dict()
-        for sec, vals in sections.items():
-            if sec not in d or not isinstance(d[sec], dict):
-                raise ValueError(f"unknown config section {sec!r}; sections: {sorted(k for k in d if isinstance(d[k], dict))}")
-            d[sec].update(vals)
-        return type(self).from_dict(d)
+        return override_sections(self, sections)
 
 
 class ContactTask:

@@ -37,7 +37,7 @@ from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
 from trumans.model.episodes import Normalizer
 from trumans.rotations import sixd_to_matrix
 
-from .config import TrainSection, build_config, load_toml
+from .config import TrainSection, build_config, load_toml, override_sections
 from .tasks import TaskLoss
 
 __all__ = ["FilterSection", "FilterConfig", "load_filter_config", "FilterTask", "FilterBatch", "make_batch",
@@ -98,12 +98,7 @@ class FilterConfig:
         return build_config(cls, d, source)
 
     def with_overrides(self, **sections: dict) -> "FilterConfig":
-        d = self.to_dict()
-        for sec, vals in sections.items():
-            if sec not in d or not isinstance(d[sec], dict):
-                raise ValueError(f"unknown config section {sec!r}; sections: {sorted(k for k in d if isinstance(d[k], dict))}")
-            d[sec].update(vals)
-        return type(self).from_dict(d)
+        return override_sections(self, sections)
 
 
 def load_filter_config(name_or_path: str | Path) -> FilterConfig:

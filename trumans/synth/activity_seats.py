@@ -7,7 +7,7 @@ from typing import Callable
 import numpy as np
 
 from trumans.contacts.rule import JOINT_RADIUS
-from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.skeleton import SEAT, forward_kinematics
 from . import hands, posture
 from .motion import Motion, yaw_of
 from .moves import MAX_PENETRATION, approach, check_clean, walk_to, world_point
@@ -24,7 +24,6 @@ def _rest_lift(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, surface_z
     return float(max(0.0, -gap.min()))
 
 
-_SEAT_JOINTS = [JOINT_INDEX[n] for n in ("pelvis", "left_hip", "right_hip")]
 
 
 def _seat(obj, pose: np.ndarray, offsets: np.ndarray, rng: np.random.Generator,
@@ -40,7 +39,7 @@ def _seat(obj, pose: np.ndarray, offsets: np.ndarray, rng: np.random.Generator,
     stand = c[:2] + (world_point(pose, obj.meta["approach"]) - world_point(pose, obj.meta["seat_center"]))[:2]
     try:
         rot, root = posture.seated_state(offsets, c, yaw, stand)
-        c = c + [0.0, 0.0, _rest_lift(rot, root, offsets, float(c[2]), _SEAT_JOINTS)]
+        c = c + [0.0, 0.0, _rest_lift(rot, root, offsets, float(c[2]), list(SEAT))]
         posture.seated_state(offsets, c, yaw, stand)
     except ValueError as e:  # this actor's feet cannot reach the floor from this seat
         raise Skip(str(e)) from e

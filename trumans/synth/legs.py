@@ -5,15 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from trumans.rotations import yaw_matrix
-from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.skeleton import ANKLES, HIPS, forward_kinematics
 from trumans.ik.limb import limb_reach, set_global_rotation, solve_limb
 from .poses import pose
 
 __all__ = ["wrap_angle", "rest_ankle_rel", "stand_height", "foot_places", "solve_legs", "pelvis_height_limit",
            "standing_state"]
 
-_ANKLES = (JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"])
-_HIPS = (JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"])
 _LEGS = ("left_leg", "right_leg")
 
 
@@ -26,7 +24,7 @@ def rest_ankle_rel(offsets: np.ndarray) -> np.ndarray:
     """(2, 3) left/right ankle positions relative to the pelvis in the rest pose (body frame)."""
     rot = np.tile(np.eye(3), (1, 24, 1, 1))
     P, _ = forward_kinematics(rot, np.zeros((1, 3)), offsets)
-    return P[0, list(_ANKLES)]
+    return P[0, list(ANKLES)]
 
 
 def stand_height(offsets: np.ndarray) -> float:
@@ -58,10 +56,10 @@ def solve_legs(
         pole = None
         if pole_dir is not None:
             P, _ = forward_kinematics(rot, root, offsets)
-            pole = P[:, _HIPS[i]] + pole_dir
+            pole = P[:, HIPS[i]] + pole_dir
         rot, reached[:, i] = solve_limb(rot, root, offsets, limb, ankle_targets[:, i], pole=pole, mask=mask)
         if foot_rot is not None:
-            rot = set_global_rotation(rot, root, offsets, _ANKLES[i], foot_rot[:, i])
+            rot = set_global_rotation(rot, root, offsets, ANKLES[i], foot_rot[:, i])
     return rot, reached
 
 
@@ -74,7 +72,7 @@ def pelvis_height_limit(rot: np.ndarray, root_xy: np.ndarray, offsets: np.ndarra
     h_lim = np.full(T, np.inf)
     for f in range(2):
         reach = limb_reach(offsets, _LEGS[f])[1] * reach_frac
-        hip = P0[:, _HIPS[f]]
+        hip = P0[:, HIPS[f]]
         dh2 = ((ankle_targets[:, f, :2] - hip[:, :2]) ** 2).sum(1)
         h_lim = np.minimum(h_lim, ankle_targets[:, f, 2] + np.sqrt(np.maximum(reach**2 - dh2, 0.0)) - hip[:, 2])
     return h_lim

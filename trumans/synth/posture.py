@@ -24,7 +24,8 @@ import numpy as np
 from trumans.actions import ActionInterval
 from trumans.contacts.rule import JOINT_RADIUS
 from trumans.rotations import euler_to_matrix, yaw_matrix
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, forward_kinematics
+from trumans.rotations import unit
+from trumans.skeleton import ANKLES, FEET, HIPS, JOINT_INDEX, KNEES, NUM_JOINTS, forward_kinematics
 from trumans.ik.limb import limb_reach
 from .legs import foot_places, pelvis_height_limit, rest_ankle_rel, solve_legs, standing_state
 from .motion import Motion
@@ -96,10 +97,10 @@ def seated_state(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, s
     return rot[0], root[0]
 
 
-_LEGS = [JOINT_INDEX[f"{side}_{n}"] for side in ("left", "right") for n in ("hip", "knee", "ankle", "foot")]
-_ANKLES = [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]
-_HIPS = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
-_KNEES = [JOINT_INDEX["left_knee"], JOINT_INDEX["right_knee"]]
+_LEGS = [j for side in zip(HIPS, KNEES, ANKLES, FEET) for j in side]  # hip, knee, ankle, foot per side
+_ANKLES = list(ANKLES)
+_HIPS = list(HIPS)
+_KNEES = list(KNEES)
 _UPPER = [j for j in range(NUM_JOINTS) if j not in _LEGS]
 HEAD_TOP = 0.12  # m, head joint to the top of the skull (further than its contact radius)
 
@@ -277,11 +278,10 @@ def _knee_dirs(P: np.ndarray) -> np.ndarray:
     """(T, 3) mean unit direction in which the knees stick out of the hip-ankle lines (T, 24, 3)."""
     out = np.zeros(P.shape[:1] + (3,))
     for h, k, a in zip(_HIPS, _KNEES, _ANKLES):
-        line = P[:, a] - P[:, h]
-        line /= np.linalg.norm(line, axis=-1, keepdims=True)
+        line = unit(P[:, a] - P[:, h])
         v = P[:, k] - P[:, h]
         out += v - (v * line).sum(-1, keepdims=True) * line
-    return out / np.maximum(np.linalg.norm(out, axis=-1, keepdims=True), 1e-9)
+    return unit(out)
 
 
 def lie_down(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_center: np.ndarray,

@@ -16,9 +16,10 @@ from typing import NamedTuple
 import numpy as np
 
 from trumans.actions import ActionInterval, labels_from_intervals
+from trumans.contacts.intervals import runs
 from trumans.contacts.rule import CONTACT_THRESHOLD, contact_rule
 from trumans.sequence import ObjectTrack, Sequence
-from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, forward_kinematics, heading, rest_offsets
+from trumans.skeleton import FEET, JOINT_NAMES, NUM_JOINTS, WRISTS, forward_kinematics, heading, rest_offsets
 from . import hands
 from .motion import Motion, concat_motions
 from .room import RoomContext
@@ -26,8 +27,6 @@ from .vocab import SYNTH_ACTIONS
 
 __all__ = ["Skip", "Take", "TakeState", "TakeSnapshot", "draw_actor"]
 
-_HANDS = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
-_FEET = (JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"])
 
 
 class Skip(Exception):
@@ -168,11 +167,11 @@ def _finish(ctx: RoomContext, st: TakeState) -> Take:
     con = contact_rule(joints, res, threshold=CONTACT_THRESHOLD, global_rot=G)
     # Floor contact of a foot: in contact with a surface point at floor level (the floor plane or
     # the room's floor mesh, whichever is nearer).
-    foot_floor = con.contact[:, list(_FEET)] & (np.abs(con.closest[:, list(_FEET), 2]) < 0.005)
+    foot_floor = con.contact[:, list(FEET)] & (np.abs(con.closest[:, list(FEET), 2]) < 0.005)
     gaps = _grasp_gaps(ctx, joints, tracks, st.grasped)
-    labels = labels_from_intervals(_merge_runs(m.actions), list(SYNTH_ACTIONS), T)
+    labels = labels_from_intervals(_merge_runs(m.actions, T), list(SYNTH_ACTIONS), T)
     grasp = np.zeros((T, 2), dtype=bool)
-    for k, h in enumerate(_HANDS):
+    for k, h in enumerate(WRISTS):
         if h in m.grasp:
             grasp[:, k] = m.grasp[h]
     seq = Sequence(
@@ -192,15 +191,14 @@ def _finish(ctx: RoomContext, st: TakeState) -> Take:
     return Take(seq, m.offsets, con.penetration.astype(np.float64), foot_floor, gaps)
 
 
-def _merge_runs(intervals: list[ActionInterval]) -> list[ActionInterval]:
+def _merge_runs(intervals: list[ActionInterval], T: int) -> list[ActionInterval]:
     """Merge intervals of the same action that touch or overlap (e.g. the 'carry' that ends a
-    pick-up and the 'carry' of the walk after it), so progress runs 0 -> 1 once over the run."""
-    out: list[ActionInterval] = []
-    for iv in sorted(intervals, key=lambda v: (v.name, v.start)):
-        if out and out[-1].name == iv.name and iv.start <= out[-1].end:
-            out[-1] = ActionInterval(iv.name, out[-1].start, max(out[-1].end, iv.end))
-        else:
-            out.append(iv)
+    pick-up and the 'carry' of the walk after it), so progress runs 0 -> 1 once over the run: the
+    runs (``trumans.contacts.intervals.runs``, half-open) of each action's frames over T frames."""
+    frames: dict[str, np.ndarray] = {}
+    for iv in intervals:
+        frames.setdefault(iv.name, np.zeros(T, dtype=bool))[iv.start:iv.end] = True
+    out = [ActionInterval(name, s, e) for name, m in frames.items() for s, e in runs(m)]
     return sorted(out, key=lambda v: (v.start, v.name))
 
 

@@ -7,7 +7,7 @@ import numpy as np
 from scenes.scene import SceneObject
 
 from trumans.contacts.rule import JOINT_RADIUS
-from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, forward_kinematics
+from trumans.skeleton import ELBOWS, INDEX1, JOINT_NAMES, NUM_JOINTS, WRISTS, forward_kinematics
 from trumans.ik.limb import limb_reach
 from .core import PLAN_FRAC, SHOULDER, OutOfReach, Side, actor_scale
 from .lean import lean_candidates, lean_pose
@@ -20,8 +20,8 @@ LEAN_LIMIT = {"door": (np.radians(25.0), 0.05), "drawer": (np.inf, np.inf)}
 
 
 # Arm joints are left out of the body-object clearance test (the hand is on the handle).
-ARM_JOINTS = [JOINT_INDEX[f"{s}_{n}"] for s in ("left", "right") for n in ("elbow", "wrist", "index1")]
-BODY_JOINTS = np.array([j for j in range(24) if j not in ARM_JOINTS])
+ARM_JOINTS = [j for side in zip(ELBOWS, WRISTS, INDEX1) for j in side]  # elbow, wrist, index1 per side
+BODY_JOINTS = np.array([j for j in range(NUM_JOINTS) if j not in ARM_JOINTS])
 CLEAR_PLAN = 0.01  # m, extra clearance kept when planning (the idle base sways about 1 cm)
 CLEAR_TOL = 0.015  # m, the generated motion is rejected if the body surface goes deeper than this
 

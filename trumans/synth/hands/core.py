@@ -26,8 +26,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from trumans.actions import ActionInterval
-from trumans.rotations import yaw_matrix
-from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.rotations import unit, yaw_matrix
+from trumans.skeleton import ELBOWS, SHOULDERS, WRISTS, forward_kinematics
+from trumans.skeleton import INDEX1 as INDEX1S
 from trumans.ik.limb import limb_reach, set_global_rotation, solve_limb
 from ..motion import Motion, yaw_of
 from ..poses import ease
@@ -40,10 +41,11 @@ __all__ = [
 ]
 
 Side = Literal["left", "right"]
-WRIST: dict[str, int] = {"left": JOINT_INDEX["left_wrist"], "right": JOINT_INDEX["right_wrist"]}
-INDEX1: dict[str, int] = {"left": JOINT_INDEX["left_index1"], "right": JOINT_INDEX["right_index1"]}
-SHOULDER: dict[str, int] = {"left": JOINT_INDEX["left_shoulder"], "right": JOINT_INDEX["right_shoulder"]}
-ELBOW: dict[str, int] = {"left": JOINT_INDEX["left_elbow"], "right": JOINT_INDEX["right_elbow"]}
+# Joint of each side (trumans.skeleton's (left, right) groups, keyed by side).
+WRIST: dict[str, int] = dict(zip(("left", "right"), WRISTS))
+INDEX1: dict[str, int] = dict(zip(("left", "right"), INDEX1S))
+SHOULDER: dict[str, int] = dict(zip(("left", "right"), SHOULDERS))
+ELBOW: dict[str, int] = dict(zip(("left", "right"), ELBOWS))
 SIGN: dict[str, float] = {"left": 1.0, "right": -1.0}  # +1: the body's left (+y in the heading frame)
 PALM_GAP = 0.015  # m, palm point outside the surface at a grasp (about the palm's half thickness)
 REACH_FRAC = 0.97  # fraction of the arm's full extension a target may ask for (then soft saturation)
@@ -58,20 +60,6 @@ class OutOfReach(ValueError):
 
 
 # ----------------------------------------------------------------------------- geometry helpers
-
-
-def unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
-
-
-def rodrigues(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Unit axes (T, 3), angles (T,) -> (T, 3, 3)."""
-    axis = unit(np.asarray(axis, dtype=np.float64))
-    K = np.zeros(axis.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
-    return np.eye(3) + s * K + (1 - c) * (K @ K)
 
 
 def to_h(R: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ from scipy.ndimage import gaussian_filter1d
 from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
-from trumans.rotations import yaw_matrix
+from trumans.rotations import rodrigues, unit, yaw_matrix
 from trumans.skeleton import forward_kinematics
 from .. import locomotion
 from ..legs import standing_state
@@ -21,7 +21,7 @@ from ..motion import Motion, concat_motions
 from .clearance import LEAN_LIMIT, lean_table, require_body_clear, solid_boxes
 from .core import (
     PALM_GAP, WRIST, OutOfReach, Side, actor_scale, apply_h, base_arrays, check_pose, check_side, finish_motion,
-    hand_frame, palm_points, reach_hold_retract, to_h, unit, wrist_targets,
+    hand_frame, palm_points, reach_hold_retract, to_h, wrist_targets,
 )
 from .lean import lean_between
 from .timing import HAND_SPEED, ramp
@@ -34,9 +34,7 @@ def door_pose(door: SceneObject, closed: np.ndarray, angle: np.ndarray | float) 
     if door.dof != "hinge":
         raise ValueError(f"object {door.name!r} is not a hinge (dof {door.dof!r})")
     a = np.asarray(angle, dtype=np.float64) * float(door.meta.get("open_sign", 1.0))
-    k = door.axis
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    R = np.eye(3) + np.sin(a)[..., None, None] * K + (1 - np.cos(a))[..., None, None] * (K @ K)
+    R = rodrigues(np.asarray(door.axis, dtype=np.float64), a)
     h = door.hinge_point
     local = to_h(R, h - (R @ h))
     return closed @ local

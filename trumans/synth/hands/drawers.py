@@ -12,7 +12,7 @@ import numpy as np
 from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
-from trumans.rotations import yaw_matrix
+from trumans.rotations import unit, yaw_matrix
 from trumans.skeleton import forward_kinematics
 from ..legs import standing_state
 from ..motion import Motion, yaw_of
@@ -20,7 +20,7 @@ from ..poses import ease
 from .clearance import LEAN_LIMIT, lean_table, require_body_clear, solid_boxes
 from .core import (
     PALM_GAP, WRIST, OutOfReach, Side, actor_scale, apply_h, base_arrays, check_pose, check_side, finish_motion,
-    hand_frame, is_seated, palm_points, reach_hold_retract, to_h, unit, wrist_targets,
+    hand_frame, is_seated, palm_points, reach_hold_retract, to_h, wrist_targets,
 )
 from .lean import lean_between, lean_steps, lean_travel
 from .timing import phases

@@ -7,13 +7,13 @@ import numpy as np
 from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
-from trumans.rotations import yaw_matrix
+from trumans.rotations import rodrigues, unit, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 from ..motion import Motion, yaw_of
 from ..poses import ease, slerp_rot
 from .core import (
     ELBOW_DIR, SIGN, WRIST, actor_scale, base_arrays, finish_motion, hand_world, heading_frame, inv_h, place_arm,
-    require_reached, rodrigues, to_h, unit, wrist_to_palm,
+    require_reached, to_h, wrist_to_palm,
 )
 from .objects import Hold, carry_pose, object_height
 from .timing import phases, ramp

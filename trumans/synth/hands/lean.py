@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.skeleton import JOINT_INDEX, forward_kinematics
+from trumans.rotations import rodrigues
+from trumans.skeleton import ANKLES, JOINT_INDEX, forward_kinematics
 from trumans.ik.limb import limb_reach
 from ..legs import pelvis_height_limit, solve_legs
 from ..motion import yaw_of
-from .core import PLAN_FRAC, SHOULDER, OutOfReach, Side, actor_scale, rodrigues
+from .core import PLAN_FRAC, SHOULDER, OutOfReach, Side, actor_scale
 from .timing import ramp
 
 __all__ = ["lean_pose", "lean_candidates", "choose_lean", "lean_travel", "lean_steps", "lean_between"]
@@ -21,8 +22,8 @@ def lean_pose(rot: np.ndarray, root: np.ndarray, offsets: np.ndarray, pitch: np.
     if not (np.any(pitch) or np.any(drop)):
         return rot, root
     P, G = forward_kinematics(rot, root, offsets)
-    ank = P[:, [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]]
-    frot = G[:, [JOINT_INDEX["left_ankle"], JOINT_INDEX["right_ankle"]]]
+    ank = P[:, list(ANKLES)]
+    frot = G[:, list(ANKLES)]
     yaw = yaw_of(rot[:, 0])
     fwd = np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], -1)
     left = np.stack([-np.sin(yaw), np.cos(yaw), np.zeros_like(yaw)], -1)

@@ -15,14 +15,14 @@ import numpy as np
 from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
-from trumans.rotations import yaw_matrix
+from trumans.rotations import unit, yaw_matrix
 from trumans.skeleton import forward_kinematics
 from ..motion import Motion, yaw_of
 from ..poses import ease, slerp_rot
 from .core import (
     PALM_GAP, SHOULDER, SIGN, UP, WRIST, Side, actor_scale, apply_h, base_arrays, base_palm, check_pose, check_side,
-    finish_motion, hand_frame, hand_world, heading_frame, inv_h, is_seated, palm_points, place_arm, reach_hold_retract,
-    reach_path, require_reached, unit, wrist_targets, wrist_to_palm,
+    finish_motion, hand_frame, hand_world, heading_frame, inv_h, is_seated, palm_points, place_arm,
+    reach_hold_retract, reach_path, require_reached, wrist_targets, wrist_to_palm,
 )
 from .lean import choose_lean, lean_between, lean_pose, lean_travel
 from .timing import phases, ramp

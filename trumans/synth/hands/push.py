@@ -13,12 +13,13 @@ from scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
 from trumans.skeleton import forward_kinematics
+from trumans.rotations import unit
 from .. import locomotion
 from ..legs import standing_state
 from ..motion import Motion, concat_motions
 from .core import (
     PALM_GAP, WRIST, actor_scale, apply_h, base_arrays, check_pose, finish_motion, hand_frame, palm_points,
-    reach_hold_retract, unit, wrist_targets,
+    reach_hold_retract, wrist_targets,
 )
 from .lean import choose_lean, lean_between
 from .timing import HAND_SPEED

@@ -117,7 +117,9 @@ class EpisodeSampler:
         sub = np.zeros((len(goals), 3))
         for b, g in enumerate(goals):
             sub[b, :2] = g.point[:2] if g.joint == "pelvis" else context[b, -1, PELVIS, :2]
-        return episode_condition(context, labels, subgoal=sub)
+        # a model trained without the progress indicator (the §5 ablation) gets plain 0/1 labels, as in training
+        progress = bool(self.ckpt.extra.get("progress_indicator", True))
+        return episode_condition(context, labels, subgoal=sub, progress_indicator=progress)
 
     def _given(self, context: np.ndarray, cond: EpisodeCondition, goals: list[Goal]):
         """Normalised given values and the mask, both (B, L, F): M_trans (the context frames) and

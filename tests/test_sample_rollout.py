@@ -171,3 +171,18 @@ def test_goal_guidance_pulls_the_body_onto_its_goal(open_room):
     assert errs[1] < 0.7 * errs[0], errs  # an untrained net: guidance alone must still pull it closer
     with pytest.raises(ValueError, match="goal_iters"):
         SamplerConfig(goal_iters=0)
+
+
+def test_labels_follow_the_checkpoints_progress_indicator(open_room):
+    """A model trained without the progress indicator (the ablation) is sampled with 0/1 labels, as trained."""
+    scene, occ, wm = open_room
+    ctx = start_context(tiny_checkpoint(), np.array([1.0, 1.0]), 0.3, batch=1)
+    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels[0, 4:, 1] = 1.0 + np.linspace(0.0, 1.0, 12)
+    goals = [Goal((1.8, 1.2))]
+    with_progress = EpisodeSampler(tiny_checkpoint(), SceneGrids(occ)).condition(ctx, labels, goals)
+    ck = tiny_checkpoint()
+    ck.extra["progress_indicator"] = False
+    plain = EpisodeSampler(ck, SceneGrids(occ)).condition(ctx, labels, goals)
+    np.testing.assert_allclose(with_progress.actions, labels)
+    np.testing.assert_array_equal(plain.actions, (labels > 0).astype(np.float32))

@@ -202,6 +202,7 @@ def test_cli_train_json_and_eval(tiny, tmp_path: Path, capsys) -> None:
     assert res["steps"] == 3 and res["samples_per_s"] > 0 and res["val_loss_zero_baseline"] > 0
     ck = load_checkpoint(out / "checkpoint.pt")
     assert ck.model_config.scene is None and ck.model_config.action is not None
+    assert ck.extra["progress_indicator"] is False  # the sampler must build 0/1 labels for this model
     rc = main(["eval", "train", str(out / "checkpoint.pt"), "--json"])
     assert rc == 0
     ev = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

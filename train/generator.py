@@ -210,4 +210,5 @@ class GeneratorTask:
             kind="generator", model_config=self.model_config, diffusion_config=self.config.diffusion,
             model_state=model_state, ema_state=ema_state, normalizer=self.normalizer, vocabulary=self.vocabulary,
             fps=d.fps, L_epi=d.episode_frames, k=d.transition_frames, grid={"n": d.grid, "extent": list(d.extent)},
+            extra={"progress_indicator": bool(d.progress_indicator)},  # the sampler builds labels the same way
             data=self.data_record, meta=meta, train_state=train_state, code_version=__version__)

@@ -42,28 +42,32 @@ class CarryConfig:
     """smooth: weight of the squared acceleration (m per frame^2) of points on the object against
     the variance (m^2) of the hand points in the object frame; upright: weight of a free object's
     tilt away from its rest up axis; limit: weight of the penalty beyond a dof limit during the
-    optimisation (the result is clipped to the range); iters: L-BFGS iterations."""
+    optimisation (the result is clipped to the range); iters: L-BFGS iterations; reach_m: the
+    wrist must come this close to a grasp point / handle for a contact (else the object stays)."""
 
     smooth: float = 1.0
     upright: float = 0.05
     limit: float = 100.0
     iters: int = 100
+    reach_m: float = 0.25
 
     def __post_init__(self) -> None:
-        if min(self.smooth, self.upright, self.limit) < 0 or self.iters < 1:
+        if min(self.smooth, self.upright, self.limit) < 0 or self.iters < 1 or not self.reach_m > 0:
             raise ValueError(f"CarryConfig weights must be >= 0 and iters >= 1, got {self}")
 
 
 @dataclass(frozen=True)
 class Interaction:
     """Object ``name`` is moved by joint ``hand`` on frames [start, end] (inclusive: ``start`` is
-    the grasp, ``end`` the release); ``kind`` carry / open / close."""
+    the grasp, ``end`` the release); ``kind`` carry / open / close; ``placed``: a carried object
+    put down at ``end`` (False: still held when the motion ends)."""
 
     name: str
     kind: InteractionKind
     hand: str
     start: int
     end: int
+    placed: bool = False
 
 
 def hand_track(joints: np.ndarray, hand: str) -> tuple[np.ndarray, np.ndarray]:
@@ -79,18 +83,29 @@ def hand_track(joints: np.ndarray, hand: str) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([w, i], 1), np.stack([x, np.cross(z, x), z], -1)
 
 
-def plan_interactions(phase: np.ndarray, phases: list, joints: np.ndarray) -> list[Interaction]:
+def plan_interactions(phase: np.ndarray, phases: list, joints: np.ndarray,
+                      reach_m: float = 0.25) -> tuple[list[Interaction], list[tuple[str, float]]]:
     """Contact intervals of the object steps (module doc, 1.) in time order. phase: (T,) index into
-    ``phases`` per frame (``SampleResult.phase[b]``); joints: (T, 24, 3)."""
+    ``phases`` per frame (``SampleResult.phase[b]``); joints: (T, 24, 3). A grasp whose wrist never
+    comes within ``reach_m`` of the grasp point / handle is no contact: the object stays. Returns
+    (interactions, missed: (object name, closest wrist distance m) per unreached grasp)."""
     T = len(phase)
     grasp: dict[str, tuple[int, str]] = {}
     out: list[Interaction] = []
+    missed: list[tuple[str, float]] = []
 
-    def closest(i: int) -> int:
+    def closest(i: int) -> tuple[int, float]:
         f = np.flatnonzero(phase == i)
         p = phases[i]
         d = np.linalg.norm(joints[f, JOINT_INDEX[p.hand]] - p.hand_goal, axis=-1)
-        return int(f[np.argmin(d)])
+        return int(f[np.argmin(d)]), float(d.min())
+
+    def take(i: int, name: str, hand: str) -> None:
+        f, d = closest(i)
+        if d <= reach_m:
+            grasp[name] = (f, hand)
+        else:
+            missed.append((name, d))
 
     for i, p in enumerate(phases):
         do = p.info.get("do")
@@ -98,17 +113,17 @@ def plan_interactions(phase: np.ndarray, phases: list, joints: np.ndarray) -> li
             continue
         name = p.info["object"]
         if do == "pick_up":
-            grasp[name] = (closest(i), p.hand)
+            take(i, name, p.hand)
         elif do == "put_down" and name in grasp:
             g, hand = grasp.pop(name)
-            out.append(Interaction(name, "carry", hand, g, max(closest(i), g + 1)))
+            out.append(Interaction(name, "carry", hand, g, max(closest(i)[0], g + 1), placed=True))
         elif do in ("open", "close") and p.info.get("part") == 0:
-            grasp[name] = (closest(i), p.hand)
+            take(i, name, p.hand)
         elif do in ("open", "close") and name in grasp:
             g, hand = grasp.pop(name)
             out.append(Interaction(name, do, hand, g, max(int(np.flatnonzero(phase == i)[-1]), g + 1)))
     out += [Interaction(n, "carry", h, g, T - 1) for n, (g, h) in grasp.items() if g < T - 1]  # never put down
-    return sorted(out, key=lambda it: it.start)
+    return sorted(out, key=lambda it: it.start), missed
 
 
 def dof_limits(obj) -> tuple[float, float]:
@@ -296,11 +311,12 @@ def object_tracks(joints: np.ndarray, phase: np.ndarray, phases: list, scene,
                   config: CarryConfig = CarryConfig()) -> tuple[dict[str, ObjectTrack], list[Interaction], dict]:
     """Tracks (T, 4, 4) of every object the plan handles (module doc, 3.) for one sample.
 
-    Returns (name -> ObjectTrack, the interactions, name -> {"init": (n, 4, 4)} the hand-driven
-    initial poses of each interval, for the figures)."""
+    Returns (name -> ObjectTrack, the interactions, {"init": name -> [(start, (n, 4, 4))] the
+    hand-driven initial poses of each interval, "missed": [(name, closest wrist distance m)] the
+    grasps the body did not reach}, for the figures)."""
     joints = np.asarray(joints, np.float64)
     T = len(joints)
-    its = plan_interactions(phase, phases, joints)
+    its, missed = plan_interactions(phase, phases, joints, config.reach_m)
     tracks: dict[str, np.ndarray] = {}
     inits: dict = {}
     for it in its:
@@ -310,7 +326,7 @@ def object_tracks(joints: np.ndarray, phase: np.ndarray, phases: list, scene,
         pts, rot = hand_track(joints[s:e + 1], it.hand)
         init = initial_motion(obj, track[s], pts, rot)
         init[0] = track[s]
-        fix_end = it.kind == "carry" and e < T - 1
+        fix_end = it.placed
         if fix_end:
             supports = list(scene.static.values()) + [o.world_mesh(tracks[n][e] if n in tracks else None)
                                                       for n, o in scene.objects.items() if n != it.name]
@@ -319,4 +335,5 @@ def object_tracks(joints: np.ndarray, phase: np.ndarray, phases: list, scene,
         track[s:e + 1] = poses
         track[e + 1:] = poses[-1]
         inits.setdefault(it.name, []).append((s, init))
-    return {n: ObjectTrack(p.astype(np.float32), scene.objects[n].category) for n, p in tracks.items()}, its, inits
+    return ({n: ObjectTrack(p.astype(np.float32), scene.objects[n].category) for n, p in tracks.items()}, its,
+            {"init": inits, "missed": missed})

@@ -50,11 +50,18 @@ def _penetration(scene, name: str, track: np.ndarray, tracks: dict, stride: int 
     return float(depth.max())
 
 
-def carry_figures(joints: np.ndarray, tracks: dict, its: list[Interaction], inits: dict, scene,
+def carry_figures(joints: np.ndarray, tracks: dict, its: list[Interaction], info: dict, scene,
                   phases: list) -> dict:
-    """Figures of one sample (module doc); {} when the plan moves no object. Distances in cm."""
+    """Figures of one sample (module doc); ``info``: the third output of ``object_tracks``.
+    ``hoi_grasps_reached`` / ``hoi_grasps_missed``: grasps the body reached / did not reach (with
+    ``hoi_missed_dist_cm``, the closest wrist distance of the missed ones). Distances in cm."""
+    missed = info["missed"]
+    head = {"hoi_grasps_reached": len(its), "hoi_grasps_missed": len(missed)}
+    if missed:
+        head["hoi_missed_dist_cm"] = round(100 * float(np.mean([d for _, d in missed])), 2)
     if not its:
-        return {}
+        return head if missed else {}
+    inits = info["init"]
     joints = np.asarray(joints, np.float64)
     out: dict[str, list[float]] = {}
     side = {"left_wrist": 0, "right_wrist": 1}
@@ -71,7 +78,7 @@ def carry_figures(joints: np.ndarray, tracks: dict, its: list[Interaction], init
             out.setdefault(f"hoi_hand_obj_dist_std_cm{key}", []).append(100 * d.std())
         out.setdefault("hoi_rel_std_cm", []).append(100 * _rel_std(pose, pts))
         out.setdefault("hoi_rel_std_cm_init", []).append(100 * _rel_std(init, pts))
-        if it.kind == "carry" and it.end < len(joints) - 1:
+        if it.placed:
             goal = next(p.hand_goal for p in phases if p.info.get("do") == "put_down" and p.info["object"] == it.name)
             final = pose[-1]
             grasp = final[:3, :3] @ np.asarray(obj.meta.get("grasp_point", [0, 0, 0]), np.float64) + final[:3, 3]
@@ -81,5 +88,4 @@ def carry_figures(joints: np.ndarray, tracks: dict, its: list[Interaction], init
     pen = [_penetration(scene, n, np.asarray(t.pose, np.float64), tracks) for n, t in tracks.items()]
     res = {k: round(float(np.mean(v)), 2) for k, v in out.items()}
     res["hoi_obj_penetration_max_cm"] = round(100 * max(pen), 2)
-    res["hoi_interactions"] = len(its)
-    return res
+    return {**head, **res}

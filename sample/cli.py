@@ -199,9 +199,9 @@ def run(args: argparse.Namespace) -> int:
 
     carry: dict = {}
     for b in range(args.num_samples):
-        tracks, its, inits = object_tracks(result.joints[b], result.phase[b], result.phases, sc.scene)  # §4.2
+        tracks, its, info = object_tracks(result.joints[b], result.phase[b], result.phases, sc.scene)  # §4.2
         if b == 0:
-            carry = carry_figures(result.joints[b], tracks, its, inits, sc.scene, result.phases)
+            carry = carry_figures(result.joints[b], tracks, its, info, sc.scene, result.phases)
         seq = Sequence(joints=result.joints[b], fps=result.fps, actions=result.labels[b],
                        action_names=list(result.vocabulary), scene=sc.source, objects=tracks)
         stem = out if args.num_samples == 1 else out.with_name(f"{out.name}_{b:02d}")

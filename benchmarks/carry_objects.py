@@ -3,8 +3,8 @@
     python benchmarks/carry_objects.py --json            # three plans in the default room, seeds 0..2
     python benchmarks/carry_objects.py --smooth 0.1 1 10 # the smoothness weight's effect
 
-Plans (default room, procedural room 2): pick up cup_0 from the table, walk, put it on the
-cabinet; open and close the door; open and close a drawer. For each plan and seed: the body is
+Plans (default room, procedural room 2): pick up bottle_0 from the cabinet, walk, put it on the
+table; open and close the door; open and close a drawer. For each plan and seed: the body is
 sampled (20 DDIM steps), the objects are moved (``object_tracks``) and the figures of
 ``sample.carry_metrics`` are printed (mean over the seeds), with ``_static`` (objects left where
 they were, the output before this step) and ``_init`` (hand-driven, before the optimisation).
@@ -27,8 +27,8 @@ from sample.scene_input import load_sample_scene
 from trumans.model.checkpoint import load_checkpoint
 
 PLANS = {
-    "carry": {"start": [2.4, 2.4], "steps": [{"do": "pick_up", "object": "cup_0"}, {"do": "goto", "to": [2.0, 3.0]},
-                                             {"do": "put_down", "object": "cup_0", "target": "cabinet_0"}]},
+    "carry": {"start": [2.4, 2.4], "steps": [{"do": "pick_up", "object": "bottle_0"}, {"do": "goto", "to": [2.4, 2.4]},
+                                             {"do": "put_down", "object": "bottle_0", "target": "table_0"}]},
     "door": {"start": [3.5, 2.6], "steps": [{"do": "open", "object": "door_0"}, {"do": "close", "object": "door_0"}]},
     "drawer": {"start": [2.0, 3.0], "steps": [{"do": "open", "object": "cabinet_0_drawer_1"},
                                               {"do": "close", "object": "cabinet_0_drawer_1"}]},

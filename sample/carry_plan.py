@@ -17,11 +17,13 @@ import numpy as np
 
 from trumans.contacts.objects import rotation_about_axis
 
-__all__ = ["OPEN_FRACTION", "GRASP_SPAN", "ObjectState", "StepGoals", "validate_carry", "object_step_goals",
+__all__ = ["OPEN_FRACTION", "GRASP_SPAN", "STAND_M", "ObjectState", "StepGoals", "validate_carry", "object_step_goals",
            "articulated_pose", "surface_point"]
 
 OPEN_FRACTION = 0.7  # an "open" step opens a door / drawer to this fraction of its range
 GRASP_SPAN = 0.4  # fraction of an open / close step spent reaching the handle (the rest moves it)
+EDGE_M = 0.12  # a put-down point on a surface lies this far inside its edge nearest the person
+STAND_M = 0.45  # pelvis to the hand's work point, horizontal m (training data: 0.35-0.65 m from a handle)
 
 
 @dataclass
@@ -37,18 +39,36 @@ class ObjectState:
 @dataclass(frozen=True)
 class StepGoals:
     """Hand goals of one object step: ``points`` (world m) reached at the end of consecutive
-    sub-phases whose progress spans are ``spans``; ``stand``: the object whose approach point the
-    person walks to, or None (stand facing ``stand_point``)."""
+    sub-phases whose progress spans are ``spans``; ``stand``: (2,) floor point where the pelvis
+    stands (``STAND_M`` from the hand's work point, towards the object's approach point or the
+    person), before any walkability check."""
 
     points: tuple[np.ndarray, ...]
     spans: tuple[tuple[float, float], ...]
-    stand: object | None
-    stand_point: np.ndarray
+    stand: np.ndarray
 
 
-def surface_point(obj) -> np.ndarray:
-    """(3,) world centre of a surface object's top (meta 'surface_center')."""
-    return obj.pose[:3, :3] @ np.asarray(obj.meta["surface_center"], np.float64) + obj.pose[:3, 3]
+def _stand(work: np.ndarray, towards_obj, pos: np.ndarray) -> np.ndarray:
+    """(2,) STAND_M from ``work`` (3,) towards the approach point of ``towards_obj`` (or ``pos``)."""
+    if towards_obj is not None and "approach" in towards_obj.meta:
+        a = np.zeros(3)
+        a[:2] = towards_obj.meta["approach"]
+        to = (towards_obj.pose[:3, :3] @ a + towards_obj.pose[:3, 3])[:2]
+    else:
+        to = np.asarray(pos, np.float64)
+    d = to - work[:2]
+    return work[:2] + STAND_M * d / max(float(np.linalg.norm(d)), 1e-6)
+
+
+def surface_point(obj, margin: float = EDGE_M) -> np.ndarray:
+    """(3,) world point on a surface object's top (meta 'surface_center', 'surface_size'): the
+    point ``margin`` m inside the edge nearest its approach point (within reach of a person
+    standing there), or the centre when the meta has no size / approach."""
+    c = np.asarray(obj.meta["surface_center"], np.float64).copy()
+    if "surface_size" in obj.meta and "approach" in obj.meta:
+        half = np.maximum(0.5 * np.asarray(obj.meta["surface_size"], np.float64) - margin, 0.0)
+        c[:2] += np.clip(np.asarray(obj.meta["approach"], np.float64) - c[:2], -half, half)
+    return obj.pose[:3, :3] @ c + obj.pose[:3, 3]
 
 
 def articulated_pose(obj, fraction: float) -> np.ndarray:
@@ -107,8 +127,7 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
         grasp = pose[:3, :3] @ _local(obj, "grasp_point") + pose[:3, 3]
         support = scene.objects.get(obj.meta.get("support", ""))
         state.held[obj.name] = step.hand
-        stand = support if obj.name not in state.poses and support is not None and "approach" in support.meta else None
-        return StepGoals((grasp,), ((0.0, 1.0),), stand, grasp)
+        return StepGoals((grasp,), ((0.0, 1.0),), _stand(grasp, support if obj.name not in state.poses else None, pos))
     if step.kind == "put_down":
         state.held.pop(obj.name, None)
         place = pose.copy()  # default: back where it was
@@ -121,8 +140,7 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
             stand = None
         state.poses[obj.name] = place
         grasp = place[:3, :3] @ _local(obj, "grasp_point") + place[:3, 3]
-        return StepGoals((grasp,), ((0.0, 1.0),), stand if stand is not None and "approach" in stand.meta else None,
-                         grasp)
+        return StepGoals((grasp,), ((0.0, 1.0),), _stand(grasp, stand, pos))
     # open / close: reach the handle where it is, then move it to where it ends
     now = state.opening.get(obj.name, 0.0)
     end = OPEN_FRACTION if step.kind == "open" else 0.0
@@ -131,4 +149,4 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
     a, b = articulated_pose(obj, now), articulated_pose(obj, end)
     p0, p1 = a[:3, :3] @ handle + a[:3, 3], b[:3, :3] @ handle + b[:3, 3]
     stand = obj if "approach" in obj.meta else scene.objects.get(obj.meta.get("parent", ""))
-    return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), stand, p1)
+    return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), _stand(0.5 * (p0 + p1), stand, pos))

@@ -177,7 +177,7 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             phases.append(Phase("act", (s.action, *held), frames(s.action, s.seconds), goal=None, step=i))
         elif s.kind in ("pick_up", "put_down", "open", "close"):  # object steps: sample.carry_plan
             sg = object_step_goals(scene, s, objects, pos)
-            stand = _approach(sg.stand, wm) if sg.stand is not None else _stand_facing(sg.stand_point, pos, wm)
+            stand = sg.stand if wm.query(sg.stand[None])[0] else nearest_walkable(wm, sg.stand)
             walk(i, stand)
             action = s.kind if s.kind in ("pick_up", "put_down") else f"{s.kind}_{scene.objects[s.object].category}"
             hand = "left_wrist" if s.hand == "left" else "right_wrist"
@@ -223,6 +223,8 @@ class Controller:
         self.walk_s = 0.0  # arc length planned on the current walk path, m
         self.body_s = 0.0  # arc length the body has covered (its projection on the path), m
         self._cum: np.ndarray | None = None
+        self.approach_tries = 0  # extra episodes spent walking onto the stand point of a hand phase
+        self.max_approach = 4
 
     @property
     def done(self) -> bool:
@@ -244,6 +246,19 @@ class Controller:
         i = int(np.argmin(np.linalg.norm(q - p, axis=1)))
         return float(cum[i] + t[i] * np.linalg.norm(ab[i]))
 
+    def _approach_goal(self, p: Phase | None, pelvis_xy: np.ndarray) -> np.ndarray | None:
+        """The stand point (2,) of a hand phase that is about to start while the pelvis is farther
+        than ``arrive_m`` from it (at most ``max_approach`` extra walking episodes), else None."""
+        if p is None or p.hand_goal is None or self.elapsed > 0 or self.index == 0:
+            self.approach_tries = 0 if p is None or self.elapsed > 0 else self.approach_tries
+            return None
+        prev = self.phases[self.index - 1]
+        if prev.kind != "walk" or self.approach_tries >= self.max_approach or "walk" not in self.col or \
+                np.linalg.norm(np.asarray(prev.goal) - pelvis_xy) <= self.arrive:
+            return None
+        self.approach_tries += 1
+        return np.asarray(prev.goal, np.float64)
+
     def next(self, pelvis_xy: np.ndarray, prev_labels: np.ndarray) -> EpisodeControl:
         """Control of the next episode given the body's pelvis xy (2,) at its first new frame
         and the labels of the k transition frames (k, N_A)."""
@@ -257,6 +272,11 @@ class Controller:
         hand, hand_frame, guide, heading = "right_wrist", -1, True, None
         f = k
         p = self.phases[self.index] if not self.done else None
+        approach = self._approach_goal(p, pelvis_xy)
+        if approach is not None:  # the body lags behind its path: finish walking before the hand phase
+            labels[k:, self.col["walk"]] = 2.0
+            phase_of[k:] = self.index - 1
+            return EpisodeControl(approach, labels, phase_of)
         if p is not None and p.kind == "walk":  # anchor on the path where the body really is (closed loop)
             cum = self._arc(p.path)
             self.walk_s = max(self.body_s, self._project(p.path, cum, np.asarray(pelvis_xy, np.float64)))
@@ -275,6 +295,10 @@ class Controller:
                 self.walk_s = float(min(s[-1], cum[-1]))
                 f += n
                 if self.walk_s >= cum[-1] - 1e-6:
+                    if self.index + 1 < len(self.phases) and self.phases[self.index + 1].hand_goal is not None:
+                        labels[f:, self.col["walk"]] = 2.0  # a hand phase starts with an episode (_approach_goal)
+                        phase_of[f:] = self.index
+                        f = L
                     self.index, self.elapsed, self.walk_s, self.body_s = self.index + 1, 0, 0.0, 0.0
             else:
                 n = min(L - f, p.frames - self.elapsed)

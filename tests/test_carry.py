@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from sample.carry import CarryConfig, _dof_value, dof_limits, initial_motion, object_tracks, optimise_motion, \
     plan_interactions
 from sample.carry_metrics import carry_figures
-from sample.carry_plan import GRASP_SPAN, OPEN_FRACTION, articulated_pose
+from sample.carry_plan import GRASP_SPAN, OPEN_FRACTION, articulated_pose, surface_point
 from sample.controller import Phase, compile_plan
 from sample.export import export
 from sample.plan import plan_from_dict, validate_plan
@@ -179,8 +179,13 @@ def test_compiled_object_steps_give_place_and_handle_goals(room):
     cup, cab, door = room.objects["cup_0"], room.objects["cabinet_0"], room.objects["door_0"]
     off = cup.pose[:3, :3] @ np.asarray(cup.meta["grasp_point"])
     np.testing.assert_allclose(reach[0].hand_goal, cup.pose[:3, 3] + off)
-    top = cab.pose[:3, :3] @ np.asarray(cab.meta["surface_center"]) + cab.pose[:3, 3]
+    top = surface_point(cab)
+    assert top[2] == pytest.approx(cab.meta["surface_height"]) and np.linalg.norm(top[:2] - cab.pose[:2, 3]) > 0.1
     np.testing.assert_allclose(reach[1].hand_goal, top + off)
+    for p in reach:  # the pelvis stands within reach of every hand goal
+        stand = phases[phases.index(p) - 1].goal if phases[phases.index(p) - 1].kind == "walk" else None
+        if stand is not None:
+            assert np.linalg.norm(stand - p.hand_goal[:2]) < 0.9
     handle = np.asarray(door.meta["handle"])
     opened = articulated_pose(door, OPEN_FRACTION)
     np.testing.assert_allclose(reach[2].hand_goal, door.pose[:3, :3] @ handle + door.pose[:3, 3])

@@ -45,7 +45,7 @@ class CarryConfig:
     optimisation (the result is clipped to the range); iters: L-BFGS iterations; reach_m: the
     wrist must come this close to a grasp point / handle for a contact (else the object stays)."""
 
-    smooth: float = 1.0
+    smooth: float = 0.3
     upright: float = 0.05
     limit: float = 100.0
     iters: int = 100

@@ -6,6 +6,8 @@
   and ``_init`` (the hand-driven initial motion, before the §4.2 optimisation);
 - ``hoi_rel_std_cm``: the optimised quantity, sqrt of the variance of the hand points in the
   object frame (and ``_init``);
+- ``hoi_obj_acc_cm`` (and ``_init``): mean acceleration of the object's origin over the contact,
+  cm per frame^2 (the smoothness the optimisation adds);
 - ``hoi_obj_penetration_max_cm``: deepest object vertex inside the scene (static meshes, the other
   objects where they are) or under the floor, over every frame;
 - ``hoi_place_err_cm``: distance of a put-down object's grasp point from the plan's put-down hand
@@ -76,6 +78,10 @@ def carry_figures(joints: np.ndarray, tracks: dict, its: list[Interaction], info
             d = _surface_dist(obj, np.asarray(P), mid)
             out.setdefault(f"hoi_hand_obj_dist_cm{key}", []).append(100 * d.mean())
             out.setdefault(f"hoi_hand_obj_dist_std_cm{key}", []).append(100 * d.std())
+        for key, P in (("", pose), ("_init", init)):  # mean acceleration of the object's centre, cm / frame^2
+            c = np.asarray(P)[:, :3, 3]
+            out.setdefault(f"hoi_obj_acc_cm{key}", []).append(
+                100 * float(np.linalg.norm(c[2:] - 2 * c[1:-1] + c[:-2], axis=1).mean()) if len(c) > 2 else 0.0)
         out.setdefault("hoi_rel_std_cm", []).append(100 * _rel_std(pose, pts))
         out.setdefault("hoi_rel_std_cm_init", []).append(100 * _rel_std(init, pts))
         if it.placed:

@@ -18,7 +18,7 @@ import numpy as np
 from trumans.contacts.objects import rotation_about_axis
 
 __all__ = ["OPEN_FRACTION", "GRASP_SPAN", "STAND_M", "ObjectState", "StepGoals", "validate_carry", "object_step_goals",
-           "articulated_pose", "surface_point"]
+           "articulated_pose", "surface_point", "planned_object_poses"]
 
 OPEN_FRACTION = 0.7  # an "open" step opens a door / drawer to this fraction of its range
 GRASP_SPAN = 0.4  # fraction of an open / close step spent reaching the handle (the rest moves it)
@@ -46,6 +46,7 @@ class StepGoals:
     points: tuple[np.ndarray, ...]
     spans: tuple[tuple[float, float], ...]
     stand: np.ndarray
+    after: np.ndarray | None = None  # (4, 4) world pose of the object when the step is done (None: held)
 
 
 def _stand(work: np.ndarray, towards_obj, pos: np.ndarray) -> np.ndarray:
@@ -140,7 +141,7 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
             stand = None
         state.poses[obj.name] = place
         grasp = place[:3, :3] @ _local(obj, "grasp_point") + place[:3, 3]
-        return StepGoals((grasp,), ((0.0, 1.0),), _stand(grasp, stand, pos))
+        return StepGoals((grasp,), ((0.0, 1.0),), _stand(grasp, stand, pos), place)
     # open / close: reach the handle where it is, then move it to where it ends
     now = state.opening.get(obj.name, 0.0)
     end = OPEN_FRACTION if step.kind == "open" else 0.0
@@ -149,4 +150,28 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
     a, b = articulated_pose(obj, now), articulated_pose(obj, end)
     p0, p1 = a[:3, :3] @ handle + a[:3, 3], b[:3, :3] @ handle + b[:3, 3]
     stand = obj if "approach" in obj.meta else scene.objects.get(obj.meta.get("parent", ""))
-    return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), _stand(0.5 * (p0 + p1), stand, pos))
+    return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), _stand(0.5 * (p0 + p1), stand, pos), b)
+
+
+_AWAY = np.diag([1.0, 1.0, 1.0, 1.0])
+_AWAY[2, 3] = -100.0  # a held object is left out of the scene grids (it moves with the body)
+
+
+def planned_object_poses(controllers: list, grids) -> dict[str, np.ndarray] | None:
+    """name -> (B, 4, 4) poses of the objects moved by the object steps each controller has
+    finished (``Phase.info['after']``; a picked-up object is taken out), for the scene grids of the
+    next episode (``EpisodeSampler.episode(object_poses=...)``); None when nothing has moved yet."""
+    if grids is None or not getattr(grids, "points", None):
+        return None
+    per = []
+    for c in controllers:
+        moved: dict[str, np.ndarray] = {}
+        for p in c.phases[:c.index]:
+            if "after" in p.info and p.info["object"] in grids.points:
+                after = p.info["after"]
+                moved[p.info["object"]] = _AWAY if after is None else after
+        per.append(moved)
+    names = sorted({n for m in per for n in m})
+    if not names:
+        return None
+    return {n: np.stack([m.get(n, grids.scene_pose[n]) for m in per]) for n in names}

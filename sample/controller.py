@@ -185,6 +185,7 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
                 phases.append(Phase("reach", (action,), max(2, int(round((span[1] - span[0]) * frames(action)))),
                                     hand_goal=point, hand=hand, step=i, span=span,
                                     info={"object": s.object, "do": s.kind, "part": part}))
+            phases[-1].info["after"] = sg.after  # where the object is once the step is done (scene grids)
         elif s.kind == "reach":
             target = s.target
             if isinstance(target, str):

@@ -206,3 +206,36 @@ def test_compiled_object_steps_give_place_and_handle_goals(room):
 def test_bad_object_plans_fail_before_sampling(room, steps, match):
     with pytest.raises(ValueError, match=match):
         validate_plan(plan_from_dict({"steps": steps}), room, VOCAB)
+
+
+def test_later_episodes_see_objects_where_the_plan_left_them(room):
+    from sample.carry_plan import planned_object_poses
+    from sample.controller import Controller
+    from scenes.scene_grids import SceneGrids
+
+    occ = scene_occupancy(room, None, voxel=0.05)
+    plan = plan_from_dict({"start": [2.4, 2.4], "steps": [
+        {"do": "pick_up", "object": "cup_0"}, {"do": "put_down", "object": "cup_0", "target": "cabinet_0"},
+        {"do": "open", "object": "door_0"}]})
+    phases = compile_plan(plan, room, walkable_map(occ), np.array([2.4, 2.4]), {}, 10.0)
+    grids = SceneGrids(None, room, voxel=0.1)
+    ctrl = Controller(phases, VOCAB, 16, 2, 10.0)
+    assert planned_object_poses([ctrl], grids) is None  # nothing moved yet
+    done = {p.info["do"]: i + 1 for i, p in enumerate(phases) if "after" in p.info}
+    ctrl.index = done["pick_up"]
+    held = planned_object_poses([ctrl], grids)["cup_0"][0]
+    assert held[2, 3] < -10  # carried: out of the scene grids
+    ctrl.index = len(phases)
+    moved = planned_object_poses([ctrl, Controller(phases, VOCAB, 16, 2, 10.0)], grids)
+    placed = moved["cup_0"]
+    assert placed[0, 2, 3] == pytest.approx(room.objects["cabinet_0"].meta["surface_height"])
+    np.testing.assert_allclose(placed[1], room.objects["cup_0"].pose)  # the second sample has not started
+    np.testing.assert_allclose(moved["door_0"][0], articulated_pose(room.objects["door_0"], OPEN_FRACTION))
+    # the open door is in the local grid in front of the doorway, the closed one is not
+    door = room.objects["door_0"]
+    c = articulated_pose(door, OPEN_FRACTION) @ np.array([0.0, 0.0, 0.0, 1.0])
+    mid = 0.5 * (c[:3] + (door.pose[:3, :3] @ door.hinge_point + door.pose[:3, 3]))
+    centre = np.array([[mid[0], mid[1], 0.0]])
+    with_open = grids.query(centre, np.zeros(1), {"door_0": moved["door_0"][:1]})
+    closed = grids.query(centre, np.zeros(1))
+    assert with_open.sum() > closed.sum()

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from scenes.raycast import to_o3d_scene
-from trumans.contacts.objects import free_motion, hinge_motion, one_hand_motion, rotation_about_axis
+from trumans.contacts.objects import free_motion, hinge_motion, one_hand_motion, rotation_about_axis, signed_angle
 from trumans.rotations import rodrigues, skew, unit
 from trumans.sequence import ObjectTrack
 from trumans.skeleton import JOINT_INDEX
@@ -146,7 +146,6 @@ def _dof_value(obj, pose: np.ndarray) -> float:
     """Hinge angle (rad) / slide travel (m) of ``pose`` (4, 4) relative to the scene pose."""
     if obj.dof == "hinge":
         axis, _ = _hinge_frame(obj)
-        from trumans.contacts.objects import signed_angle
         return float(signed_angle(obj.pose[:3, 0], pose[:3, 0], axis))
     return float((pose[:3, 3] - obj.pose[:3, 3]) @ (obj.pose[:3, :3] @ obj.axis)) if obj.axis is not None else 0.0
 
@@ -178,7 +177,6 @@ def initial_motion(obj, pose0: np.ndarray, hand_pts: np.ndarray, hand_rot: np.nd
 
 def _angles(M: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """Rotation angles (n,) about ``axis`` of (n, 4, 4) motions that rotate about it."""
-    from trumans.contacts.objects import signed_angle
     ref = np.cross(axis, [1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.cross(axis, [0.0, 1.0, 0.0])
     return np.unwrap(signed_angle(np.broadcast_to(ref, (len(M), 3)), M[:, :3, :3] @ ref, axis))
 

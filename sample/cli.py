@@ -69,6 +69,12 @@ def steps_from_flags(flags: list[tuple[str, str | None]]) -> list[dict]:
             if hand:
                 d["hand"] = hand
             out.append(d)
+        elif kind == "put_down":
+            name, _, where = value.partition(":")
+            d = {"do": "put_down", "object": name}
+            if where:
+                d["target"] = where if where.count(",") != 2 else _xy(where, 3, "--put-down NAME:X,Y,Z")
+            out.append(d)
         else:
             out.append({"do": kind, "object": value})
     return out
@@ -93,7 +99,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--act", action=_StepAction, metavar="ACTION[:S]", help="an action (drink, phone_call, type, ...)")
     g.add_argument("--reach", action=_StepAction, metavar="NAME|X,Y,Z[:HAND]", help="reach an object or point")
     g.add_argument("--pick-up", dest="pick_up", action=_StepAction, metavar="NAME", help="pick an object up")
-    g.add_argument("--put-down", dest="put_down", action=_StepAction, metavar="NAME", help="put an object down")
+    g.add_argument("--put-down", dest="put_down", action=_StepAction, metavar="NAME[:SURFACE|:X,Y,Z]",
+                   help="put a held object down (on a surface object or at a point; default where it was)")
+    g.add_argument("--open", dest="open", action=_StepAction, metavar="NAME", help="open a door or drawer")
+    g.add_argument("--close", dest="close", action=_StepAction, metavar="NAME", help="close a door or drawer")
     p.add_argument("--out", required=True, help="output path stem: writes STEM.npz (+ other --formats)")
     p.add_argument("--formats", default="npz,png", help=f"comma-separated among {','.join(FORMATS)} (default npz,png)")
     p.add_argument("--num-samples", type=int, default=1, help="variations sampled in one batch (default 1)")
@@ -185,16 +194,23 @@ def run(args: argparse.Namespace) -> int:
     written: list[str] = []
     from .export import export
 
+    from .carry import object_tracks
+    from .carry_metrics import carry_figures
+
+    carry: dict = {}
     for b in range(args.num_samples):
+        tracks, its, info = object_tracks(result.joints[b], result.phase[b], result.phases, sc.scene)  # §4.2
+        if b == 0:
+            carry = carry_figures(result.joints[b], tracks, its, info, sc.scene, result.phases)
         seq = Sequence(joints=result.joints[b], fps=result.fps, actions=result.labels[b],
-                       action_names=list(result.vocabulary), scene=sc.source)
+                       action_names=list(result.vocabulary), scene=sc.source, objects=tracks)
         stem = out if args.num_samples == 1 else out.with_name(f"{out.name}_{b:02d}")
         written += [str(p) for p in export(seq, stem, formats, scene=sc.scene).values()]
     figures = motion_figures(result, sc)
     summary = {"plan": plan.name, "scene": sc.source, "samples": args.num_samples, "frames": int(result.joints.shape[1]),
                "seconds_of_motion": round(result.joints.shape[1] / result.fps, 2), "episodes": result.episodes,
                "seconds_per_episode": round(result.seconds_per_episode, 4),
-               "realtime_factor": round(result.realtime_factor, 2), **figures, "written": written}
+               "realtime_factor": round(result.realtime_factor, 2), **figures, **carry, "written": written}
     if args.json:
         print(json.dumps(summary))
     else:

@@ -17,6 +17,7 @@ import numpy as np
 
 from scenes.walkability import NoPathError, WalkMap, nearest_walkable, plan_path
 
+from .carry_plan import ObjectState, object_step_goals
 from .plan import Plan
 
 __all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "seat_target"]
@@ -47,6 +48,7 @@ class Phase:
     info: dict = field(default_factory=dict)
     guide: bool = True  # steer the body onto the goal (False: the goal is only inpainted, e.g. standing up)
     heading: float | None = None  # world heading (rad) at the goal: the seat's sitting direction
+    span: tuple[float, float] = (0.0, 1.0)  # progress indicator range of this phase (a part of one action)
 
     @property
     def length(self) -> float:
@@ -96,6 +98,13 @@ def _approach(obj, wm: WalkMap) -> np.ndarray:
     return nearest_walkable(wm, p) if not wm.query(p[None])[0] else p
 
 
+def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray:
+    """(2,) walkable floor point 0.45 m short of ``point`` (3,) on the way from ``pos`` (2,)."""
+    d = point[:2] - pos
+    stand = point[:2] - 0.45 * d / max(np.linalg.norm(d), 1e-6)
+    return nearest_walkable(wm, stand) if not wm.query(stand[None])[0] else stand
+
+
 def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
                  fps: float, spacing: float = 0.3) -> list[Phase]:
     """Phases of ``plan`` in ``scene`` from ``start_xy`` (2,). Raises ValueError (naming the step)
@@ -109,6 +118,7 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
         pos = nearest_walkable(wm, pos)
     posture: str | None = None  # "sit" / "lie" while seated / lying
     posture_exit: np.ndarray | None = None
+    objects = ObjectState()  # where moved objects are, what the hands hold
 
     def leave(i: int) -> None:
         nonlocal posture, pos
@@ -165,8 +175,19 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
         elif s.kind == "act":
             held = ("sit",) if posture == "sit" else ("lie",) if posture == "lie" else ()
             phases.append(Phase("act", (s.action, *held), frames(s.action, s.seconds), goal=None, step=i))
-        elif s.kind in ("reach", "pick_up", "put_down", "open", "close"):
-            target = s.target if s.kind == "reach" else s.object
+        elif s.kind in ("pick_up", "put_down", "open", "close"):  # object steps: sample.carry_plan
+            sg = object_step_goals(scene, s, objects, pos)
+            stand = sg.stand if wm.query(sg.stand[None])[0] else nearest_walkable(wm, sg.stand)
+            walk(i, stand)
+            action = s.kind if s.kind in ("pick_up", "put_down") else f"{s.kind}_{scene.objects[s.object].category}"
+            hand = "left_wrist" if s.hand == "left" else "right_wrist"
+            for part, (point, span) in enumerate(zip(sg.points, sg.spans)):
+                phases.append(Phase("reach", (action,), max(2, int(round((span[1] - span[0]) * frames(action)))),
+                                    hand_goal=point, hand=hand, step=i, span=span,
+                                    info={"object": s.object, "do": s.kind, "part": part}))
+            phases[-1].info["after"] = sg.after  # where the object is once the step is done (scene grids)
+        elif s.kind == "reach":
+            target = s.target
             if isinstance(target, str):
                 tobj = scene.objects[target]
                 meta = tobj.meta
@@ -176,14 +197,9 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
                 stand = _approach(support if "approach" in support.meta else tobj, wm)
             else:
                 point = np.asarray(target, dtype=np.float64)
-                d = point[:2] - pos
-                stand = point[:2] - 0.45 * d / max(np.linalg.norm(d), 1e-6)
-                stand = nearest_walkable(wm, stand) if not wm.query(stand[None])[0] else stand
+                stand = _stand_facing(point, pos, wm)
             walk(i, stand)
-            action = {"reach": "reach", "pick_up": "pick_up", "put_down": "put_down"}.get(s.kind)
-            if action is None:
-                cat = scene.objects[s.object].category
-                action = f"{s.kind}_{cat}"
+            action = "reach"
             hand = "left_wrist" if s.hand == "left" else "right_wrist"
             phases.append(Phase("reach", (action,), frames(action), hand_goal=point, hand=hand, step=i,
                                 info={"object": target if isinstance(target, str) else None}))
@@ -208,6 +224,8 @@ class Controller:
         self.walk_s = 0.0  # arc length planned on the current walk path, m
         self.body_s = 0.0  # arc length the body has covered (its projection on the path), m
         self._cum: np.ndarray | None = None
+        self.approach_tries = 0  # extra episodes spent walking onto the stand point of a hand phase
+        self.max_approach = 4
 
     @property
     def done(self) -> bool:
@@ -229,6 +247,19 @@ class Controller:
         i = int(np.argmin(np.linalg.norm(q - p, axis=1)))
         return float(cum[i] + t[i] * np.linalg.norm(ab[i]))
 
+    def _approach_goal(self, p: Phase | None, pelvis_xy: np.ndarray) -> np.ndarray | None:
+        """The stand point (2,) of a hand phase that is about to start while the pelvis is farther
+        than ``arrive_m`` from it (at most ``max_approach`` extra walking episodes), else None."""
+        if p is None or p.hand_goal is None or self.elapsed > 0 or self.index == 0:
+            self.approach_tries = 0 if p is None or self.elapsed > 0 else self.approach_tries
+            return None
+        prev = self.phases[self.index - 1]
+        if prev.kind != "walk" or self.approach_tries >= self.max_approach or "walk" not in self.col or \
+                np.linalg.norm(np.asarray(prev.goal) - pelvis_xy) <= self.arrive:
+            return None
+        self.approach_tries += 1
+        return np.asarray(prev.goal, np.float64)
+
     def next(self, pelvis_xy: np.ndarray, prev_labels: np.ndarray) -> EpisodeControl:
         """Control of the next episode given the body's pelvis xy (2,) at its first new frame
         and the labels of the k transition frames (k, N_A)."""
@@ -242,6 +273,11 @@ class Controller:
         hand, hand_frame, guide, heading = "right_wrist", -1, True, None
         f = k
         p = self.phases[self.index] if not self.done else None
+        approach = self._approach_goal(p, pelvis_xy)
+        if approach is not None:  # the body lags behind its path: finish walking before the hand phase
+            labels[k:, self.col["walk"]] = 2.0
+            phase_of[k:] = self.index - 1
+            return EpisodeControl(approach, labels, phase_of)
         if p is not None and p.kind == "walk":  # anchor on the path where the body really is (closed loop)
             cum = self._arc(p.path)
             self.walk_s = max(self.body_s, self._project(p.path, cum, np.asarray(pelvis_xy, np.float64)))
@@ -260,10 +296,14 @@ class Controller:
                 self.walk_s = float(min(s[-1], cum[-1]))
                 f += n
                 if self.walk_s >= cum[-1] - 1e-6:
+                    if self.index + 1 < len(self.phases) and self.phases[self.index + 1].hand_goal is not None:
+                        labels[f:, self.col["walk"]] = 2.0  # a hand phase starts with an episode (_approach_goal)
+                        phase_of[f:] = self.index
+                        f = L
                     self.index, self.elapsed, self.walk_s, self.body_s = self.index + 1, 0, 0.0, 0.0
             else:
                 n = min(L - f, p.frames - self.elapsed)
-                prog = (self.elapsed + np.arange(1, n + 1)) / p.frames
+                prog = p.span[0] + (p.span[1] - p.span[0]) * (self.elapsed + np.arange(1, n + 1)) / p.frames
                 for j, a in enumerate(p.actions):
                     if a in self.col:
                         labels[f:f + n, self.col[a]] = 1.0 + (prog if j == 0 else 0.5)

@@ -10,7 +10,9 @@ A plan is a start (floor point ``(x, y)`` m and heading rad, both optional) and 
 - ``reach``    ``target = NAME or [x, y, z]``, ``hand = left|right``
 - ``act``      ``action = NAME`` (drink, phone_call, type, ...), ``seconds``
 - ``open`` / ``close`` ``object = NAME`` (a door or drawer)
-- ``pick_up`` / ``put_down`` ``object = NAME``
+- ``pick_up`` ``object = NAME``                     a free (6-DoF) object
+- ``put_down`` ``object = NAME``, ``target = SURFACE or [x, y, z]`` (optional: where it goes; default
+  back where it was picked up)
 
 Plans are read from JSON or TOML (``{"start": [x, y], "heading": h, "steps": [{"do": "goto",
 "to": [1, 2]}, ...]}``) or built from command-line flags (``sample.cli``). ``validate_plan``
@@ -28,6 +30,8 @@ from typing import Literal
 
 import numpy as np
 
+from .carry_plan import validate_carry
+
 __all__ = ["Step", "Plan", "STEP_KINDS", "load_plan", "plan_from_dict", "validate_plan"]
 
 StepKind = Literal["goto", "sit_on", "lie_on", "stand_up", "get_up", "reach", "act", "open", "close",
@@ -37,7 +41,7 @@ STEP_KINDS: tuple[str, ...] = ("goto", "sit_on", "lie_on", "stand_up", "get_up",
 _FIELDS: dict[str, set[str]] = {
     "goto": {"to"}, "sit_on": {"object", "seconds"}, "lie_on": {"object", "seconds"}, "stand_up": set(),
     "get_up": set(), "reach": {"target", "hand"}, "act": {"action", "seconds"}, "open": {"object"},
-    "close": {"object"}, "pick_up": {"object"}, "put_down": {"object"},
+    "close": {"object"}, "pick_up": {"object"}, "put_down": {"object", "target"},
 }
 _REQUIRED: dict[str, set[str]] = {
     "goto": {"to"}, "sit_on": {"object"}, "lie_on": {"object"}, "reach": {"target"}, "act": {"action"},
@@ -192,3 +196,4 @@ def validate_plan(plan: Plan, scene, vocabulary: list[str]) -> None:
         lacking = [a for a in needed if a not in vocab]
         if lacking:
             raise ValueError(f"{where}: the model's vocabulary lacks {lacking}; it cannot do this step")
+    validate_carry(plan, scene)

@@ -19,6 +19,7 @@ import torch
 from trumans.model.checkpoint import Checkpoint
 from trumans.skeleton import JOINT_INDEX
 
+from .carry_plan import planned_object_poses
 from .controller import Controller, Phase, compile_plan
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
@@ -100,11 +101,12 @@ class _Episode:
 def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
           lengths: np.ndarray, generator: torch.Generator | None) -> _Episode:
     """One episode for every sample, projected onto the bone ``lengths``."""
+    moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
     goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading) if c.hand_goal is None else
              Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide) for c in ctrls]
     labels = np.stack([c.labels for c in ctrls])
-    world = sampler.episode(context, labels, goals, generator=generator)
+    world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
     bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
     raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
     world = project_bones(world, lengths)

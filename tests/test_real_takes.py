@@ -108,9 +108,9 @@ def test_built_real_takes(built, tmp_path):
         seq = load_sequence(out / rel)
         assert str(seq.extra["source"]) == src and seq.action_names == list(SYNTH_ACTIONS)
         assert seq.contacts.shape == (seq.num_frames, 24) and seq.rotations.shape == (seq.num_frames, 24, 6)
-        # the recorded motion, moved rigidly: same bone lengths and heights
+        # the recorded motion moved rigidly (heights kept), through the rotation fit (a few mm)
         clip = train_names[name]
-        np.testing.assert_allclose(seq.joints[..., 2], clip.joints[..., 2], atol=1e-4)
+        np.testing.assert_allclose(seq.joints[..., 2], clip.joints[..., 2], atol=0.01)
         # the walked path is free: walkable in the room without the furniture fitted to the clip
         scene = load_scene(out / index["scenes"][seq.scene])
         free = _without(scene, scene.meta["fitted"])

@@ -19,6 +19,7 @@ import numpy as np
 from scenes.procedural import approach_points, floor_footprints, make_room
 from scenes.scene import Scene, SceneObject
 
+from trumans.rotations import yaw_matrix
 from trumans.scene_fit import fit_scene
 from trumans.skeleton import JOINT_INDEX
 
@@ -51,9 +52,7 @@ class Placement:
 
 def turn_and_move(joints: np.ndarray, yaw: float, shift: np.ndarray) -> np.ndarray:
     """(T, 24, 3) joints turned by ``yaw`` (rad) about the z axis through the origin, then moved by ``shift`` (2,) m."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return np.asarray(joints, np.float64) @ R.T + np.array([shift[0], shift[1], 0.0])
+    return np.asarray(joints, np.float64) @ yaw_matrix(yaw).T + np.array([shift[0], shift[1], 0.0])
 
 
 def quad_distance(points: np.ndarray, quad: np.ndarray) -> np.ndarray:
@@ -160,5 +159,4 @@ def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps
 
 def _centre_shift(centre: np.ndarray, yaw: float) -> np.ndarray:
     """The part of the total shift that undoes the centring: -R(yaw) centre (2,) m."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return -np.array([c * centre[0] - s * centre[1], s * centre[0] + c * centre[1]])
+    return -(yaw_matrix(yaw)[:2, :2] @ centre)

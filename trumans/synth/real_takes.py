@@ -7,8 +7,9 @@ sit / stand_up / lie_down / lie / get_up are names of ``SYNTH_ACTIONS``) as half
 (``trumans.actions``); where the CMU description names a whole-clip activity (drinking, a phone
 call, typing) it labels the held stand / sit frames, and "carry" labels the walking frames.
 Contacts: ``trumans.contacts.rule`` on the room with its fitted seats / beds, as for procedural
-takes. Rotations: ``trumans.ik.fit.fit_rotations`` (the joints stay the recorded ones; the fit
-error is recorded). The sequence says where it comes from: ``extra/source = "cmu:<clip>"``.
+takes. Rotations: ``trumans.ik.fit.fit_rotations``; the joints are their forward kinematics (exact
+bone lengths, as in procedural takes), within ``fit_error_max_mm`` (a few mm) of the recording.
+The sequence says where it comes from: ``extra/source = "cmu:<clip>"``.
 """
 from __future__ import annotations
 
@@ -22,10 +23,10 @@ from trumans import metrics
 from trumans.actions import ActionInterval, labels_from_intervals
 from trumans.contacts.intervals import runs
 from trumans.contacts.rule import CONTACT_THRESHOLD, ContactScene, contact_rule
-from trumans.ik.fit import fit_error, fit_rotations
+from trumans.ik.fit import fit_rotations
 from trumans.mocap_corpus import MocapClip, load_corpus
 from trumans.motion_labels import MOTION_STATES
-from trumans.rotations import matrix_to_6d
+from trumans.rotations import matrix_to_6d, yaw_matrix
 from trumans.sequence import ObjectTrack, Sequence, atomic_write, save_sequence
 from trumans.skeleton import FEET, forward_kinematics
 from .real_place import place_clip
@@ -33,7 +34,9 @@ from .vocab import SYNTH_ACTIONS
 
 __all__ = ["select_clips", "real_room_id", "clip_labels", "real_sequence", "build_real_room", "DESCRIPTION_ACTIONS"]
 
-REAL_VERSION = "1"  # bump when the placement, labels or contacts of real takes change (rebuilds real rooms)
+REAL_VERSION = "3"  # bump when the placement, labels or contacts of real takes change (rebuilds real rooms)
+
+TRIM_ERROR_M = 0.01  # m, leading / trailing frames fitted worse than this are dropped
 
 # description word -> (action, the body states it labels)
 DESCRIPTION_ACTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -73,19 +76,43 @@ def clip_labels(states: np.ndarray, description: str) -> np.ndarray:
     return labels_from_intervals(intervals, list(SYNTH_ACTIONS), T)
 
 
+def fit_clip(joints: np.ndarray) -> tuple[slice, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Rotations of a recorded clip (T, 24, 3) m, without the leading / trailing frames that no
+    pose of one skeleton reproduces within ``TRIM_ERROR_M`` (a few corpus clips start with a
+    converter's frame of other bone lengths). Returns (kept frames, rot (T', 24, 3, 3), root (T', 3),
+    offsets (24, 3), per-frame fit error (T',) m)."""
+    rec = np.asarray(joints, np.float64)
+    rot, root, off = fit_rotations(rec)
+    P, _ = forward_kinematics(rot, root, off)
+    err = np.linalg.norm(P - rec, axis=-1).max(axis=1)
+    good = np.flatnonzero(err <= TRIM_ERROR_M)
+    if len(good) == 0:
+        raise ValueError(f"no frame of the clip fits one skeleton within {TRIM_ERROR_M} m")
+    keep = slice(int(good[0]), int(good[-1]) + 1)
+    if keep != slice(0, len(rec)):  # refit without the odd frames: they skew the measured offsets
+        rot, root, off = fit_rotations(rec[keep])
+        P, _ = forward_kinematics(rot, root, off)
+        err = np.linalg.norm(P - rec[keep], axis=-1).max(axis=1)
+    return keep, rot, root, off, err
+
+
 def real_sequence(clip: MocapClip, seed: int) -> tuple[Sequence, dict] | None:
-    """The clip placed in its room, as a dataset sequence (``scene`` = its room id; the scene is
-    ``sequence.extra`` ... see ``build_real_room``), plus its metric terms; None if it fits no room."""
+    """The clip placed in its room as a dataset sequence (``scene`` = its room id) and its metric
+    terms (with the ``Placement``); None if it fits no room."""
     rid = real_room_id(clip)
-    pl = place_clip(clip.joints, clip.states, seed, clip.name, clip.fps)
+    keep, rot, root, off, err = fit_clip(clip.joints)
+    states = clip.states[keep]
+    pl = place_clip(clip.joints[keep], states, seed, clip.name, clip.fps)
     if pl is None:
         return None
     pl.scene.name = rid
-    P = pl.joints.astype(np.float64)
+    # the placement turns the whole clip by yaw about z and moves it: only the root changes
+    Rz = yaw_matrix(pl.yaw)
+    rot = rot.copy()
+    rot[:, 0] = Rz @ rot[:, 0]
+    root = root @ Rz.T + np.array([pl.shift[0], pl.shift[1], 0.0])
+    P, G = forward_kinematics(rot, root, off)  # joints and rotations agree exactly (as in procedural takes)
     T = len(P)
-    rot, root, off = fit_rotations(P)
-    _, G = forward_kinematics(rot, root, off)
-    err = fit_error(P, rot, root, off)
     contacts = ContactScene(pl.scene)
     tracks = {n: np.broadcast_to(o.pose, (T, 4, 4)).astype(np.float64)
               for n, o in pl.scene.objects.items() if o.dynamic}
@@ -94,14 +121,14 @@ def real_sequence(clip: MocapClip, seed: int) -> tuple[Sequence, dict] | None:
     foot_floor = con.contact[:, list(FEET)] & (np.abs(con.closest[:, list(FEET), 2]) < 0.005)
     seq = Sequence(
         joints=P.astype(np.float32), fps=clip.fps, rotations=matrix_to_6d(rot).astype(np.float32),
-        root_pos=root.astype(np.float32), actions=clip_labels(clip.states, clip.description),
+        root_pos=root.astype(np.float32), actions=clip_labels(states, clip.description),
         action_names=list(SYNTH_ACTIONS), contacts=con.contact, scene=rid,
         objects={n: ObjectTrack(pose=p.astype(np.float32), category=pl.scene.objects[n].category)
                  for n, p in tracks.items()},
         extra={"offsets": off.astype(np.float32), "foot_contact": foot_floor, "grasp": np.zeros((T, 2), bool),
                "source": np.asarray(f"cmu:{clip.name}")},
     )
-    terms = {"fit_error_max_mm": 1e3 * err["max"], "penetration": con.penetration.astype(np.float64),
+    terms = {"fit_error_max_mm": 1e3 * float(err.max()), "trimmed_frames": len(clip.joints) - T, "penetration": con.penetration.astype(np.float64),
              "foot_floor": foot_floor, "offsets": off, "placement": pl}
     return seq, terms
 
@@ -149,7 +176,8 @@ def build_real_room(out: Path, clip: MocapClip, seed: int, key: str) -> dict:
             "bone_length_dev_mm": metrics.bone_length_dev_mm(seq.joints, terms["offsets"]),
             "penetration_max_cm": metrics.penetration_max_cm(terms["penetration"]),
             "foot_slide_sum_m": float(slides.sum()), "foot_steps": int(len(slides)),
-            "fit_error_max_mm": terms["fit_error_max_mm"], "removed_for_path": pl.removed, "fitted": pl.fitted,
+            "fit_error_max_mm": terms["fit_error_max_mm"], "trimmed_frames": terms["trimmed_frames"],
+            "removed_for_path": pl.removed, "fitted": pl.fitted,
             "placement_attempt": pl.attempt,
         })
     rec["seconds"] = time.perf_counter() - t0

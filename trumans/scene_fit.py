@@ -1,11 +1,13 @@
 """Scenes fitted to real motion: a seat under every seated pelvis, a bed under a raised lying body.
 
-Seats are boxes standing on the floor (category "seat", ``scenes.furniture`` frame conventions:
-origin at the footprint centre on the floor, +x = the direction the sitter faces). From the
-seated run of frames (``trumans.motion_labels``): the facing direction is the mean horizontal
-thigh direction; the seat top is ``SEAT_BELOW_HIP_M`` under the hip joints; the seat reaches
-``SEAT_BEHIND_HIP_M`` behind the hips and ``SEAT_THIGH_SHARE`` of the thigh length in front of
-them, and is the hip width plus ``SEAT_SIDE_M`` on each side wide. A lying body whose pelvis rests
+Seats stand on the floor (category "seat", ``scenes.furniture`` frame conventions: origin at the
+footprint centre on the floor, +x = the direction the sitter faces). From the seated run of
+frames (``trumans.motion_labels``): the facing direction is the mean horizontal thigh direction;
+the seat top is ``SEAT_BELOW_HIP_M`` under the hip joints (their ``SEAT_HIP_PERCENTILE``-th
+percentile height over the run); the seat reaches ``SEAT_BEHIND_HIP_M`` behind the hips and
+``SEAT_THIGH_SHARE`` of the thigh length in front of them, and is the hip width plus
+``SEAT_SIDE_M`` on each side wide; it is a top on four legs (the feet of a sitter on a high
+stool go under it). A lying body whose pelvis rests
 more than ``BED_MIN_HEIGHT_M`` above the floor gets a bed box under it; lower ones lie on the floor.
 """
 from __future__ import annotations
@@ -26,14 +28,31 @@ SEAT_BEHIND_HIP_M = 0.12
 SEAT_THIGH_SHARE = 0.75
 SEAT_SIDE_M = 0.10
 MIN_SEAT_M = 0.20  # lower "seats" are the floor (or a crouch)
+SEAT_TOP_M = 0.05  # m, thickness of a fitted seat's top
+SEAT_LEG_M = 0.04  # m, side of a fitted seat's square legs
+SEAT_HIP_PERCENTILE = 10  # the seat top follows the lower hip heights of the run (slouching sinks in)
 BED_MIN_HEIGHT_M = 0.30
 BED_BELOW_BODY_M = 0.08
 
 
 def _box_object(name: str, category: str, x: float, y: float, yaw: float, depth: float, width: float,
-                height: float, meta: dict) -> SceneObject:
-    mesh = trimesh.creation.box(extents=(depth, width, height))
-    mesh.apply_translation((0.0, 0.0, height / 2))
+                height: float, meta: dict, legs: bool = False) -> SceneObject:
+    """A box (depth, width, height) m standing on the floor; with ``legs`` a top of ``SEAT_TOP_M``
+    on four ``SEAT_LEG_M`` square legs at its corners (feet tucked under a stool stay free)."""
+    if legs and height > SEAT_TOP_M + 0.05:
+        top = trimesh.creation.box(extents=(depth, width, SEAT_TOP_M))
+        top.apply_translation((0.0, 0.0, height - SEAT_TOP_M / 2))
+        h = height - SEAT_TOP_M
+        parts = [top]
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                leg = trimesh.creation.box(extents=(SEAT_LEG_M, SEAT_LEG_M, h))
+                leg.apply_translation((sx * (depth - SEAT_LEG_M) / 2, sy * (width - SEAT_LEG_M) / 2, h / 2))
+                parts.append(leg)
+        mesh = trimesh.util.concatenate(parts)
+    else:
+        mesh = trimesh.creation.box(extents=(depth, width, height))
+        mesh.apply_translation((0.0, 0.0, height / 2))
     meta = {"size": [depth, width, height], **meta}
     return SceneObject(name, category, mesh, pose=yaw_pose(x, y, yaw), meta=meta)
 
@@ -54,7 +73,7 @@ def fit_seats(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_sec
         fwd = thigh / np.linalg.norm(thigh)
         yaw = float(np.arctan2(fwd[1], fwd[0]))
         hip_mid = np.median(hips.mean(axis=1), axis=0)
-        height = float(hip_mid[2] - SEAT_BELOW_HIP_M)
+        height = float(np.percentile(hips.mean(axis=1)[:, 2], SEAT_HIP_PERCENTILE) - SEAT_BELOW_HIP_M)
         if height < MIN_SEAT_M:
             continue
         thigh_len = float(np.median(np.linalg.norm(knees - hips, axis=-1)))
@@ -64,7 +83,7 @@ def fit_seats(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_sec
         meta = {"seat_height": height, "seat_center": [0.0, 0.0, height], "sit_yaw": 0.0,
                 "frames": [int(s), int(e)], "fitted": "seated pelvis"}
         out.append(_box_object(f"seat_{len(out)}", "seat", float(centre[0]), float(centre[1]), yaw,
-                               front + back, width, height, meta))
+                               front + back, width, height, meta, legs=True))
     return out
 
 

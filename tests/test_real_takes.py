@@ -126,3 +126,41 @@ def test_real_share_zero_adds_nothing(tmp_path):
     assert "real" not in s
     with pytest.raises(ValueError, match="real_share"):
         SynthConfig(out="x", real_share=1.5)
+
+
+def test_fit_scene_one_seat_per_place_and_none_in_the_way(train):
+    from trumans.scene_fit import fit_scene, fit_seats, in_the_way
+
+    clip = next(c for c in train if c.name == "14_28")  # sits twice on the same high stool
+    assert len(fit_seats(clip.joints, clip.states)) == 2
+    (seat,) = fit_scene(clip.joints, clip.states).objects.values()
+    assert len(seat.meta["runs"]) == 2
+    # a joint inside the seat for >= 0.5 s far from any seated run: the seat is in the way
+    T = 400
+    sit = MOTION_STATES.index("sit")
+    joints = np.repeat(clip.joints[seat.meta["frames"][0]][None], T, 0).astype(np.float64)
+    states = np.full(T, MOTION_STATES.index("stand"))
+    seat.meta["frames"], states[:60] = [0, 60], sit
+    top = seat.meta["seat_height"]
+    joints[300:300 + 15, JOINT_INDEX["left_wrist"]] = seat.pose[:3, 3] + [0.0, 0.0, top - 0.02]
+    assert in_the_way(seat, joints, states)
+    assert not in_the_way(seat, joints[:310], states[:310])  # only 10 frames inside
+    states[290:330] = sit  # seated again there: the wrist resting on the seat is no conflict
+    assert not in_the_way(seat, joints, states)
+
+
+def test_realism_source_filter(built, capsys):
+    import json
+
+    from trumans.cli import console_main
+    from trumans.realism_cli import load_clips
+
+    out, s = built
+    index = json.loads((out / "index.json").read_text())
+    real = load_clips(str(out), source="real")
+    proc = load_clips(str(out), source="procedural")
+    assert len(real) == len(index["real"]) and len(real) + len(proc) == s["sequences"] and len(proc) >= 1
+    assert sorted(len(j) for j in real) == sorted(
+        len(load_sequence(out / r).joints) for r in index["real"])
+    assert console_main(["eval", "realism", "corpus:train", "--source", "real"]) == 2
+    assert "drop --source" in capsys.readouterr().err

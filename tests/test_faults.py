@@ -71,7 +71,8 @@ def clean_synth(tmp_path_factory):
 def test_kill_synth_then_resume(clean_synth, tmp_path):
     clean, s = clean_synth
     out = tmp_path / "killed"
-    argv = ["data", "synth", "--out", str(out), "--hours", "0.004", "--rooms", "2", "--seed", "4", "--workers", "2"]
+    argv = ["data", "synth", "--out", str(out), "--hours", "0.004", "--rooms", "2", "--seed", "4", "--workers", "2",
+            "--real-share", "0"]
     sid = _kill_when(argv, lambda: (out / "scenes" / "room_000").is_dir() or (out / "scenes" / "room_001").is_dir())
     _no_orphans(sid, out)
     assert not (out / "index.json").exists()

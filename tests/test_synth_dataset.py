@@ -96,7 +96,7 @@ def test_determinism_and_resume(built, tmp_path):
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        assert main(["data", "synth", "--out", str(out), "--hours", "0.012", "--rooms", "3", "--seed", "5",
+        assert main(["data", "synth", "--out", str(out), "--hours", "0.012", "--rooms", "3", "--seed", "5", "--real-share", "0",
                      "--json"]) == 0
     last = json.loads(buf.getvalue().strip().splitlines()[-1])
     assert last["resumed_rooms"] == 3 and last["hash"] == s["hash"]

@@ -17,12 +17,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the real motion to compare with: same forms as DATASET (default corpus:test, the held-out CMU clips)")
     p.add_argument("--split", choices=["train", "val", "test", "all"], default="all",
                    help="which split of a dataset folder to measure (default all)")
+    p.add_argument("--source", choices=["all", "real", "procedural"], default="all",
+                   help="which takes of a `trumans data synth` dataset to measure: the real (mocap) takes its index "
+                        "lists under 'real', the procedural ones, or all (default)")
     p.add_argument("--max-clips", type=int, help="measure at most this many clips of DATASET (the first ones)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
 
 
-def load_clips(spec: str, split: str = "all", max_clips: int | None = None) -> list[np.ndarray]:
-    """Joints (T, 24, 3) at 30 fps of every clip of a dataset folder, a corpus npz or 'corpus:SPLIT'."""
+def load_clips(spec: str, split: str = "all", max_clips: int | None = None, source: str = "all") -> list[np.ndarray]:
+    """Joints (T, 24, 3) at 30 fps of every clip of a dataset folder, a corpus npz or 'corpus:SPLIT'
+    (``source``: "real" / "procedural" keeps a dataset folder's real / procedural takes only)."""
     from trumans.mocap_corpus import load_corpus
 
     if spec.startswith("corpus:"):
@@ -40,6 +44,9 @@ def load_clips(spec: str, split: str = "all", max_clips: int | None = None) -> l
                                     "`trumans data synth` / `trumans data import`, a corpus .npz or corpus:test")
         index = json.loads((root / "index.json").read_text())
         rels = [r for s, rs in index["splits"].items() if split in ("all", s) for r in rs]
+        if source != "all":
+            real = set(index.get("real", {}))
+            rels = [r for r in rels if (r in real) == (source == "real")]
         if max_clips:
             rels = rels[:max_clips]
         clips = []
@@ -55,7 +62,11 @@ def load_clips(spec: str, split: str = "all", max_clips: int | None = None) -> l
 def run(args: argparse.Namespace) -> int:
     from trumans.realism import compare
 
-    data = load_clips(args.dataset or "corpus:train", args.split, args.max_clips)
+    spec = args.dataset or "corpus:train"
+    if args.source != "all" and (spec.startswith("corpus:") or spec.endswith(".npz")):
+        raise ValueError(f"--source {args.source} selects takes of a dataset folder; {spec} "
+                         "is a corpus (all real): drop --source")
+    data = load_clips(spec, args.split, args.max_clips, args.source)
     ref = load_clips(args.reference)
     if not data or not ref:
         raise ValueError(f"nothing to compare: {len(data)} dataset clips, {len(ref)} reference clips")

@@ -1,12 +1,16 @@
 """Scenes fitted to real motion: a seat under every seated pelvis, a bed under a raised lying body.
 
-Seats are boxes standing on the floor (category "seat", ``scenes.furniture`` frame conventions:
-origin at the footprint centre on the floor, +x = the direction the sitter faces). From the
-seated run of frames (``trumans.motion_labels``): the facing direction is the mean horizontal
-thigh direction; the seat top is ``SEAT_BELOW_HIP_M`` under the hip joints; the seat reaches
-``SEAT_BEHIND_HIP_M`` behind the hips and ``SEAT_THIGH_SHARE`` of the thigh length in front of
-them, and is the hip width plus ``SEAT_SIDE_M`` on each side wide. A lying body whose pelvis rests
+Seats stand on the floor (category "seat", ``scenes.furniture`` frame conventions: origin at the
+footprint centre on the floor, +x = the direction the sitter faces). From the seated run of
+frames (``trumans.motion_labels``): the facing direction is the mean horizontal thigh direction;
+the seat top is ``SEAT_BELOW_HIP_M`` under the hip joints (their ``SEAT_HIP_PERCENTILE``-th
+percentile height over the run); the seat reaches ``SEAT_BEHIND_HIP_M`` behind the hips and
+``SEAT_THIGH_SHARE`` of the thigh length in front of them, and is the hip width plus
+``SEAT_SIDE_M`` on each side wide; it is a top on four legs (the feet of a sitter on a high
+stool go under it). A lying body whose pelvis rests
 more than ``BED_MIN_HEIGHT_M`` above the floor gets a bed box under it; lower ones lie on the floor.
+``fit_scene`` keeps one object per place (a seat sat on twice) and drops a fitted object the
+body passes through at other times (``in_the_way``).
 """
 from __future__ import annotations
 
@@ -19,21 +23,41 @@ from scenes.scene import Scene, SceneObject
 from .motion_labels import MOTION_STATES, segments
 from .skeleton import JOINT_INDEX as J
 
-__all__ = ["fit_seats", "fit_beds", "fit_scene", "fitted_contacts", "SEAT_BELOW_HIP_M"]
+__all__ = ["fit_seats", "fit_beds", "fit_scene", "in_the_way", "fitted_contacts", "SEAT_BELOW_HIP_M"]
 
 SEAT_BELOW_HIP_M = 0.10  # hip joint centres sit this far above the seat surface (soft tissue + pelvis)
 SEAT_BEHIND_HIP_M = 0.12
 SEAT_THIGH_SHARE = 0.75
 SEAT_SIDE_M = 0.10
 MIN_SEAT_M = 0.20  # lower "seats" are the floor (or a crouch)
+SEAT_TOP_M = 0.05  # m, thickness of a fitted seat's top
+SEAT_LEG_M = 0.04  # m, side of a fitted seat's square legs
+SEAT_HIP_PERCENTILE = 10  # the seat top follows the lower hip heights of the run (slouching sinks in)
+SAME_PLACE_M = 0.25  # m, fits this close (centre, height) are one seat / bed used again
+TRANSITION_S = 3.0  # s around a fitted run where the body sits down / gets up (may touch the object)
+IN_THE_WAY_S = 0.5  # s of other frames with a joint inside a fitted object that disqualify it
 BED_MIN_HEIGHT_M = 0.30
 BED_BELOW_BODY_M = 0.08
 
 
 def _box_object(name: str, category: str, x: float, y: float, yaw: float, depth: float, width: float,
-                height: float, meta: dict) -> SceneObject:
-    mesh = trimesh.creation.box(extents=(depth, width, height))
-    mesh.apply_translation((0.0, 0.0, height / 2))
+                height: float, meta: dict, legs: bool = False) -> SceneObject:
+    """A box (depth, width, height) m standing on the floor; with ``legs`` a top of ``SEAT_TOP_M``
+    on four ``SEAT_LEG_M`` square legs at its corners (feet tucked under a stool stay free)."""
+    if legs and height > SEAT_TOP_M + 0.05:
+        top = trimesh.creation.box(extents=(depth, width, SEAT_TOP_M))
+        top.apply_translation((0.0, 0.0, height - SEAT_TOP_M / 2))
+        h = height - SEAT_TOP_M
+        parts = [top]
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                leg = trimesh.creation.box(extents=(SEAT_LEG_M, SEAT_LEG_M, h))
+                leg.apply_translation((sx * (depth - SEAT_LEG_M) / 2, sy * (width - SEAT_LEG_M) / 2, h / 2))
+                parts.append(leg)
+        mesh = trimesh.util.concatenate(parts)
+    else:
+        mesh = trimesh.creation.box(extents=(depth, width, height))
+        mesh.apply_translation((0.0, 0.0, height / 2))
     meta = {"size": [depth, width, height], **meta}
     return SceneObject(name, category, mesh, pose=yaw_pose(x, y, yaw), meta=meta)
 
@@ -54,7 +78,7 @@ def fit_seats(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_sec
         fwd = thigh / np.linalg.norm(thigh)
         yaw = float(np.arctan2(fwd[1], fwd[0]))
         hip_mid = np.median(hips.mean(axis=1), axis=0)
-        height = float(hip_mid[2] - SEAT_BELOW_HIP_M)
+        height = float(np.percentile(hips.mean(axis=1)[:, 2], SEAT_HIP_PERCENTILE) - SEAT_BELOW_HIP_M)
         if height < MIN_SEAT_M:
             continue
         thigh_len = float(np.median(np.linalg.norm(knees - hips, axis=-1)))
@@ -64,7 +88,7 @@ def fit_seats(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_sec
         meta = {"seat_height": height, "seat_center": [0.0, 0.0, height], "sit_yaw": 0.0,
                 "frames": [int(s), int(e)], "fitted": "seated pelvis"}
         out.append(_box_object(f"seat_{len(out)}", "seat", float(centre[0]), float(centre[1]), yaw,
-                               front + back, width, height, meta))
+                               front + back, width, height, meta, legs=True))
     return out
 
 
@@ -96,9 +120,45 @@ def fit_beds(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_seco
     return out
 
 
+def _merge_same(objs: list[SceneObject]) -> list[SceneObject]:
+    """One object per place: a later fit within ``SAME_PLACE_M`` (centre) and ``SAME_PLACE_M`` (height)
+    of a kept one is the same seat / bed sat on again; its run joins the kept one's meta "runs"."""
+    kept: list[SceneObject] = []
+    for o in objs:
+        same = next((k for k in kept if np.linalg.norm(k.pose[:3, 3] - o.pose[:3, 3]) < SAME_PLACE_M
+                     and abs(k.meta["size"][2] - o.meta["size"][2]) < SAME_PLACE_M), None)
+        if same is None:
+            o.meta["runs"] = [o.meta["frames"]]
+            kept.append(o)
+        else:
+            same.meta["runs"].append(o.meta["frames"])
+    return kept
+
+
+def in_the_way(obj: SceneObject, joints: np.ndarray, states: np.ndarray, fps: float = 30.0) -> bool:
+    """Is a fitted object where the body is at other times? True when some joint of joints
+    (T, 24, 3) m is inside its mesh on at least ``IN_THE_WAY_S`` s of frames farther than
+    ``TRANSITION_S`` s from every run of its state ("sit" for a seat, "lie" for a bed; per-frame
+    ``states``): a kneel or a sit on the floor taken for a seat, a body on the floor taken for one
+    on a bed."""
+    pad = int(round(TRANSITION_S * fps))
+    t = np.arange(len(joints))
+    other = np.ones(len(t), bool)
+    held = MOTION_STATES.index("lie" if obj.category == "bed" else "sit")
+    for s, e in segments(np.asarray(states) == held):
+        other &= (t < s - pad) | (t >= e + pad)
+    if not other.any():
+        return False
+    pts = np.asarray(joints, np.float64)[other]
+    inside = obj.world_mesh().contains(pts.reshape(-1, 3)).reshape(pts.shape[:2]).any(axis=1)
+    return bool(inside.sum() >= IN_THE_WAY_S * fps)
+
+
 def fit_scene(joints: np.ndarray, states: np.ndarray, name: str = "fitted", fps: float = 30.0) -> Scene:
-    """A scene for a real clip: the fitted seats and beds (the floor z = 0 is implicit)."""
-    objects = fit_seats(joints, states, fps) + fit_beds(joints, states, fps)
+    """A scene for a real clip: the fitted seats and beds (the floor z = 0 is implicit), without
+    those the body goes through at other times (``in_the_way``)."""
+    objects = [o for o in _merge_same(fit_seats(joints, states, fps)) + _merge_same(fit_beds(joints, states, fps))
+               if not in_the_way(o, joints, states, fps)]
     return Scene(name=name, objects={o.name: o for o in objects}, meta={"fitted_to_motion": True})
 
 

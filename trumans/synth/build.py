@@ -37,7 +37,8 @@ FPS = 30
 class SynthConfig:
     """out: dataset folder; hours: total motion (h); rooms: number of procedural rooms; seed;
     workers: processes (rooms in parallel); take_seconds: (min, max) take length (s);
-    split: train/val/test fractions of the rooms."""
+    split: train/val/test fractions of the rooms; real_share: share of the mocap corpus's train
+    clips added as real takes, each in a room of its own (``real_takes``; 0 = procedural only)."""
 
     out: str
     hours: float = 2.0
@@ -46,6 +47,7 @@ class SynthConfig:
     workers: int = 0  # 0 = os.cpu_count()
     take_seconds: tuple[float, float] = (30.0, 90.0)
     split: tuple[float, float, float] = (0.8, 0.1, 0.1)
+    real_share: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.hours > 0 and math.isfinite(self.hours)):
@@ -59,6 +61,8 @@ class SynthConfig:
             raise ValueError(f"take_seconds must be (min, max) with 0 < min <= max, got {self.take_seconds}")
         if len(self.split) != 3 or min(self.split) < 0 or abs(sum(self.split) - 1) > 1e-6:
             raise ValueError(f"split must be three fractions summing to 1, got {self.split}")
+        if not 0.0 <= self.real_share <= 1.0:
+            raise ValueError(f"real_share must be in [0, 1] (the share of the corpus's train clips), got {self.real_share}")
 
     @property
     def room_frames(self) -> int:
@@ -91,6 +95,27 @@ def split_rooms(ids: list[str], seed: int, fractions: tuple[float, float, float]
 def _room_key(cfg: SynthConfig, index: int) -> str:
     s = json.dumps([DATASET_VERSION, cfg.seed, index, cfg.room_frames, list(cfg.take_seconds), FPS])
     return hashlib.sha256(s.encode()).hexdigest()[:16]
+
+
+def _settings(cfg: SynthConfig) -> dict:
+    """The settings that define the data (``real_share`` only when real takes are asked for, so a
+    procedural-only build is byte-identical to one made before real takes existed)."""
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()
+            if k not in ("out", "workers") and not (k == "real_share" and v == 0)}
+
+
+def _real_job(job: tuple) -> dict:
+    """Build the room and take of one real clip (``real_takes.build_real_room``)."""
+    from .real_takes import REAL_VERSION, build_real_room
+
+    cfg, clip = job
+    name_seed = int(hashlib.sha256(clip.name.encode()).hexdigest()[:8], 16)
+    key = hashlib.sha256(json.dumps([DATASET_VERSION, REAL_VERSION, cfg.seed, clip.name, len(clip.joints)]).encode())
+    return build_real_room(Path(cfg.out), clip, _room_seed(cfg.seed, name_seed), key.hexdigest()[:16])
+
+
+def _run_job(job: tuple) -> dict:
+    return _real_job(job[1:]) if job[0] == "real" else _build_room(job[1:])
 
 
 def _room_seed(seed: int, index: int) -> int:
@@ -197,8 +222,7 @@ def build_dataset(cfg: SynthConfig, progress: bool = True, overwrite: bool = Fal
     activities (per scripted activity: performed / skipped as infeasible), hash."""
     from tqdm import tqdm
 
-    settings = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items() if k not in ("out", "workers")}
-    with DatasetWriter(cfg.out, "data synth", settings, overwrite=overwrite) as writer:
+    with DatasetWriter(cfg.out, "data synth", _settings(cfg), overwrite=overwrite) as writer:
         return _build(cfg, writer, progress)
 
 
@@ -208,25 +232,35 @@ def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
     out = writer.root
     t0 = time.perf_counter()
     workers = cfg.workers or os.cpu_count() or 1
-    jobs = [(cfg, i) for i in range(cfg.rooms)]
+    jobs: list[tuple] = [("room", cfg, i) for i in range(cfg.rooms)]
+    if cfg.real_share > 0:
+        from .real_takes import train_clips
+
+        jobs += [("real", cfg, clip) for clip in train_clips(cfg.real_share, cfg.seed)]
     records: list[dict] = []
-    bar = tqdm(total=cfg.rooms, desc="synth rooms", unit="room", disable=not progress, file=sys.stderr)
-    if workers == 1 or cfg.rooms == 1:
+    bar = tqdm(total=len(jobs), desc="synth rooms", unit="room", disable=not progress, file=sys.stderr)
+    if workers == 1 or len(jobs) == 1:
         _init_worker()
         for job in jobs:
-            records.append(_build_room(job))
+            records.append(_run_job(job))
             bar.update(1)
     else:
-        with worker_pool(min(workers, cfg.rooms), "fork") as pool:
-            for rec in pool.imap_unordered(_build_room, jobs):
+        with worker_pool(min(workers, len(jobs)), "fork") as pool:
+            for rec in pool.imap_unordered(_run_job, jobs):
                 records.append(rec)
                 bar.update(1)
     bar.close()
-    records.sort(key=lambda r: r["room"])
     elapsed = time.perf_counter() - t0
+    real_records = sorted((r for r in records if "real" in r), key=lambda r: r["room"])
+    records = sorted((r for r in records if "real" not in r), key=lambda r: r["room"])
+    placed = [r for r in real_records if not r.get("skipped")]
 
     ids = [r["room"] for r in records]
     splits_rooms = split_rooms(ids, cfg.seed, cfg.split)
+    if placed:  # real rooms are split on their own (the procedural split stays as it was)
+        real_split = split_rooms([r["room"] for r in placed], cfg.seed, cfg.split)
+        splits_rooms = {s: sorted(splits_rooms[s] + real_split[s]) for s in SPLITS}
+    records = sorted(records + placed, key=lambda r: r["room"])
     by_room = {r["room"]: r for r in records}
     splits = {s: [p for rid in splits_rooms[s] for p in by_room[rid]["sequences"]] for s in SPLITS}
     frames = sum(r["frames"] for r in records)
@@ -273,6 +307,15 @@ def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
                        "frames": sum(by_room[rid]["frames"] for rid in splits_rooms[s])} for s in SPLITS},
         "resumed_rooms": sum(1 for r in records if r.get("resumed")),
     }
+    if cfg.real_share > 0:
+        summary["real"] = {
+            "clips": len(real_records), "takes": len(placed), "skipped": len(real_records) - len(placed),
+            "skipped_clips": [r["real"] for r in real_records if r.get("skipped")],
+            "frames": sum(r["frames"] for r in placed), "hours": sum(r["frames"] for r in placed) / FPS / 3600.0,
+            "rooms_with_furniture_removed": sum(1 for r in placed if r.get("removed_for_path")),
+            "fitted_objects": sum(len(r.get("fitted", [])) for r in placed),
+            "fit_error_max_mm": max((r["fit_error_max_mm"] for r in placed), default=0.0),
+        }
     index = {
         "name": DATASET_NAME, "version": DATASET_VERSION, "seed": cfg.seed, "fps": FPS,
         "vocabulary": list(SYNTH_ACTIONS), "splits": splits,
@@ -280,9 +323,10 @@ def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
         "scenes": {r["room"]: r["scene_dir"] for r in records},
         "counts": {"sequences": len(files), "frames": frames, "rooms": len(records),
                    "action_frames": action_frames, "scene_categories": categories},
-        "config": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(cfg).items()
-                   if k not in ("out", "workers")},
+        "config": _settings(cfg),
     }
+    if cfg.real_share > 0:
+        index["real"] = {p: r["real"] for r in placed for p in r["sequences"]}
     summary["hash"] = writer.finish(index)
 
     def _write(tmp: str) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from trumans.argtypes import nonneg_int, positive_float, positive_int
+from trumans.argtypes import float_in, nonneg_int, positive_float, positive_int
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -15,13 +15,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rooms", type=positive_int, default=50, help="number of procedural rooms (default 50)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same data)")
     p.add_argument("--workers", type=nonneg_int, default=0, help="worker processes, rooms in parallel (default: CPU count)")
+    p.add_argument("--real-share", type=float_in(0.0, 1.0), default=1.0,
+                   help="share of the mocap corpus's train clips added as real takes, each in a procedural room "
+                        "that leaves its path free (default 1 = all that fit a room; 0 = procedural only)")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
 
 
 def run(args: argparse.Namespace) -> int:
     from .build import SynthConfig, build_dataset
 
-    cfg = SynthConfig(out=args.out, hours=args.hours, rooms=args.rooms, seed=args.seed, workers=args.workers)
+    cfg = SynthConfig(out=args.out, hours=args.hours, rooms=args.rooms, seed=args.seed, workers=args.workers,
+                      real_share=args.real_share)
     summary = build_dataset(cfg, progress=True, overwrite=args.overwrite)
     if args.json:
         print(json.dumps(summary))
@@ -30,6 +34,10 @@ def run(args: argparse.Namespace) -> int:
               f"to {summary['out']} in {summary['seconds']:.0f} s")
         for k in ("bone_length_dev_mm", "foot_skate_cm", "penetration_max_cm", "grasp_dist_cm"):
             print(f"  {k}: {summary[k]:.3f}")
+        if "real" in summary:
+            r = summary["real"]
+            print(f"  real takes: {r['takes']} of {r['clips']} corpus train clips ({r['hours']:.2f} h), "
+                  f"{r['skipped']} fit no room")
         if summary["actions_missing"]:
             print(f"  actions missing: {summary['actions_missing']}")
     return 0

@@ -1,4 +1,4 @@
-"""`trumans eval contacts [CHECKPOINT]`: interaction-tracking figures (iReplica Tabs. 1-3).
+"""`trumans eval contacts [CHECKPOINT | DOF=CHECKPOINT ...]`: interaction-tracking figures (iReplica Tabs. 1-3).
 
 On held-out synthetic sequences (by default a small set built here with a seed that training
 never sees; or ``--data DIR --split test``) whose root is moved by a simulated localisation error:
@@ -32,7 +32,9 @@ __all__ = ["add_arguments", "run", "simulate_drift", "evaluate"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", nargs="?", default=None, help="contact checkpoint (default: the shipped models/contacts.pt)")
+    p.add_argument("checkpoint", nargs="*", default=[], metavar="[DOF=]CHECKPOINT",
+                   help="contact checkpoint (default: the shipped models/contacts.pt, one model with a class head), "
+                        "or DOF=CHECKPOINT for each dof class (slide, hinge, free) to evaluate one model per class")
     p.add_argument("--data", default=None, help="dataset folder (default: a held-out synthetic set built here)")
     p.add_argument("--split", default="test", help="split of --data (default test)")
     p.add_argument("--rooms", type=int, default=4, help="rooms of the held-out set built without --data (default 4)")
@@ -164,14 +166,14 @@ def evaluate(model, sequences: list, scenes: dict, seed: int = 0, stride: int = 
 
 
 def run(args: argparse.Namespace) -> int:
-    from trumans.contacts.model_io import load_predictor
+    from trumans.contacts.model_io import load_contact_models
     from trumans.dataset import Dataset
 
     if args.max_seqs < 1 or args.rooms < 1:
         raise ValueError(f"--max-seqs and --rooms must be >= 1, got {args.max_seqs}, {args.rooms}")
     if args.stride < 1 or args.stride % 2 == 0:
         raise ValueError(f"--stride must be an odd number >= 1, got {args.stride}")
-    model, ckpt = load_predictor(args.checkpoint)
+    model = load_contact_models(args.checkpoint)
     with tempfile.TemporaryDirectory(prefix="trumans_eval_contacts_") as tmp:
         if args.data is None:
             from trumans.synth.build import SynthConfig, build_dataset
@@ -189,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"no sequence with rotations and contacts in {ds.root}; evaluate on a labelled dataset")
         scenes = {sid: ds.scene(sid) for sid in sorted({s.scene for s in seqs})}
         fig = evaluate(model, seqs, scenes, args.seed, args.stride)
-    fig["checkpoint"] = str(args.checkpoint or "models/contacts.pt (shipped)")
+    fig["checkpoint"] = " ".join(args.checkpoint) or "models/contacts.pt (shipped)"
     keys = ["ap", "precision", "recall", "accuracy", "obj_center_err_cm", "obj_angle_err_deg", "hand_obj_dist_cm",
             "obj_center_err_cm_nocorr", "obj_angle_err_deg_nocorr", "hand_obj_dist_cm_nocorr", "hand_obj_dist_cm_gt",
             "motion_min_per_s", "motion_min_per_cpu_s"]

@@ -166,4 +166,5 @@ def test_per_dof_task_config_labels_and_checkpoint(tmp_path):
     assert res.steps == 2
     _, info = load_predictor(tmp_path / "run" / "checkpoint.pt")
     assert info["dof"] == "free" and info["extra"]["dof"] == "free"
+    assert "ap" in info["meta"]["val_figures"] and "class_accuracy" not in info["meta"]["val_figures"]
     assert set(load_contact_models([f"free={tmp_path / 'run' / 'checkpoint.pt'}"])) == {"free"}

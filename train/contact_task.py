@@ -272,5 +272,7 @@ class ContactTask:
             model = ContactPredictor(self.config.model)
             model.load_state_dict(ema_state)
             meta["val_figures"] = evaluate_contacts(model, self.val_data, self.config.data.val_stride)
+            if self.config.data.dof != "all":
+                del meta["val_figures"]["class_accuracy"]  # a per-dof model's class head is untrained
         return predictor_checkpoint(self.config.model, model_state, ema_state=ema_state, data=self.data_record,
                                     meta=meta, train_state=train_state, dof=self.config.data.dof)

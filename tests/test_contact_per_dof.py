@@ -140,6 +140,13 @@ def test_eval_and_refine_command_lines_take_per_dof_checkpoints(tmp_path, capsys
     assert interactions_main(args + [a for d, p in paths.items() for a in ("--contact-checkpoint", f"{d}={p}")]) == 0
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert summary["frames"] == load_sequence(tmp_path / "o.npz").num_frames
+    # the benchmark with the per-dof set: the toy clips only touch a static table, so every contact
+    # is a non-interaction one (no interaction positives: AP undefined, recall 0)
+    specs = [f"{d}={p}" for d, p in paths.items()]
+    assert eval_main(specs + ["--data", str(ds.root), "--split", "val", "--json"]) == 0
+    fig = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert fig["checkpoint"] == " ".join(specs) and fig["sequences"] == 1
+    assert np.isnan(fig["ap_interaction"]) and fig["recall_interaction"] == 0.0 and 0 <= fig["ap"] <= 1
 
 
 def test_per_dof_task_config_labels_and_checkpoint(tmp_path):

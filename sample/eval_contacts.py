@@ -1,4 +1,4 @@
-"""`trumans eval contacts [CHECKPOINT]`: interaction-tracking figures (iReplica Tabs. 1-3).
+"""`trumans eval contacts [CHECKPOINT | DOF=CHECKPOINT ...]`: interaction-tracking figures (iReplica Tabs. 1-3).
 
 On held-out synthetic sequences (by default a small set built here with a seed that training
 never sees; or ``--data DIR --split test``) whose root is moved by a simulated localisation error:
@@ -6,7 +6,9 @@ a smooth offset of 5-15 cm whose direction and size drift with time and distance
 (about a radian per 30 s or 4 m), plus
 3 mm per-frame jitter. Figures (one JSON object with --json):
 - ``ap``, ``precision``, ``recall``, ``accuracy``: per-hand, per-frame contact at threshold 0.5
-  (labels: wrist or index1 in contact);
+  (labels: wrist or index1 in contact); ``*_interaction``: the same against the contacts made while
+  a movable object is being moved (``labels.sequence_labels`` class not "none"; what one model per
+  dof class is trained to detect, ``per_dof``);
 - ``obj_center_err_cm``, ``obj_angle_err_deg``: tracked vs true pose of each moved object at the
   end of each of its true interactions (centre of its bounding box; rotation angle);
 - ``hand_obj_dist_cm``: mean distance from the contacting hand's skin (nearest of wrist / index1
@@ -32,7 +34,9 @@ __all__ = ["add_arguments", "run", "simulate_drift", "evaluate"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", nargs="?", default=None, help="contact checkpoint (default: the shipped models/contacts.pt)")
+    p.add_argument("checkpoint", nargs="*", default=[], metavar="[DOF=]CHECKPOINT",
+                   help="contact checkpoint (default: the shipped models/contacts.pt, one model with a class head), "
+                        "or DOF=CHECKPOINT for each dof class (slide, hinge, free) to evaluate one model per class")
     p.add_argument("--data", default=None, help="dataset folder (default: a held-out synthetic set built here)")
     p.add_argument("--split", default="test", help="split of --data (default test)")
     p.add_argument("--rooms", type=int, default=4, help="rooms of the held-out set built without --data (default 4)")
@@ -90,12 +94,12 @@ def evaluate(model, sequences: list, scenes: dict, seed: int = 0, stride: int = 
     """Figures (module doc) over ``sequences`` (Sequence objects with contacts and true object
     tracks) in ``scenes`` (scene id -> Scene)."""
     from sample.interactions import TrackerConfig, track
-    from trumans.contacts.labels import hand_labels, moving_intervals
+    from trumans.contacts.labels import hand_labels, moving_intervals, sequence_labels
     from trumans.contacts.scores import binary_scores
     from trumans.sequence import Sequence
 
     rng = np.random.default_rng([seed, 12])
-    probs, labels = [], []
+    probs, labels, interaction_labels = [], [], []
     err = {"": ([], []), "_nocorr": ([], [])}
     by_dof: dict[str, list[float]] = {}
     dist = {"": [], "_nocorr": [], "_gt": []}
@@ -110,6 +114,7 @@ def evaluate(model, sequences: list, scenes: dict, seed: int = 0, stride: int = 
         root = None if seq.root_pos is None else seq.root_pos + np.c_[drift, np.zeros(len(drift))].astype(np.float32)
         noisy = Sequence(joints=joints, fps=seq.fps, rotations=seq.rotations, root_pos=root, scene=seq.scene)
         gt_hands = hand_labels(seq.contacts)
+        _, gt_class = sequence_labels(seq, {n: o.dof for n, o in scene.objects.items()})
         for suffix, correct in (("", True), ("_nocorr", False)):
             t0, c0 = time.perf_counter(), time.process_time()
             res = track(noisy, scene, model, TrackerConfig(correct=correct, predict_stride=stride))
@@ -119,6 +124,7 @@ def evaluate(model, sequences: list, scenes: dict, seed: int = 0, stride: int = 
                 minutes += seq.num_frames / seq.fps / 60.0
                 probs.append(res.prob)
                 labels.append(gt_hands)
+                interaction_labels.append(gt_hands & (gt_class > 0)[:, None])
             out = res.sequence
             for name, gt in seq.objects.items():
                 if name not in out.objects:
@@ -147,6 +153,9 @@ def evaluate(model, sequences: list, scenes: dict, seed: int = 0, stride: int = 
                         d = _hand_surface_dist(queries, name, gt.pose[fr].astype(np.float64), seq.joints[fr].astype(np.float64), h)
                         dist["_gt"].append(d[d < 0.1])  # the hand holding this object, not another one
     fig = binary_scores(np.concatenate(probs), np.concatenate(labels)) if probs else {}
+    if probs:
+        inter = binary_scores(np.concatenate(probs), np.concatenate(interaction_labels))
+        fig.update({f"{k}_interaction": v for k, v in inter.items()})
     mean = lambda xs: float(np.mean(xs)) if len(xs) else float("nan")
     for suffix in ("", "_nocorr"):
         fig[f"obj_center_err_cm{suffix}"] = mean(err[suffix][0])
@@ -164,14 +173,14 @@ def evaluate(model, sequences: list, scenes: dict, seed: int = 0, stride: int = 
 
 
 def run(args: argparse.Namespace) -> int:
-    from trumans.contacts.model_io import load_predictor
+    from trumans.contacts.model_io import load_contact_models
     from trumans.dataset import Dataset
 
     if args.max_seqs < 1 or args.rooms < 1:
         raise ValueError(f"--max-seqs and --rooms must be >= 1, got {args.max_seqs}, {args.rooms}")
     if args.stride < 1 or args.stride % 2 == 0:
         raise ValueError(f"--stride must be an odd number >= 1, got {args.stride}")
-    model, ckpt = load_predictor(args.checkpoint)
+    model = load_contact_models(args.checkpoint)
     with tempfile.TemporaryDirectory(prefix="trumans_eval_contacts_") as tmp:
         if args.data is None:
             from trumans.synth.build import SynthConfig, build_dataset
@@ -189,8 +198,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"no sequence with rotations and contacts in {ds.root}; evaluate on a labelled dataset")
         scenes = {sid: ds.scene(sid) for sid in sorted({s.scene for s in seqs})}
         fig = evaluate(model, seqs, scenes, args.seed, args.stride)
-    fig["checkpoint"] = str(args.checkpoint or "models/contacts.pt (shipped)")
-    keys = ["ap", "precision", "recall", "accuracy", "obj_center_err_cm", "obj_angle_err_deg", "hand_obj_dist_cm",
+    fig["checkpoint"] = " ".join(args.checkpoint) or "models/contacts.pt (shipped)"
+    keys = ["ap", "precision", "recall", "accuracy", "ap_interaction", "precision_interaction", "recall_interaction",
+            "obj_center_err_cm", "obj_angle_err_deg", "hand_obj_dist_cm",
             "obj_center_err_cm_nocorr", "obj_angle_err_deg_nocorr", "hand_obj_dist_cm_nocorr", "hand_obj_dist_cm_gt",
             "motion_min_per_s", "motion_min_per_cpu_s"]
     for k in keys:

@@ -1,7 +1,9 @@
 """Interaction tracking from body motion (iReplica §4): contacts -> trajectory -> objects.
 
 ``track(seq, scene, model)``:
-1. per-hand contact probabilities and the interaction class from the pose windows (§4.2);
+1. per-hand contact probabilities and the interaction class from the pose windows (§4.2): one
+   model with a class head, or one model per dof class {dof: model} (supp. §10.1,
+   ``trumans.contacts.per_dof``: each interval takes the class of the model that fires);
 2. threshold, gap filling (<= 0.5 s), contact intervals and hand-set segments (§4.2, supp. §10);
 3. for each interval in time order whose class is a movable dof (slide | hinge | free): the
    nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
@@ -24,8 +26,10 @@ import numpy as np
 
 from scenes.distance import SceneDistance
 from scenes.scene import Scene
+from trumans.contacts.model_io import ContactModels
 from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, two_hand_motion
 from trumans.contacts.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
+from trumans.contacts.per_dof import predict_dof_contacts
 from trumans.contacts.predictor import CLASSES, ContactPredictor, predict_contacts
 from trumans.contacts.trajectory import TrajectoryConfig, correct_trajectory
 from trumans.resample import interp_rotations, resample_times
@@ -87,17 +91,26 @@ class TrackResult:
     correction: np.ndarray
 
 
-def contact_probabilities(model: ContactPredictor, rotations: np.ndarray, fps: float,
+def contact_probabilities(model: ContactModels, rotations: np.ndarray, fps: float,
                           stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """(T, 24, 6) rotations at ``fps`` -> contact (T, 2) and class (T, C) probabilities; the poses
-    are resampled to the model's rate and the probabilities interpolated back."""
+    """(T, 24, 6) rotations at ``fps`` -> contact (T, 2) and class (T, C) probabilities (per-dof
+    models {dof: model}: class scores, ``predict_dof_contacts``); the poses are resampled to the
+    model's rate and the probabilities interpolated back."""
     rot = np.asarray(rotations, dtype=np.float32)
-    mfps = model.config.fps
+    if isinstance(model, ContactPredictor):
+        mfps, predict = model.config.fps, lambda r: predict_contacts(model, r, stride=stride)
+    else:
+        if not model:
+            raise ValueError("no contact model: give one model with a class head or {dof: model} for some dofs")
+        rates = {m.config.fps for m in model.values()}
+        if len(rates) != 1:
+            raise ValueError(f"the per-dof contact models expect different frame rates {sorted(rates)}; retrain them alike")
+        mfps, predict = rates.pop(), lambda r: predict_dof_contacts(model, r, stride=stride)
     if abs(fps - mfps) < 1e-9 or len(rot) < 2:
-        return predict_contacts(model, rot, stride=stride)
+        return predict(rot)
     src = resample_times(len(rot), fps, mfps)
     rot_m = matrix_to_6d(interp_rotations(sixd_to_matrix(rot.astype(np.float64)), src)).astype(np.float32)
-    prob, cls = predict_contacts(model, rot_m, stride=stride)
+    prob, cls = predict(rot_m)
     t = np.arange(len(rot)) * (mfps / fps)  # original frames in model-frame coordinates
     interp = lambda p: np.stack([np.interp(t, np.arange(len(p)), p[:, k]) for k in range(p.shape[1])], 1)
     return interp(prob).astype(np.float32), interp(cls).astype(np.float32)
@@ -237,9 +250,10 @@ def _drive_all(interactions: list[Interaction], scene: Scene, base: dict[str, np
     return poses
 
 
-def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerConfig = TrackerConfig(),
+def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConfig = TrackerConfig(),
           anchors: tuple[np.ndarray, np.ndarray] | None = None) -> TrackResult:
-    """Track interactions (module doc). seq: body motion with ``rotations`` (T, 24, 6) and joints in
+    """Track interactions (module doc). model: a contact predictor with a class head or {dof: model};
+    seq: body motion with ``rotations`` (T, 24, 6) and joints in
     the scene's frame; scene: its objects' dofs and initial poses; anchors: optional (frames (K,),
     root xy (K, 2)) known positions (e.g. visual localisation) used as extra control points."""
     if seq.rotations is None:
@@ -328,6 +342,6 @@ def track(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerC
     return TrackResult(out, interactions, prob, mask, [cls[i] for i in sorted(cls)], corr)
 
 
-def track_interactions(seq: Sequence, scene: Scene, model: ContactPredictor, config: TrackerConfig = TrackerConfig()) -> Sequence:
+def track_interactions(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConfig = TrackerConfig()) -> Sequence:
     """The tracked sequence only (``track(...).sequence``)."""
     return track(seq, scene, model, config).sequence

@@ -22,7 +22,9 @@ def add_interaction_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", default=None,
                    help="scene folder (scene.json + meshes) with the interactable objects; default: the sequence's "
                         "'scene' entry when it is a folder")
-    p.add_argument("--contact-checkpoint", default=None, help="contact predictor (default: the shipped models/contacts.pt)")
+    p.add_argument("--contact-checkpoint", action="append", default=[], metavar="[DOF=]PATH",
+                   help="contact predictor (default: the shipped models/contacts.pt, one model with a class head); "
+                        "repeat as DOF=PATH (DOF: slide, hinge, free) for one model per dof class")
     p.add_argument("--anchors", default=None,
                    help=".npz with 'frames' (K,) and 'xy' (K, 2): known root positions (e.g. visual localisation)")
     p.add_argument("--rigidity", type=float, default=None, help="trajectory rigidity lambda (default 1.0)")
@@ -67,14 +69,14 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from scenes.io import load_scene
-    from trumans.contacts.model_io import load_predictor
+    from trumans.contacts.model_io import load_contact_models
     from trumans.sequence import load_sequence, save_sequence
 
     from .interactions import TrackerConfig, track
 
     seq = load_sequence(args.input)
     scene = load_scene(_scene_folder(args.scene, seq.scene, Path(args.input)))
-    model, _ = load_predictor(args.contact_checkpoint)
+    model = load_contact_models(args.contact_checkpoint)
     cfg = TrackerConfig(correct=not args.no_correction)
     if args.rigidity is not None:
         cfg = replace(cfg, trajectory=replace(cfg.trajectory, rigidity=args.rigidity))

@@ -19,7 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--task", default="generator",
                    help="what to train: a registered task (generator; the filter and contact tasks register theirs)")
     p.add_argument("--config", default=None,
-                   help="built-in config of the task (generator: cpu-small (default), paper) or a TOML file")
+                   help="built-in config of the task (generator: cpu-small (default), paper; contact: slide, hinge, free = one model per dof class) or a TOML file")
     p.add_argument("--data", required=True, help="dataset folder (with index.json)")
     p.add_argument("--out", required=True, help="run folder: checkpoint.pt, loss.png, cache/")
     p.add_argument("--augmented", action="append", default=[], metavar="DIR",

@@ -9,6 +9,9 @@ The shared loop (``train.loop``) runs Adam, EMA, clipping, checkpoints and valid
 validation loss is compared with a constant predictor of the training set's label frequencies.
 Config: ``ContactTaskConfig`` (its defaults, or a TOML file whose [model], [data], [train] tables
 override them; unknown keys are errors). Ablations: ``mirror`` (no mirroring), ``class`` (no class loss).
+One model per dof class (iReplica supp. §10.1): ``[data] dof = "slide" | "hinge" | "free"`` (the
+built-in configs ``--config slide|hinge|free``): hand labels kept only on frames of that class
+(``per_dof.dof_hand_labels``; every other frame a negative), no class loss.
 """
 from __future__ import annotations
 
@@ -23,6 +26,7 @@ from torch import nn
 
 from trumans.contacts.labels import sequence_labels
 from trumans.contacts.model_io import KIND, predictor_checkpoint
+from trumans.contacts.per_dof import check_dof, dof_hand_labels
 from trumans.contacts.predictor import (CLASSES, ContactPredictor, ContactPredictorConfig, mirror_rotations,
                                         pose_windows, window_indices)
 from trumans.contacts.scores import binary_scores
@@ -52,8 +56,10 @@ class ContactData:
         return len(self.rotations)
 
 
-def load_contact_data(dataset: Dataset, split: str, fps: float, dilate_s: float = 0.5) -> ContactData:
-    """Every sequence of ``split`` with rotations and contacts, resampled to ``fps``."""
+def load_contact_data(dataset: Dataset, split: str, fps: float, dilate_s: float = 0.5, dof: str = "all") -> ContactData:
+    """Every sequence of ``split`` with rotations and contacts, resampled to ``fps``; ``dof`` other
+    than "all": the hand labels of that dof's model (``dof_hand_labels``)."""
+    check_dof(dof)
     rots, hands, classes, lo, hi = [], [], [], [], []
     dofs_of: dict[str, dict[str, str]] = {}
     start = 0
@@ -67,6 +73,8 @@ def load_contact_data(dataset: Dataset, split: str, fps: float, dilate_s: float 
             scene = dataset.scene(seq.scene)
             dofs_of[seq.scene] = {n: o.dof for n, o in scene.objects.items()}
         h, c = sequence_labels(seq, dofs_of[seq.scene], dilate_s)
+        if dof != "all":
+            h = dof_hand_labels(h, c, dof)
         T = seq.num_frames
         rots.append(np.asarray(seq.rotations, np.float32))
         hands.append(h)
@@ -129,17 +137,23 @@ ABLATIONS = {"mirror": ("data", "mirror_p", 0.0), "class": ("data", "class_weigh
 class ContactDataSection:
     """mirror_p: probability of mirroring a window; class_weight: weight of the class loss;
     moving_dilate_s (s): class labels reach this far around object motion; val_stride: frames
-    between validated window centres."""
+    between validated window centres; dof: "all" (one model, class head) or the dof class of a
+    per-dof model (module doc; needs class_weight 0)."""
 
     mirror_p: float = 0.5
     class_weight: float = 0.5
     moving_dilate_s: float = 0.5
     val_stride: int = 3
+    dof: str = "all"
 
     def __post_init__(self) -> None:
         if not (0 <= self.mirror_p <= 1 and self.class_weight >= 0 and self.moving_dilate_s >= 0 and self.val_stride >= 1):
             raise ValueError(f"need 0 <= mirror_p <= 1, class_weight >= 0, moving_dilate_s >= 0, val_stride >= 1; got "
                              f"{self.mirror_p}, {self.class_weight}, {self.moving_dilate_s}, {self.val_stride}")
+        check_dof(self.dof)
+        if self.dof != "all" and self.class_weight != 0:
+            raise ValueError(f"a per-dof contact model (dof {self.dof!r}) has no class to learn; set class_weight = 0 "
+                             f"(got {self.class_weight}) or use the built-in config --config {self.dof}")
 
 
 def _contact_train() -> TrainSection:
@@ -208,8 +222,8 @@ class ContactTask:
                              f"now {ds.hash[:12]}); resume with the same --data")
         self.data_record = {"name": ds.name, "hash": ds.hash, "path": str(Path(data_dir).resolve())}
         c = self.config
-        self.train_data = load_contact_data(ds, "train", c.model.fps, c.data.moving_dilate_s)
-        self.val_data = load_contact_data(ds, "val", c.model.fps, c.data.moving_dilate_s)
+        self.train_data = load_contact_data(ds, "train", c.model.fps, c.data.moving_dilate_s, c.data.dof)
+        self.val_data = load_contact_data(ds, "val", c.model.fps, c.data.moving_dilate_s, c.data.dof)
         self.seed = seed
         barrier()
 
@@ -258,5 +272,7 @@ class ContactTask:
             model = ContactPredictor(self.config.model)
             model.load_state_dict(ema_state)
             meta["val_figures"] = evaluate_contacts(model, self.val_data, self.config.data.val_stride)
+            if self.config.data.dof != "all":
+                del meta["val_figures"]["class_accuracy"]  # a per-dof model's class head is untrained
         return predictor_checkpoint(self.config.model, model_state, ema_state=ema_state, data=self.data_record,
-                                    meta=meta, train_state=train_state)
+                                    meta=meta, train_state=train_state, dof=self.config.data.dof)

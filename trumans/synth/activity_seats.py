@@ -81,13 +81,16 @@ def run_sit(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
 def run_lie(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
     """Walk to a bed or sofa, sit on its edge, lie down, lie a while, get up, stand up. The body
     lies along the surface (``lie_center``, ``lie_yaw``, ``lie_length`` meta) where
-    ``posture.fit_lying`` puts it: straight, or knees up on a short sofa; the seat place nearest
-    the lying pelvis is used."""
+    ``posture.fit_lying`` puts it: most takes knees up (bent 95-120 deg, as people lie), else
+    straight where the body fits, knees up on a short sofa; the seat place nearest the lying pelvis
+    is used. The lying idle shifts the body on the surface, less where a full shift would go into
+    the furniture."""
     obj = ctx.scene.objects[name]
     pose = st.poses.get(name, obj.pose)
     ly = yaw_of(pose) + float(obj.meta["lie_yaw"])
+    prefer = posture.min_leg_reach(st.offsets) * rng.uniform(1.11, 1.38) if rng.random() < 0.75 else None
     try:
-        shift, reach = posture.fit_lying(st.offsets, float(obj.meta["lie_length"]))
+        shift, reach = posture.fit_lying(st.offsets, float(obj.meta["lie_length"]), prefer_reach=prefer)
     except ValueError as e:
         raise Skip(f"{name}: {e}") from e
     lc = world_point(pose, obj.meta["lie_center"]) + shift * np.array([np.cos(ly), np.sin(ly), 0.0])
@@ -95,9 +98,14 @@ def run_lie(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
     def lying(seat: np.ndarray, yaw: float, stand: np.ndarray) -> None:
         kw = dict(sit_yaw=yaw, stand_pos=stand, fps=ctx.fps, leg_reach=reach)
         st.append(check_clean(ctx, st, posture.lie_down(st.offsets, lc, ly, seat, rng, **kw), "lie_down"))
-        n = int(rng.uniform(3.0, 10.0) * ctx.fps)
-        st.append(check_clean(ctx, st, posture.lie(st.offsets, lc, ly, n, rng, fps=ctx.fps, leg_reach=reach),
-                               "lie"))
+        n = int(rng.uniform(5.0, 12.0) * ctx.fps)
+        seed = int(rng.integers(2**31))
+        for shift in (1.0, 0.5, 0.0):  # the same idle, shifting less where it would hit the furniture
+            m = posture.lie(st.offsets, lc, ly, n, np.random.default_rng(seed), fps=ctx.fps, leg_reach=reach,
+                            shift=shift)
+            if shift == 0.0 or ctx.worst_penetration(m, st.poses)[0] <= MAX_PENETRATION:
+                break
+        st.append(check_clean(ctx, st, m, "lie"))
         st.append(check_clean(ctx, st, posture.get_up(st.offsets, lc, ly, seat, rng, **kw), "get_up"))
 
     _sit_on(ctx, st, rng, name, seated=lying, near=lc)

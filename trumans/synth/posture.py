@@ -164,14 +164,20 @@ def lying_extent(offsets: np.ndarray, leg_reach: float | None = None) -> tuple[f
 
 
 def fit_lying(offsets: np.ndarray, length: float, head_margin: float = 0.03,
-              foot_margin: float = 0.03) -> tuple[float, float | None]:
+              foot_margin: float = 0.03, prefer_reach: float | None = None) -> tuple[float, float | None]:
     """Where and how the actor lies on a surface ``length`` m long (along the lying axis, centred on
     its ``lie_center``): (shift (m) of the pelvis from the centre towards the head end, leg_reach).
     Straight legs (leg_reach None) when the body fits with the margins, centred if possible, else
-    knees up with the head ``head_margin`` from the head end. Raises ValueError when even the
-    shortest knees-up posture does not fit."""
+    knees up with the head ``head_margin`` from the head end. ``prefer_reach`` (m, >= ``min_leg_reach``):
+    lie knees up with that leg reach by choice (centred if possible) where it fits. Raises
+    ValueError when even the shortest knees-up posture does not fit."""
     offsets = _offsets(offsets)
     half = 0.5 * float(length)
+    if prefer_reach is not None:
+        head, feet = lying_extent(offsets, prefer_reach)
+        lo, hi = feet + foot_margin - half, half - head_margin - head
+        if lo <= hi:
+            return float(np.clip(0.0, lo, hi)), float(prefer_reach)
     head, feet = lying_extent(offsets)
     lo, hi = feet + foot_margin - half, half - head_margin - head  # pelvis shift range
     if lo <= hi:
@@ -399,15 +405,34 @@ def lie_down(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_c
 
 
 def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int, rng: np.random.Generator,
-        fps: float = 30.0, leg_reach: float | None = None) -> Motion:
-    """Lying idle (supine, breathing, small head turns) for ``frames`` frames, starting and ending
-    exactly in ``lying_state(offsets, lie_center, lie_yaw, leg_reach)``. Label 'lie'. With the knees
-    up (``leg_reach``) the feet stay planted on the surface (``foot_contact`` set)."""
+        fps: float = 30.0, leg_reach: float | None = None, shift: float = 1.0) -> Motion:
+    """Lying idle for ``frames`` frames, starting and ending exactly in ``lying_state(offsets,
+    lie_center, lie_yaw, leg_reach)``: breathing, head turns, and the body shifting on the surface
+    (pelvis moved up to ``shift`` x (6 cm along, 10 cm across the surface) at constant height, the
+    spine bending sideways, a knee falling outwards when knees up). Label 'lie'. With the knees up
+    (``leg_reach``) the feet stay planted on the surface (``foot_contact`` set, leg IK)."""
     offsets = _offsets(offsets)
     rot0, root0 = lying_state(offsets, lie_center, lie_yaw, leg_reach)
     rot = _breathing(rot0, frames, rng, fps, 0.012)
     T = len(rot)
-    return Motion(rot=rot, root=np.repeat(root0[None], T, axis=0), offsets=offsets, fps=fps,
+    axis = np.array([np.cos(lie_yaw), np.sin(lie_yaw), 0.0])
+    across = np.array([-np.sin(lie_yaw), np.cos(lie_yaw), 0.0])
+    sh = _random_holds(T, fps, rng, np.array([0.06 * shift, 0.10 * shift, 0.12, 0.15]), hold=(1.5, 3.5), move=1.2)
+    root = root0 + sh[:, :1] * axis + sh[:, 1:2] * across
+    z = np.zeros(T)
+    for name in ("spine1", "spine2", "spine3"):  # sideways bend: in the plane of the surface
+        j = JOINT_INDEX[name]
+        rot[:, j] = euler_to_matrix(np.stack([z, z, sh[:, 2] / 3], -1), "ZYX") @ rot[:, j]
+    if leg_reach is not None:
+        P, G = forward_kinematics(rot0[None], root0[None], offsets)
+        feet = np.repeat(P[:, _ANKLES], T, axis=0)
+        frot = np.repeat(G[:, _ANKLES], T, axis=0)
+        side = np.where(rng.random() < 0.5, 1.0, -1.0)  # the knee that falls outwards
+        k0 = _knee_dirs(P)[0]
+        pole = np.repeat(k0[None], T, axis=0) + np.abs(sh[:, 3:4]) * side * across
+        rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=frot, pole_dir=pole)
+    rot[0], root[0], rot[-1], root[-1] = rot0, root0, rot0, root0
+    return Motion(rot=rot, root=root, offsets=offsets, fps=fps,
                   foot_contact=np.full((T, 2), leg_reach is not None), actions=[ActionInterval("lie", 0, T)])
 
 

@@ -94,6 +94,8 @@ def test_seated_idle_shifts_and_staggers_the_feet():
         assert np.abs(j[:, k] - j[0, k]).max() < 1e-6
         assert (j[:, ANKLES, 2] >= j[0, ANKLES, 2] - 1e-6).all()  # no foot goes into the floor
     assert len(set(np.round(staggers, 4))) == 4  # takes differ
+    still = posture.sit(off, SEAT, SIT_YAW, STAND_POS, 240, np.random.default_rng(0), shift=0.0)
+    np.testing.assert_allclose(still.root, np.broadcast_to(root0, still.root.shape), atol=1e-12)
 
 
 def test_lying_knees_up_shifts_on_the_surface():

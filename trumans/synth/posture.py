@@ -291,10 +291,10 @@ def _random_holds(T: int, fps: float, rng: np.random.Generator, scale: np.ndarra
 
 
 def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray, frames: int,
-        rng: np.random.Generator, fps: float = 30.0) -> Motion:
+        rng: np.random.Generator, fps: float = 30.0, shift: float = 1.0) -> Motion:
     """Seated idle for ``frames`` frames, starting and ending exactly in ``seated_state(offsets,
     seat_center, sit_yaw, stand_pos)``: breathing and head turns, the pelvis shifting on the seat
-    (a few cm, mostly towards the front edge) with the trunk slouching and leaning, and one foot
+    (up to ``shift`` x (6 cm towards the front edge, 2 cm sideways)) with the trunk slouching and leaning, and one foot
     drawn back or pushed forward (``stagger`` 3-8 cm, people do not sit mirror-symmetric) while
     the other stays planted. Label 'sit'."""
     offsets = _offsets(offsets)
@@ -307,6 +307,7 @@ def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos:
     # slouching back as the pelvis slides forward and leaning sideways a little.
     sh = _random_holds(T, fps, rng, np.array([0.06, 0.02, 0.06, 0.05]))
     sh[:, 0] = np.abs(sh[:, 0]) * rng.uniform(0.6, 1.4)  # forward slide (m)
+    sh[:, :2] *= shift
     root = root0 + sh[:, :1] * fwd + sh[:, 1:2] * left
     z = np.zeros(T)
     # rad, spine pitch (+ forward): a per-take forward lean (elbows towards the knees), less as the

@@ -55,6 +55,18 @@ def _posture_change(ctx: RoomContext, st: TakeState, rng: np.random.Generator, f
     return check_clean(ctx, st, fn(*args, rng, fps=ctx.fps, arm_swing=0.0), what)
 
 
+def _shifting(ctx: RoomContext, st: TakeState, rng: np.random.Generator,
+              idle: Callable[[np.random.Generator, float], Motion]) -> Motion:
+    """A seated/lying idle ``idle(rng, shift)`` whose body shifts on the surface: the same idle
+    (one seed) with the full shift, half of it, or none, the first that stays out of the furniture."""
+    seed = int(rng.integers(2**31))
+    for shift in (1.0, 0.5):
+        m = idle(np.random.default_rng(seed), shift)
+        if ctx.worst_penetration(m, st.poses)[0] <= MAX_PENETRATION:
+            return m
+    return idle(np.random.default_rng(seed), 0.0)
+
+
 def _sit_on(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str,
             seated: Callable[[np.ndarray, float, np.ndarray], None] | None = None,
             near: np.ndarray | None = None) -> None:
@@ -67,7 +79,8 @@ def _sit_on(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
     st.append(_posture_change(ctx, st, rng, posture.sit_down, (st.offsets, seat, yaw, stand), "sit_down"))
     if seated is None:
         n = int(rng.uniform(2.0, 8.0) * ctx.fps)
-        st.append(check_clean(ctx, st, posture.sit(st.offsets, seat, yaw, stand, n, rng, fps=ctx.fps), "sit"))
+        st.append(check_clean(ctx, st, _shifting(ctx, st, rng, lambda r, shift: posture.sit(
+            st.offsets, seat, yaw, stand, n, r, fps=ctx.fps, shift=shift)), "sit"))
     else:
         seated(seat, yaw, stand)
     st.append(_posture_change(ctx, st, rng, posture.stand_up, (st.offsets, seat, yaw, stand), "stand_up"))
@@ -81,13 +94,16 @@ def run_sit(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
 def run_lie(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
     """Walk to a bed or sofa, sit on its edge, lie down, lie a while, get up, stand up. The body
     lies along the surface (``lie_center``, ``lie_yaw``, ``lie_length`` meta) where
-    ``posture.fit_lying`` puts it: straight, or knees up on a short sofa; the seat place nearest
-    the lying pelvis is used."""
+    ``posture.fit_lying`` puts it: most takes knees up (bent 95-120 deg, as people lie), else
+    straight where the body fits, knees up on a short sofa; the seat place nearest the lying pelvis
+    is used. The lying idle shifts the body on the surface, less where a full shift would go into
+    the furniture."""
     obj = ctx.scene.objects[name]
     pose = st.poses.get(name, obj.pose)
     ly = yaw_of(pose) + float(obj.meta["lie_yaw"])
+    prefer = posture.min_leg_reach(st.offsets) * rng.uniform(1.11, 1.38) if rng.random() < 0.75 else None
     try:
-        shift, reach = posture.fit_lying(st.offsets, float(obj.meta["lie_length"]))
+        shift, reach = posture.fit_lying(st.offsets, float(obj.meta["lie_length"]), prefer_reach=prefer)
     except ValueError as e:
         raise Skip(f"{name}: {e}") from e
     lc = world_point(pose, obj.meta["lie_center"]) + shift * np.array([np.cos(ly), np.sin(ly), 0.0])
@@ -95,9 +111,9 @@ def run_lie(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
     def lying(seat: np.ndarray, yaw: float, stand: np.ndarray) -> None:
         kw = dict(sit_yaw=yaw, stand_pos=stand, fps=ctx.fps, leg_reach=reach)
         st.append(check_clean(ctx, st, posture.lie_down(st.offsets, lc, ly, seat, rng, **kw), "lie_down"))
-        n = int(rng.uniform(3.0, 10.0) * ctx.fps)
-        st.append(check_clean(ctx, st, posture.lie(st.offsets, lc, ly, n, rng, fps=ctx.fps, leg_reach=reach),
-                               "lie"))
+        n = int(rng.uniform(5.0, 12.0) * ctx.fps)
+        st.append(check_clean(ctx, st, _shifting(ctx, st, rng, lambda r, shift: posture.lie(
+            st.offsets, lc, ly, n, r, fps=ctx.fps, leg_reach=reach, shift=shift)), "lie"))
         st.append(check_clean(ctx, st, posture.get_up(st.offsets, lc, ly, seat, rng, **kw), "get_up"))
 
     _sit_on(ctx, st, rng, name, seated=lying, near=lc)
@@ -121,7 +137,7 @@ def run_desk_work(ctx: RoomContext, st: TakeState, rng: np.random.Generator, nam
     def work(seat: np.ndarray, yaw: float, stand: np.ndarray) -> None:
         def base(kind: str) -> Motion:
             n = hands.nominal_frames(kind, rng, ctx.fps)
-            return posture.sit(st.offsets, seat, yaw, stand, n, rng, fps=ctx.fps)
+            return posture.sit(st.offsets, seat, yaw, stand, n, rng, fps=ctx.fps, shift=0.3)  # at the desk
 
         order = ["type"] + (["use_mouse"] if mice else [])
         if len(order) == 2 and rng.random() < 0.5:

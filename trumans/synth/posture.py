@@ -164,14 +164,20 @@ def lying_extent(offsets: np.ndarray, leg_reach: float | None = None) -> tuple[f
 
 
 def fit_lying(offsets: np.ndarray, length: float, head_margin: float = 0.03,
-              foot_margin: float = 0.03) -> tuple[float, float | None]:
+              foot_margin: float = 0.03, prefer_reach: float | None = None) -> tuple[float, float | None]:
     """Where and how the actor lies on a surface ``length`` m long (along the lying axis, centred on
     its ``lie_center``): (shift (m) of the pelvis from the centre towards the head end, leg_reach).
     Straight legs (leg_reach None) when the body fits with the margins, centred if possible, else
-    knees up with the head ``head_margin`` from the head end. Raises ValueError when even the
-    shortest knees-up posture does not fit."""
+    knees up with the head ``head_margin`` from the head end. ``prefer_reach`` (m, >= ``min_leg_reach``):
+    lie knees up with that leg reach by choice (centred if possible) where it fits. Raises
+    ValueError when even the shortest knees-up posture does not fit."""
     offsets = _offsets(offsets)
     half = 0.5 * float(length)
+    if prefer_reach is not None:
+        head, feet = lying_extent(offsets, prefer_reach)
+        lo, hi = feet + foot_margin - half, half - head_margin - head
+        if lo <= hi:
+            return float(np.clip(0.0, lo, hi)), float(prefer_reach)
     head, feet = lying_extent(offsets)
     lo, hi = feet + foot_margin - half, half - head_margin - head  # pelvis shift range
     if lo <= hi:
@@ -213,65 +219,130 @@ def _envelope(T: int, fps: float, ramp: float = 0.6) -> np.ndarray:
     return ease(t / ramp) * ease((t[-1] - t) / ramp) if T > 2 else np.zeros(T)
 
 
-def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
-    """Sit down from ``standing_state(offsets, stand_pos, sit_yaw)`` (standing in front of the seat,
-    facing away from it) to ``seated_state(offsets, seat_center, sit_yaw, stand_pos)``: hips go back
-    and down with a forward trunk lean, the arms come forward for balance (``arm_swing`` scales
-    that, e.g. 0 at a desk), feet stay planted (leg IK). Label 'sit_down'; about 1.5-2.1 s."""
+def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
+              rng: np.random.Generator, fps: float, arm_swing: float, up: bool) -> Motion:
+    """Sit-down (``up`` False: standing -> seated) or stand-up (True: seated -> standing), each with
+    its own timing: the sit-down hinges at the hips while the pelvis goes back and down (peak lean
+    mid-descent); the stand-up first leans the trunk forward over the feet, then rises. Lean
+    U(50, 64) deg (root and lower spine pitch at the peak, 70 % at the hip, 30 % in the lower spine)."""
     offsets = _offsets(offsets)
-    rot0, root0 = standing_state(offsets, _vec2(stand_pos, "stand_pos"), sit_yaw)
-    rot1, root1 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
-    dur = rng.uniform(1.5, 2.1)
-    T = int(round(dur * fps)) + 1
+    stand = standing_state(offsets, _vec2(stand_pos, "stand_pos"), sit_yaw)
+    seated = seated_state(offsets, seat_center, sit_yaw, stand_pos)
+    (rot0, root0), (rot1, root1) = (seated, stand) if up else (stand, seated)
+    T = int(round((rng.uniform(1.7, 2.5) if up else rng.uniform(1.5, 2.1)) * fps)) + 1
     s = np.linspace(0.0, 1.0, T)
-    w_xy = ease(s / 0.85)
-    w_z = ease((s - 0.08) / 0.92)
+    if up:  # lean forward first (pelvis still on the seat), then rise as the trunk straightens
+        peak = rng.uniform(0.3, 0.4)
+        w_pose, w_xy, w_z = ease((s - 0.15) / 0.85), ease((s - 0.1) / 0.7), ease((s - peak + 0.05) / (1.05 - peak))
+        bump = np.where(s < peak, ease(s / peak), 1.0 - ease((s - peak) / (1.0 - peak)))
+    else:  # hips back and down while the trunk hinges forward
+        w_pose, w_xy, w_z = ease(s), ease(s / 0.85), ease((s - 0.08) / 0.92)
+        bump = np.sin(np.pi * s) ** 1.5
     root = np.empty((T, 3))
     root[:, :2] = root0[:2] + w_xy[:, None] * (root1[:2] - root0[:2])
     root[:, 2] = root0[2] + w_z * (root1[2] - root0[2])
-    # Upper body: stand -> sit per joint, with a hip-hinge lean forward in the middle.
-    rot = slerp_poses(rot0, rot1, ease(s))
-    lean = np.radians(rng.uniform(25, 38)) * np.sin(np.pi * s) ** 1.5
+    rot = slerp_poses(rot0, rot1, w_pose)
+    lean = np.radians(rng.uniform(50, 64)) * bump
     z = np.zeros(T)
-    rot[:, 0] = yaw_matrix(sit_yaw) @ euler_to_matrix(np.stack([z, 0.6 * lean, z], -1), "ZYX")
+    rot[:, 0] = yaw_matrix(sit_yaw) @ euler_to_matrix(np.stack([z, 0.7 * lean, z], -1), "ZYX")
     j = JOINT_INDEX["spine1"]
-    rot[:, j] = euler_to_matrix(np.stack([z, 0.4 * lean, z], -1), "ZYX") @ rot[:, j]
-    for side in ("left", "right"):  # arms come forward for balance
+    rot[:, j] = euler_to_matrix(np.stack([z, 0.3 * lean, z], -1), "ZYX") @ rot[:, j]
+    # Arms: brought forward with the trunk so the hands stay near the thighs (``arm_swing`` 1), a
+    # little further on some takes; 0 leaves them hanging from the leaning trunk (towards the seat).
+    arms = arm_swing * rng.uniform(0.2, 0.6)
+    for side in ("left", "right"):
         j = JOINT_INDEX[f"{side}_shoulder"]
-        rot[:, j] = euler_to_matrix(np.stack([z, -1.2 * arm_swing * lean, z], -1), "ZYX") @ rot[:, j]
+        rot[:, j] = euler_to_matrix(np.stack([z, -arms * lean, z], -1), "ZYX") @ rot[:, j]
     feet = np.repeat(foot_places(offsets, stand_pos, sit_yaw)[None], T, axis=0)
     h_lim = pelvis_height_limit(rot, root[:, :2], offsets, feet)
     root[:, 2] = np.minimum(root[:, 2], h_lim - 0.001)
     frot = np.broadcast_to(yaw_matrix(sit_yaw), (T, 2, 3, 3))
     knee = np.broadcast_to(np.array([np.cos(sit_yaw), np.sin(sit_yaw), 0.0]), (T, 3))
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=frot, pole_dir=knee)
+    rot[0], root[0] = rot0, root0
     rot[-1], root[-1] = rot1, root1
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=np.ones((T, 2), dtype=bool),
-                  actions=[ActionInterval("sit_down", 0, T)])
+                  actions=[ActionInterval("stand_up" if up else "sit_down", 0, T)])
+
+
+def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
+             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
+    """Sit down from ``standing_state(offsets, stand_pos, sit_yaw)`` (standing in front of the seat,
+    facing away from it) to ``seated_state(offsets, seat_center, sit_yaw, stand_pos)``: hips go back
+    and down with a forward hip-hinge lean, the arms come forward with the trunk (``arm_swing``
+    scales that, e.g. 0 at a desk), feet stay planted (leg IK). Label 'sit_down'; about 1.5-2.1 s."""
+    return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=False)
+
+
+def _random_holds(T: int, fps: float, rng: np.random.Generator, scale: np.ndarray,
+                  hold: tuple[float, float] = (1.0, 3.0), move: float = 0.8) -> np.ndarray:
+    """(T, d) smooth idle shifts: held random levels (uniform in +-``scale`` (d,)) changed by eased
+    moves of ``move`` s every ``hold`` s; exactly 0 at the first and last frame (eased in and out)."""
+    scale = np.asarray(scale, dtype=np.float64)
+    t = np.arange(T) / fps
+    starts = np.cumsum(rng.uniform(*hold, size=int(t[-1] / hold[0]) + 2)) - 0.5 * hold[0]  # move start times (s)
+    levels = rng.uniform(-1.0, 1.0, (len(starts) + 1, scale.size)) * scale
+    levels[0] = 0.0
+    k = np.searchsorted(starts, t, side="right")  # moves begun by t
+    km = np.maximum(k - 1, 0)
+    w = ease((t - starts[km]) / move)[:, None]
+    out = np.where(k[:, None] > 0, levels[km] + w * (levels[k] - levels[km]), 0.0)
+    return out * _envelope(T, fps, ramp=min(1.0, 0.25 * t[-1]))[:, None]
 
 
 def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray, frames: int,
-        rng: np.random.Generator, fps: float = 30.0) -> Motion:
-    """Seated idle for ``frames`` frames (breathing, small head turns), starting and ending exactly in
-    ``seated_state(offsets, seat_center, sit_yaw, stand_pos)``; feet planted. Label 'sit'."""
+        rng: np.random.Generator, fps: float = 30.0, shift: float = 1.0) -> Motion:
+    """Seated idle for ``frames`` frames, starting and ending exactly in ``seated_state(offsets,
+    seat_center, sit_yaw, stand_pos)``: breathing and head turns, the pelvis shifting on the seat
+    (up to ``shift`` x (6 cm towards the front edge, 2 cm sideways)) with the trunk slouching and leaning, and one foot
+    drawn back or pushed forward (``stagger`` 3-8 cm, people do not sit mirror-symmetric) while
+    the other stays planted. Label 'sit'."""
     offsets = _offsets(offsets)
     rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
     rot = _breathing(rot0, frames, rng, fps, 0.015)
     T = len(rot)
-    root = np.repeat(root0[None], T, axis=0)
+    fwd = np.array([np.cos(sit_yaw), np.sin(sit_yaw), 0.0])
+    left = np.array([-np.sin(sit_yaw), np.cos(sit_yaw), 0.0])
+    # Pelvis shifts on the seat (fore-aft biased forward: the backrest is behind), with the trunk
+    # slouching back as the pelvis slides forward and leaning sideways a little.
+    sh = _random_holds(T, fps, rng, np.array([0.06, 0.02, 0.06, 0.05]))
+    sh[:, 0] = np.abs(sh[:, 0]) * rng.uniform(0.6, 1.4)  # forward slide (m)
+    sh[:, :2] *= shift
+    root = root0 + sh[:, :1] * fwd + sh[:, 1:2] * left
+    z = np.zeros(T)
+    # rad, spine pitch (+ forward): a per-take forward lean (elbows towards the knees), less as the
+    # pelvis slides forward and the back slouches
+    slouch = rng.uniform(0.1, 0.35) * _envelope(T, fps, ramp=min(1.0, 0.25 * (T - 1) / fps)) - 3.0 * sh[:, 0] + sh[:, 2]
+    for name, part in (("spine1", 0.5), ("spine2", 0.3), ("spine3", 0.2)):
+        j = JOINT_INDEX[name]
+        rot[:, j] = euler_to_matrix(np.stack([z, part * slouch, part * sh[:, 3]], -1), "ZYX") @ rot[:, j]
+    j = JOINT_INDEX["neck"]  # the head stays roughly level
+    rot[:, j] = euler_to_matrix(np.stack([z, -0.5 * slouch, -0.5 * sh[:, 3]], -1), "ZYX") @ rot[:, j]
+    # One foot staggered: slides to its place in the first second, back in the last.
     feet = np.repeat(foot_places(offsets, stand_pos, sit_yaw)[None], T, axis=0)
+    side = int(rng.integers(2))
+    stagger = rng.uniform(0.03, 0.08) * rng.choice([-1.0, 1.0])
+    t = np.arange(T) / fps
+    move = min(0.6, 0.3 * t[-1]) if T > 2 else 1.0
+    w = ease((t - 0.1 * move) / move) * ease((t[-1] - 0.1 * move - t) / move) if T > 2 else np.zeros(T)
+    feet[:, side] += (w * stagger)[:, None] * fwd
+    lift = np.sin(np.pi * np.clip(np.minimum(t - 0.1 * move, t[-1] - 0.1 * move - t) / move, 0, 1))
+    feet[:, side, 2] += 0.02 * lift * (w < 0.999) * (w > 0.0)
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=np.broadcast_to(yaw_matrix(sit_yaw), (T, 2, 3, 3)),
-                        pole_dir=np.broadcast_to(np.array([np.cos(sit_yaw), np.sin(sit_yaw), 0.0]), (T, 3)))
-    return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=np.ones((T, 2), dtype=bool),
+                        pole_dir=np.broadcast_to(fwd, (T, 3)))
+    contact = np.ones((T, 2), dtype=bool)
+    contact[:, side] = (w <= 0.0) | (w >= 0.999)
+    rot[0], root[0], rot[-1], root[-1] = rot0, root0, rot0, root0
+    return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=contact,
                   actions=[ActionInterval("sit", 0, T)])
 
 
 def stand_up(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
              rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
-    """Stand up from ``seated_state`` to ``standing_state(offsets, stand_pos, sit_yaw)`` (a sit-down
-    played backwards, with its own timing from ``rng``); feet planted. Label 'stand_up'."""
-    return sit_down(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing).reversed("stand_up")
+    """Stand up from ``seated_state`` to ``standing_state(offsets, stand_pos, sit_yaw)`` with its own
+    timing (not a sit-down reversed): the trunk leans forward over the feet first, then the pelvis
+    rises while the trunk straightens; feet planted. Label 'stand_up'; about 1.7-2.5 s."""
+    return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=True)
 
 
 def _knee_dirs(P: np.ndarray) -> np.ndarray:
@@ -335,15 +406,34 @@ def lie_down(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_c
 
 
 def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int, rng: np.random.Generator,
-        fps: float = 30.0, leg_reach: float | None = None) -> Motion:
-    """Lying idle (supine, breathing, small head turns) for ``frames`` frames, starting and ending
-    exactly in ``lying_state(offsets, lie_center, lie_yaw, leg_reach)``. Label 'lie'. With the knees
-    up (``leg_reach``) the feet stay planted on the surface (``foot_contact`` set)."""
+        fps: float = 30.0, leg_reach: float | None = None, shift: float = 1.0) -> Motion:
+    """Lying idle for ``frames`` frames, starting and ending exactly in ``lying_state(offsets,
+    lie_center, lie_yaw, leg_reach)``: breathing, head turns, and the body shifting on the surface
+    (pelvis moved up to ``shift`` x (6 cm along, 10 cm across the surface) at constant height, the
+    spine bending sideways, a knee falling outwards when knees up). Label 'lie'. With the knees up
+    (``leg_reach``) the feet stay planted on the surface (``foot_contact`` set, leg IK)."""
     offsets = _offsets(offsets)
     rot0, root0 = lying_state(offsets, lie_center, lie_yaw, leg_reach)
     rot = _breathing(rot0, frames, rng, fps, 0.012)
     T = len(rot)
-    return Motion(rot=rot, root=np.repeat(root0[None], T, axis=0), offsets=offsets, fps=fps,
+    axis = np.array([np.cos(lie_yaw), np.sin(lie_yaw), 0.0])
+    across = np.array([-np.sin(lie_yaw), np.cos(lie_yaw), 0.0])
+    sh = _random_holds(T, fps, rng, np.array([0.06 * shift, 0.10 * shift, 0.12, 0.15]), hold=(1.5, 3.5), move=1.2)
+    root = root0 + sh[:, :1] * axis + sh[:, 1:2] * across
+    z = np.zeros(T)
+    for name in ("spine1", "spine2", "spine3"):  # sideways bend: in the plane of the surface
+        j = JOINT_INDEX[name]
+        rot[:, j] = euler_to_matrix(np.stack([z, z, sh[:, 2] / 3], -1), "ZYX") @ rot[:, j]
+    if leg_reach is not None:
+        P, G = forward_kinematics(rot0[None], root0[None], offsets)
+        feet = np.repeat(P[:, _ANKLES], T, axis=0)
+        frot = np.repeat(G[:, _ANKLES], T, axis=0)
+        side = np.where(rng.random() < 0.5, 1.0, -1.0)  # the knee that falls outwards
+        k0 = _knee_dirs(P)[0]
+        pole = np.repeat(k0[None], T, axis=0) + np.abs(sh[:, 3:4]) * side * across
+        rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=frot, pole_dir=pole)
+    rot[0], root[0], rot[-1], root[-1] = rot0, root0, rot0, root0
+    return Motion(rot=rot, root=root, offsets=offsets, fps=fps,
                   foot_contact=np.full((T, 2), leg_reach is not None), actions=[ActionInterval("lie", 0, T)])
 
 

@@ -164,3 +164,35 @@ def test_realism_source_filter(built, capsys):
         len(load_sequence(out / r).joints) for r in index["real"])
     assert console_main(["eval", "realism", "corpus:train", "--source", "real"]) == 2
     assert "drop --source" in capsys.readouterr().err
+
+
+def _resting_hand(frames: int, ahead: float, height: float = 0.80) -> np.ndarray:
+    from trumans.motion_labels import body_features
+    from trumans.skeleton import REST_JOINTS
+
+    j = np.repeat(REST_JOINTS[None].astype(np.float64), frames, 0)
+    h = body_features(j, 30.0)["heading"][0]
+    fwd = np.array([np.cos(h), np.sin(h)])
+    w, i = JOINT_INDEX["right_wrist"], JOINT_INDEX["right_index1"]
+    j[:, w, :2] = j[:, JOINT_INDEX["pelvis"], :2] + ahead * fwd
+    j[:, w, 2] = height
+    j[:, i] = j[:, w] + np.array([*(0.08 * fwd), 0.0])
+    return j
+
+
+def test_table_under_a_resting_hand():
+    from trumans.scene_fit import WRIST_ABOVE_TOP_M, fit_scene, fit_tables
+
+    j = _resting_hand(60, 0.4)
+    states = np.zeros(len(j), np.int64)
+    (table,) = fit_tables(j, states)
+    assert table.category == "table"
+    assert table.meta["surface_height"] == pytest.approx(0.80 - WRIST_ABOVE_TOP_M, abs=1e-9)
+    mesh = table.world_mesh()
+    under = j[0, JOINT_INDEX["right_wrist"]] - [0.0, 0.0, WRIST_ABOVE_TOP_M + 0.01]
+    assert mesh.contains(under[None]).all() and not mesh.contains(j[0]).any()
+    assert mesh.bounds[1, 2] == pytest.approx(0.80 - WRIST_ABOVE_TOP_M)
+    assert list(fit_scene(j, states).objects) == ["table_0"]
+    assert fit_tables(j[:20], states[:20]) == []  # rests for less than 1 s
+    assert fit_tables(_resting_hand(60, 0.1), states) == []  # a hand at the side: no table
+    assert fit_tables(_resting_hand(60, 0.4, height=0.45), states) == []  # lower than a table

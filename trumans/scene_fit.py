@@ -1,4 +1,5 @@
-"""Scenes fitted to real motion: a seat under every seated pelvis, a bed under a raised lying body.
+"""Scenes fitted to real motion: a seat under every seated pelvis, a bed under a raised lying body,
+a table under a resting hand (``fit_tables``).
 
 Seats stand on the floor (category "seat", ``scenes.furniture`` frame conventions: origin at the
 footprint centre on the floor, +x = the direction the sitter faces). From the seated run of
@@ -23,7 +24,7 @@ from scenes.scene import Scene, SceneObject
 from .motion_labels import MOTION_STATES, segments
 from .skeleton import JOINT_INDEX as J
 
-__all__ = ["fit_seats", "fit_beds", "fit_scene", "in_the_way", "fitted_contacts", "SEAT_BELOW_HIP_M"]
+__all__ = ["fit_seats", "fit_beds", "fit_tables", "fit_scene", "in_the_way", "fitted_contacts", "SEAT_BELOW_HIP_M"]
 
 SEAT_BELOW_HIP_M = 0.10  # hip joint centres sit this far above the seat surface (soft tissue + pelvis)
 SEAT_BEHIND_HIP_M = 0.12
@@ -33,6 +34,14 @@ MIN_SEAT_M = 0.20  # lower "seats" are the floor (or a crouch)
 SEAT_TOP_M = 0.05  # m, thickness of a fitted seat's top
 SEAT_LEG_M = 0.04  # m, side of a fitted seat's square legs
 SEAT_HIP_PERCENTILE = 10  # the seat top follows the lower hip heights of the run (slouching sinks in)
+TABLE_MIN_S = 1.0  # s a hand rests for a table to be fitted under it
+HAND_STILL_MPS = 0.05  # m/s, wrist speed (0.25 s mean) below which a hand rests
+WRIST_ABOVE_TOP_M = 0.03  # m, wrist joint centre above the surface a hand rests on
+TABLE_HEIGHT_M = (0.55, 1.10)  # m, the table tops fitted (coffee tables and lower are not told from laps)
+TABLE_KNEE_CLEAR_M = 0.12  # m, a table top clears the knees by this much
+TABLE_REACH_M = 0.25  # m, a resting hand this far in front of the pelvis (not at the side, on the hip)
+TABLE_SIZE_M = (0.6, 0.9)  # m, depth (away from the body) and width of a fitted table
+TABLE_EDGE_M = 0.12  # m, the resting hand this far inside the table's near edge
 SAME_PLACE_M = 0.25  # m, fits this close (centre, height) are one seat / bed used again
 TRANSITION_S = 3.0  # s around a fitted run where the body sits down / gets up (may touch the object)
 IN_THE_WAY_S = 0.5  # s of other frames with a joint inside a fitted object that disqualify it
@@ -120,6 +129,50 @@ def fit_beds(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_seco
     return out
 
 
+def fit_tables(joints: np.ndarray, states: np.ndarray, fps: float = 30.0) -> list[SceneObject]:
+    """One table (a top on four legs) per run of >= ``TABLE_MIN_S`` s in which a hand rests: the
+    wrist still (< ``HAND_STILL_MPS``), ``TABLE_REACH_M`` or more in front of the pelvis, with a
+    top ``WRIST_ABOVE_TOP_M`` under it between ``TABLE_HEIGHT_M`` and ``TABLE_KNEE_CLEAR_M`` above
+    the knees (legs fit under it; a hand on the lap or the hip is no table). The table faces the
+    body, the hand ``TABLE_EDGE_M`` inside its near edge; one that any joint enters during the run
+    is dropped. joints (T, 24, 3) m; states per frame (``MOTION_STATES``)."""
+    from scipy.ndimage import uniform_filter1d
+
+    from .motion_labels import body_features
+
+    j = np.asarray(joints, np.float64)
+    if len(j) < TABLE_MIN_S * fps:
+        return []
+    heading = body_features(j, fps)["heading"]
+    fwd = np.stack([np.cos(heading), np.sin(heading)], axis=-1)  # (T, 2)
+    out: list[SceneObject] = []
+    for side in ("left", "right"):
+        w = j[:, J[f"{side}_wrist"]]
+        speed = uniform_filter1d(np.linalg.norm(np.gradient(w, axis=0), axis=-1) * fps, max(1, int(fps / 4)),
+                                 mode="nearest")
+        top = w[:, 2] - WRIST_ABOVE_TOP_M
+        ahead = ((w[:, :2] - j[:, J["pelvis"], :2]) * fwd).sum(-1)
+        knees = j[:, [J["left_knee"], J["right_knee"]], 2].max(axis=1)
+        ok = (speed < HAND_STILL_MPS) & (ahead > TABLE_REACH_M) & (top > TABLE_HEIGHT_M[0]) & \
+             (top < TABLE_HEIGHT_M[1]) & (top > knees + TABLE_KNEE_CLEAR_M)
+        for s, e in segments(ok):
+            if e - s < TABLE_MIN_S * fps:
+                continue
+            f = fwd[s:e].mean(0)
+            f = f / max(np.linalg.norm(f), 1e-9)
+            hand = np.median(w[s:e, :2], axis=0)
+            height = float(np.median(top[s:e]))
+            depth, width = TABLE_SIZE_M
+            centre = hand + f * (depth / 2 - TABLE_EDGE_M)
+            meta = {"surface_height": height, "surface_size": [depth, width], "frames": [int(s), int(e)],
+                    "fitted": f"resting {side} hand"}
+            t = _box_object(f"table_{len(out)}", "table", float(centre[0]), float(centre[1]),
+                            float(np.arctan2(f[1], f[0])), depth, width, height, meta, legs=True)
+            if not t.world_mesh().contains(j[s:e].reshape(-1, 3)).any():
+                out.append(t)
+    return out
+
+
 def _merge_same(objs: list[SceneObject]) -> list[SceneObject]:
     """One object per place: a later fit within ``SAME_PLACE_M`` (centre) and ``SAME_PLACE_M`` (height)
     of a kept one is the same seat / bed sat on again; its run joins the kept one's meta "runs"."""
@@ -144,8 +197,11 @@ def in_the_way(obj: SceneObject, joints: np.ndarray, states: np.ndarray, fps: fl
     pad = int(round(TRANSITION_S * fps))
     t = np.arange(len(joints))
     other = np.ones(len(t), bool)
-    held = MOTION_STATES.index("lie" if obj.category == "bed" else "sit")
-    for s, e in segments(np.asarray(states) == held):
+    if obj.category in ("seat", "bed"):
+        runs = segments(np.asarray(states) == MOTION_STATES.index("lie" if obj.category == "bed" else "sit"))
+    else:  # a table: its own resting-hand runs
+        runs = obj.meta.get("runs", [obj.meta["frames"]])
+    for s, e in runs:
         other &= (t < s - pad) | (t >= e + pad)
     if not other.any():
         return False
@@ -155,10 +211,10 @@ def in_the_way(obj: SceneObject, joints: np.ndarray, states: np.ndarray, fps: fl
 
 
 def fit_scene(joints: np.ndarray, states: np.ndarray, name: str = "fitted", fps: float = 30.0) -> Scene:
-    """A scene for a real clip: the fitted seats and beds (the floor z = 0 is implicit), without
-    those the body goes through at other times (``in_the_way``)."""
-    objects = [o for o in _merge_same(fit_seats(joints, states, fps)) + _merge_same(fit_beds(joints, states, fps))
-               if not in_the_way(o, joints, states, fps)]
+    """A scene for a real clip: the fitted seats, beds and tables (the floor z = 0 is implicit), one
+    per place, without those the body goes through at other times (``in_the_way``)."""
+    fits = [_merge_same(f(joints, states, fps)) for f in (fit_seats, fit_beds, fit_tables)]
+    objects = [o for objs in fits for o in objs if not in_the_way(o, joints, states, fps)]
     return Scene(name=name, objects={o.name: o for o in objects}, meta={"fitted_to_motion": True})
 
 

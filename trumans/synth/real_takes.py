@@ -34,7 +34,7 @@ from .vocab import SYNTH_ACTIONS
 
 __all__ = ["select_clips", "real_room_id", "clip_labels", "real_sequence", "build_real_room", "DESCRIPTION_ACTIONS"]
 
-REAL_VERSION = "4"  # bump when the placement, labels or contacts of real takes change (rebuilds real rooms)
+REAL_VERSION = "5"  # bump when the placement, labels or contacts of real takes change (rebuilds real rooms)
 
 TRIM_ERROR_M = 0.01  # m, leading / trailing frames fitted worse than this are dropped
 

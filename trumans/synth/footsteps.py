@@ -69,7 +69,7 @@ def stance_plan(tl: Timeline, offsets: np.ndarray, style: Style, rng: np.random.
 # Swing phases (fractions of the swing time): the foot rolls over the planted toe until SWING_PIVOT
 # (heel off, toe fixed), flies until SWING_LAND (the toe first rises clear of the floor, then moves),
 # and rolls down over the planted heel until the swing ends (flat foot).
-SWING_PIVOT = 0.20
+SWING_PIVOT = 0.30
 SWING_LAND = 0.88
 _TOE_OFF_PITCH = 0.45  # rad, foot pitch (toe down) when the toe leaves the floor
 _HEEL_ON_PITCH = 0.20  # rad, foot pitch (toe up) when the heel touches down

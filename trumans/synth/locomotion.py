@@ -139,7 +139,7 @@ def walk(
     y0 = y_path0 if start_yaw is None else float(start_yaw)
     y1 = y_path1 if end_yaw is None else float(end_yaw)
     leg = limb_reach(offsets, "left_leg")[1]
-    step_len = leg * (0.38 + 0.25 * min(speed, 1.8)) * rng.uniform(0.95, 1.05)
+    step_len = leg * (0.46 + 0.22 * min(speed, 1.8)) * rng.uniform(0.95, 1.05)
     if step_length is not None:
         if not 0.1 <= step_length <= 1.2:
             raise ValueError(f"step_length must be in [0.1, 1.2] m, got {step_length}")

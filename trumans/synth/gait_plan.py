@@ -151,7 +151,7 @@ def walk_plan(pts: np.ndarray, speed: float, step_len: float, fps: float, y_star
         phase = phase * ((n_reg + 0.5) / max(phi_pen, 1e-6))
         for i in range(n_reg):
             c = float(np.interp(i + 0.5, phase, t))
-            dur_i = min(1.15 / float(np.interp(c, t, cadence)), 0.8)
+            dur_i = min(1.4 / float(np.interp(c, t, cadence)), 0.9)
             swings.append((max(c, dur_i / 2 + 0.02), (first_foot + i) % 2, dur_i))
         swings += [(c_pen, (first_foot + n_reg) % 2, s_close), (c_last, (first_foot + n_reg + 1) % 2, s_close)]
     else:  # very short walk: two quick steps

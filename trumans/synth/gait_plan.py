@@ -137,7 +137,7 @@ def walk_plan(pts: np.ndarray, speed: float, step_len: float, fps: float, y_star
     vel = np.gradient(s, t) if T > 1 else np.zeros(T)
     # Gait phase in steps: cadence follows the speed (step_len per step), with a floor for the
     # slow start and stop; step i swings around phase i + 1/2.
-    cadence = np.maximum(vel / step_len, 1.35)
+    cadence = np.maximum(vel / step_len, 1.25)
     phase = np.concatenate([[0.0], np.cumsum(0.5 * (cadence[1:] + cadence[:-1]) * np.diff(t))])
     # Each foot's last step goes to the final stance: the two closing steps end just before the stop
     # and the phase is rescaled a little so the regular steps lead into them without a pause.

@@ -48,3 +48,16 @@ def test_cadence_and_step_length_are_human():
     st = clip_statistics(_walk(2, speed=0.8).joints())
     assert 80 < st["cadence"] < 105
     assert 0.47 < st["step_length"] < 0.8
+
+
+def test_arm_swing_is_continuous():
+    """Walking with free arms, the wrists (relative to the pelvis) rarely stand still: the swing
+    follows a smooth phase through the heel strikes instead of pausing while the feet are planted
+    (realism's wrist still share: ~0.35 before, real median 0.09)."""
+    m = _walk(5, speed=1.0)
+    walk_iv = next(a for a in m.actions if a.name == "walk")
+    j = m.joints()[walk_iv.start + 15:walk_iv.end - 15]
+    rel = j[:, [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"]]] - j[:, None, JOINT_INDEX["pelvis"]]
+    speed = np.linalg.norm(np.gradient(rel, axis=0), axis=-1) * FPS
+    assert (speed < 0.1).any(axis=1).mean() < 0.2
+    assert speed.max() < 2.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from trumans.rotations import euler_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX
@@ -69,12 +70,13 @@ def stance_plan(tl: Timeline, offsets: np.ndarray, style: Style, rng: np.random.
 # Swing phases (fractions of the swing time): the foot rolls over the planted toe until SWING_PIVOT
 # (heel off, toe fixed), flies until SWING_LAND (the toe first rises clear of the floor, then moves),
 # and rolls down over the planted heel until the swing ends (flat foot).
-SWING_PIVOT = 0.20
+SWING_PIVOT = 0.30
 SWING_LAND = 0.88
 _TOE_OFF_PITCH = 0.45  # rad, foot pitch (toe down) when the toe leaves the floor
 _HEEL_ON_PITCH = 0.20  # rad, foot pitch (toe up) when the heel touches down
 _MIN_TOE_LIFT = 0.04  # m, least toe clearance of a swing (clears the 2 cm contact band early)
-_TOE_RISE = 0.08  # fraction of the flight during which the toe rises before it moves horizontally
+_TOE_RISE = 0.08  # fraction of the flight over which the toe's vertical speed eases in (and out at landing)
+_GLIDE_DELAY = 0.08  # fraction of the flight before the toe starts to travel horizontally
 _GLIDE_RAMP = 0.35  # fraction of the toe's travel time spent speeding up (and slowing down)
 
 
@@ -86,6 +88,18 @@ def _glide(x: np.ndarray, ramp: float = _GLIDE_RAMP) -> np.ndarray:
     v = ease(g / ramp) * ease((1.0 - g) / ramp)
     c = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]))])
     return np.interp(np.clip(x, 0.0, 1.0), g, c / c[-1])
+
+
+def _swing_pitch(s: np.ndarray) -> np.ndarray:
+    """Foot pitch (rad, toe down > 0) at swing phases s (n,): one C2 curve (clamped cubic spline)
+    from flat (0) through _TOE_OFF_PITCH at SWING_PIVOT to -_HEEL_ON_PITCH at SWING_LAND, so the foot
+    keeps rotating through the toe-off -> flight change (no stop-and-go jerk), then an eased roll flat."""
+    s = np.clip(s, 0.0, 1.0)
+    knots = np.array([0.0, SWING_PIVOT, SWING_LAND])
+    vals = np.array([0.0, _TOE_OFF_PITCH, -_HEEL_ON_PITCH])
+    flight = CubicSpline(knots, vals, bc_type="clamped")(np.minimum(s, SWING_LAND))
+    # Heel strike: the foot rolls flat from a standstill about the heel (eased).
+    return np.where(s < SWING_LAND, flight, -_HEEL_ON_PITCH * (1.0 - ease((s - SWING_LAND) / (1.0 - SWING_LAND))))
 
 
 def _swing(s: np.ndarray, place0: np.ndarray, yaw0: float, place1: np.ndarray, yaw1: float, z0: float,
@@ -115,28 +129,31 @@ def _swing(s: np.ndarray, place0: np.ndarray, yaw0: float, place1: np.ndarray, y
     ank = np.empty((len(s), 3))
     frot = np.empty((len(s), 3, 3))
     # toe-off: roll over the toe
+    pitch = _swing_pitch(s)
     m = s < SWING_PIVOT
     if m.any():
-        p = _TOE_OFF_PITCH * ease(s[m] / SWING_PIVOT)
-        frot[m] = R(np.full(m.sum(), yaw0), p)
+        frot[m] = R(np.full(m.sum(), yaw0), pitch[m])
         ank[m] = toe0 - frot[m] @ foot_off
     # flight: the toe rises, then travels (slow start, so it barely moves while low), turns on the way
     m = (s >= SWING_PIVOT) & (s < SWING_LAND)
     if m.any():
         u = (s[m] - SWING_PIVOT) / (SWING_LAND - SWING_PIVOT)
-        w = _glide((u - _TOE_RISE) / (1.0 - _TOE_RISE))
+        w = _glide((u - _GLIDE_DELAY) / (1.0 - _GLIDE_DELAY))
         e = ease(u)
         c = mid0 + w[:, None] * (mid_land - mid0)
         # The toe rises by about the lift (its height change from the pitch is added back).
-        toe_z = toe0[2] + e * (toe_land[2] - toe0[2]) + max(lift, _MIN_TOE_LIFT) * np.sin(np.pi * u)
-        frot[m] = R(yaw0 + e * dyaw, _TOE_OFF_PITCH + e * (-_HEEL_ON_PITCH - _TOE_OFF_PITCH))
+        # sin bump whose ends are eased in: the toe leaves and meets the floor with zero vertical
+        # speed and acceleration (no velocity jump), yet clears the contact band early.
+        bump = np.sin(np.pi * u) * ease(u / _TOE_RISE) * ease((1.0 - u) / _TOE_RISE)
+        toe_z = toe0[2] + e * (toe_land[2] - toe0[2]) + max(lift, _MIN_TOE_LIFT) * bump
+        frot[m] = R(yaw0 + e * dyaw, pitch[m])
         c[:, 2] = toe_z - (frot[m] @ (foot_off - mid))[:, 2]
         ank[m] = c - frot[m] @ mid
     # heel strike: roll down over the heel
     m = s >= SWING_LAND
     if m.any():
         v = (s[m] - SWING_LAND) / (1.0 - SWING_LAND)
-        frot[m] = R(np.full(m.sum(), yaw1), -_HEEL_ON_PITCH * (1.0 - ease(v)))
+        frot[m] = R(np.full(m.sum(), yaw1), pitch[m])
         ank[m] = heel1 - frot[m] @ heel_off
     return ank, frot
 

@@ -137,7 +137,7 @@ def walk_plan(pts: np.ndarray, speed: float, step_len: float, fps: float, y_star
     vel = np.gradient(s, t) if T > 1 else np.zeros(T)
     # Gait phase in steps: cadence follows the speed (step_len per step), with a floor for the
     # slow start and stop; step i swings around phase i + 1/2.
-    cadence = np.maximum(vel / step_len, 1.6)
+    cadence = np.maximum(vel / step_len, 1.25)
     phase = np.concatenate([[0.0], np.cumsum(0.5 * (cadence[1:] + cadence[:-1]) * np.diff(t))])
     # Each foot's last step goes to the final stance: the two closing steps end just before the stop
     # and the phase is rescaled a little so the regular steps lead into them without a pause.
@@ -151,7 +151,7 @@ def walk_plan(pts: np.ndarray, speed: float, step_len: float, fps: float, y_star
         phase = phase * ((n_reg + 0.5) / max(phi_pen, 1e-6))
         for i in range(n_reg):
             c = float(np.interp(i + 0.5, phase, t))
-            dur_i = min(1.15 / float(np.interp(c, t, cadence)), 0.6)
+            dur_i = min(1.4 / float(np.interp(c, t, cadence)), 0.9)
             swings.append((max(c, dur_i / 2 + 0.02), (first_foot + i) % 2, dur_i))
         swings += [(c_pen, (first_foot + n_reg) % 2, s_close), (c_last, (first_foot + n_reg + 1) % 2, s_close)]
     else:  # very short walk: two quick steps

@@ -8,19 +8,35 @@ is fixed in the world and the foot keeps its world orientation, so planted joint
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from trumans.actions import ActionInterval
 from trumans.rotations import euler_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX
 from trumans.ik.limb import limb_reach
-from .footsteps import Style, foot_tracks, stance_plan
+from .footsteps import SWING_LAND, Style, foot_tracks, stance_plan
 from .gait_plan import Timeline, arc_length, smooth_path, turn_plan, walk_plan
 from .legs import foot_places, pelvis_height_limit, solve_legs, stand_height, standing_state, wrap_angle
 from .motion import Motion
 from .poses import POSES, ease, pose
 
 __all__ = ["walk", "turn", "stand"]
+
+
+def _arm_phase(tl: Timeline, t: np.ndarray) -> np.ndarray:
+    """Arm swing signal (T,) in about [-1, 1] at times t (s): +1 (left arm back, right forward) at
+    each left heel strike, -1 at each right one, a C2 cubic spline in between, so the arms never
+    pause while the feet are planted (real arm swing is continuous)."""
+    strikes = sorted((c - dur / 2 + SWING_LAND * dur, 1.0 if f == 0 else -1.0) for c, f, dur in tl.swings)
+    if len(strikes) < 2:
+        return np.zeros_like(t)
+    tk, vk = (np.array(v) for v in zip(*strikes))
+    keep = np.concatenate([[True], np.diff(tk) > 1e-3])
+    if keep.sum() < 2:
+        return np.zeros_like(t)
+    # Clamped (zero slope at the first / last strike), held constant outside: C1 everywhere.
+    return CubicSpline(tk[keep], vk[keep], bc_type="clamped")(np.clip(t, tk[keep][0], tk[keep][-1]))
 
 
 def _gait_motion(tl: Timeline, offsets: np.ndarray, rng: np.random.Generator, base_pose: str) -> Motion:
@@ -62,14 +78,15 @@ def _gait_motion(tl: Timeline, offsets: np.ndarray, rng: np.random.Generator, ba
     # Counter-rotate the trunk against the pelvis and lean it a bit forward.
     rot[:, JOINT_INDEX["spine3"]] = E(-0.8 * twist, lean * 0.5, zero) @ rot[:, JOINT_INDEX["spine3"]]
     rot[:, JOINT_INDEX["head"]] = E(zero, style.head * env, zero) @ rot[:, JOINT_INDEX["head"]]
-    if not carry_arms:  # arms swing opposite to the legs
-        a = style.arm_swing * np.minimum(vfac, 1.2) * d * env
+    if not carry_arms:  # arms swing opposite to the legs, continuously (see _arm_phase)
+        a = style.arm_swing * np.minimum(vfac, 1.2) * _arm_phase(tl, t) * env
         rot[:, JOINT_INDEX["left_shoulder"]] = E(zero, a, zero) @ rot[:, JOINT_INDEX["left_shoulder"]]
         rot[:, JOINT_INDEX["right_shoulder"]] = E(zero, -a, zero) @ rot[:, JOINT_INDEX["right_shoulder"]]
         eb = style.elbow * np.minimum(vfac, 1.0) * env
         le, re = JOINT_INDEX["left_elbow"], JOINT_INDEX["right_elbow"]
-        rot[:, le] = E(-eb - 0.3 * np.maximum(-a, 0), zero, zero) @ rot[:, le]
-        rot[:, re] = E(eb + 0.3 * np.maximum(a, 0), zero, zero) @ rot[:, re]
+        a_abs = np.sqrt(a**2 + 0.05**2) - 0.05  # smooth |a|: no kink (jerk) where the swing changes sign
+        rot[:, le] = E(-eb - 0.15 * (a_abs - a), zero, zero) @ rot[:, le]
+        rot[:, re] = E(eb + 0.15 * (a_abs + a), zero, zero) @ rot[:, re]
 
     # Pelvis height: the rest height, lowered where an ankle target would be out of reach.
     h_lim = pelvis_height_limit(rot, xy_root, offsets, ank)
@@ -139,7 +156,7 @@ def walk(
     y0 = y_path0 if start_yaw is None else float(start_yaw)
     y1 = y_path1 if end_yaw is None else float(end_yaw)
     leg = limb_reach(offsets, "left_leg")[1]
-    step_len = leg * (0.38 + 0.25 * min(speed, 1.8)) * rng.uniform(0.95, 1.05)
+    step_len = leg * (0.46 + 0.22 * min(speed, 1.8)) * rng.uniform(0.95, 1.05)
     if step_length is not None:
         if not 0.1 <= step_length <= 1.2:
             raise ValueError(f"step_length must be in [0.1, 1.2] m, got {step_length}")

@@ -232,3 +232,25 @@ def test_smooth_time():
     assert torch.equal(smooth_time(lin, 0.0), lin)
     noise = torch.randn(1, 400, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     assert smooth_time(noise, 2.0).std() < 0.5 * noise.std()
+
+
+def test_refine_many_equals_one_by_one(tmp_path):
+    """All windows of several sequences (different lengths, rates, categories) in one batch give what
+    each sequence gives alone (a random network: the equality is not that of an identity), also when
+    the batch is split into chunks."""
+    filt = HOIFilter.load(_ckpt(tmp_path / "f.pt", zero=False))
+    seqs = [_tracked(T=T, seed=i)[1] for i, T in enumerate((100, 10, 150))]
+    fps, cats = [30.0, 30.0, 60.0], ["box", "box", filt.categories[-1]]
+    opts = RefineOptions(num_steps=2)
+    alone = [filt.refine_frames(f, r, c, opts) for f, r, c in zip(seqs, fps, cats)]
+    for batch in (256, 3):
+        together = filt.refine_many(seqs, fps, cats, RefineOptions(num_steps=2, batch=batch))
+        for a, b, f in zip(alone, together, seqs):
+            assert b.shape == f.shape
+            np.testing.assert_allclose(b, a, atol=1e-4)
+    assert not np.allclose(alone[0][:, JOINTS], seqs[0][:, JOINTS], atol=1e-3)  # the network does change it
+    assert filt.refine_many([], [], []) == []
+    with pytest.raises(ValueError, match="one fps and category per sequence"):
+        filt.refine_many(seqs, fps[:2], cats)
+    with pytest.raises(ValueError, match="fps must be a positive number"):
+        filt.refine_many(seqs[:1], [0.0], cats[:1])

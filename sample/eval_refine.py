@@ -43,6 +43,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise", help="sampling start (default noise)")
     p.add_argument("--ablation", default=None, metavar="CHECKPOINT", help="a second checkpoint to report as 'ablation'")
     p.add_argument("--seed", type=int, default=0, help="corruption and sampling seed")
+    p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
+                                                       "test split, body only): blocks real.default and real.drift")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
 
@@ -162,6 +164,51 @@ def _clips(data: str, split: str, clip: int, fps: float, categories: list[str], 
     return add_clean_imu(clean, fps), [categories[c] for c in cat]
 
 
+def _real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
+    """Held-out real-motion clips (N, clip, 235) at 30 fps: the mocap corpus's test split
+    (``trumans.mocap_corpus``, subjects never trained on) cut into ``clip``-frame pieces; joints
+    only (rotations, object and IMU missing: NaN / no IMU)."""
+    from trumans.hoi.frame import pack_frames
+    from trumans.mocap_corpus import load_corpus
+
+    pieces = []
+    for c in load_corpus(split="test"):
+        if abs(c.fps - 30.0) > 1e-6:
+            raise ValueError(f"corpus clip {c.name} is at {c.fps} fps; the real-motion evaluation expects 30")
+        for s in range(0, len(c.joints) - clip + 1, clip):
+            J = c.joints[s:s + clip]
+            pieces.append(pack_frames(J, None, np.full((clip, 4, 4), np.nan)))
+    idx = np.arange(len(pieces))
+    if len(idx) > max_clips:
+        idx = np.sort(np.random.default_rng(seed).choice(idx, max_clips, replace=False))
+    return np.stack([pieces[i] for i in idx])
+
+
+_BODY_KEYS = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_out_observed_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm",
+              "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_err_savgol",
+              "accel_gt", "accel_out", "frames_per_s", "clips")
+
+
+def evaluate_real(filt, clip: int, max_clips: int, savgol_window: int, seed: int, options) -> dict:
+    """Body-only figures on held-out real motion: the default corruption and the drift-dominated one
+    (both without an object IMU: there is no object). The object's category is the filter's first."""
+    import warnings
+    from dataclasses import replace
+
+    from trumans.hoi.corrupt import CorruptionConfig
+
+    clean = _real_clips(clip, max_clips, seed)
+    cats = [filt.categories[0]] * len(clean)
+    res = {}
+    with warnings.catch_warnings():  # the object columns are all missing: their means are NaN and dropped
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for name, cfg in (("default", CorruptionConfig().without_imu()),
+                          ("drift", replace(CorruptionConfig.drift(), p_no_imu=1.0))):
+            fig = evaluate(filt, clean, cats, cfg, savgol_window, seed, options)
+            res[name] = {k: fig[k] for k in _BODY_KEYS}
+    return res
+
+
 def run(args: argparse.Namespace) -> int:
     from trumans.hoi.corrupt import CorruptionConfig, corrupt
 
@@ -185,6 +232,8 @@ def run(args: argparse.Namespace) -> int:
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)
     res["drift"] = evaluate(filt, test_clean, cats, CorruptionConfig.drift(), sg, args.seed, opts)
+    if args.real:
+        res["real"] = evaluate_real(filt, args.clip, args.max_clips, sg, args.seed, opts)
     if args.ablation:
         abl = HOIFilter.load(args.ablation)
         res["ablation"] = {"checkpoint": args.ablation,
@@ -192,8 +241,9 @@ def run(args: argparse.Namespace) -> int:
     keys = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_gt",
             "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg", "frames_per_s")
     for name, block in [("default", res), ("no_imu", res["no_imu"]), ("drift", res["drift"])] + (
-            [("ablation", res["ablation"])] if "ablation" in res else []):
-        print(f"{name:8s} " + "  ".join(f"{k}={block[k]:.1f}" for k in keys))
+            [("ablation", res["ablation"])] if "ablation" in res else []) + (
+            [("real", res["real"]["default"]), ("real_dr", res["real"]["drift"])] if "real" in res else []):
+        print(f"{name:8s} " + "  ".join(f"{k}={block[k]:.1f}" for k in keys if k in block))
     if args.json:
         print(json.dumps(res))
     return 0

@@ -254,3 +254,21 @@ def test_refine_many_equals_one_by_one(tmp_path):
         filt.refine_many(seqs, fps[:2], cats)
     with pytest.raises(ValueError, match="fps must be a positive number"):
         filt.refine_many(seqs[:1], [0.0], cats[:1])
+
+
+def test_root_aligned_mpjpe_ignores_a_body_translation_and_real_clips_are_body_only():
+    from sample.eval_refine import _real_clips, _root_aligned
+
+    rng = np.random.default_rng(0)
+    Jc = rng.normal(size=(20, 24, 3))
+    drift = np.cumsum(rng.normal(0, 0.01, (20, 1, 3)), axis=0)  # a whole-body translation per frame
+    np.testing.assert_allclose(_root_aligned(Jc + drift, Jc), 0.0, atol=1e-12)
+    J = Jc.copy()
+    J[:, 5] += [0.0, 0.03, 0.04]  # one joint 5 cm off, the root exact
+    e = _root_aligned(J, Jc)
+    np.testing.assert_allclose(e[:, 5], 0.05)
+    assert np.allclose(np.delete(e, 5, axis=1), 0.0)
+    clips = _real_clips(64, 3, seed=0)
+    assert clips.shape == (3, 64, 235) and np.isfinite(clips[..., JOINTS]).all()
+    assert np.isnan(clips[..., 72:216]).all() and np.isnan(clips[..., OBJ_T]).all()  # no rotations, no object
+    assert (clips[..., 234] == 0).all()  # no IMU

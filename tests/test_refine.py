@@ -215,7 +215,8 @@ def test_eval_refine_command(tmp_path, capsys):
     res = json.loads(out.strip().splitlines()[-1])
     for k in ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "accel_err_in", "accel_err_out", "accel_gt",
               "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg",
-              "hand_obj_dist_cm", "frames_per_s"):
+              "hand_obj_dist_cm", "frames_per_s", "frames_per_s_per_clip", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm",
+              "mpjpe_savgol_ra_mm"):
         assert np.isfinite(res[k]), k
     assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
     assert res["savgol_window"] % 2 == 1

@@ -35,7 +35,7 @@ class RefineOptions:
     in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
     network call; seed: the sampling noise."""
 
-    num_steps: int = 5
+    num_steps: int = 2
     mode: Mode = "noise"
     strength: float = 0.5
     eta: float = 0.0

@@ -13,11 +13,16 @@ refined end to end (resampling, windows, blending). Figures (means over clips an
 - ``obj_t_err_in_cm`` / ``_out_cm``, ``obj_rot_err_in_deg`` / ``_out_deg``;
 - ``hand_obj_dist_cm``: mean |d̂ − d| with d the distance from the nearer hand (wrist / index1) to
   the object, for the output (``hand_obj_dist_in_cm`` for the input);
-- ``frames_per_s``: refined frames per second of wall time (this machine, one process).
+- ``mpjpe_*_ra_mm``: the same, root-aligned (each frame's pelvis moved onto the truth's: a whole-body
+  translation such as the corruption's shared drift does not count);
+- ``frames_per_s``: refined frames per second of wall time, all clips' windows batched
+  (``HOIFilter.refine_many``); ``frames_per_s_per_clip`` (default block): one clip per call.
 
 Blocks: the default corruption (every category, the IMU present in ~70 % of clips), ``no_imu``
 (no clip has an IMU), ``drift`` (a drift-dominated model the filter was not trained on), and, with
-``--ablation CHECKPOINT``, ``ablation`` (e.g. a model trained without the regularisers).
+``--ablation CHECKPOINT``, ``ablation`` (e.g. a model trained without the regularisers); with
+``--real``, ``real.default`` / ``real.drift``: held-out real motion (the mocap corpus's test split),
+body only.
 """
 from __future__ import annotations
 

@@ -13,11 +13,16 @@ refined end to end (resampling, windows, blending). Figures (means over clips an
 - ``obj_t_err_in_cm`` / ``_out_cm``, ``obj_rot_err_in_deg`` / ``_out_deg``;
 - ``hand_obj_dist_cm``: mean |d̂ − d| with d the distance from the nearer hand (wrist / index1) to
   the object, for the output (``hand_obj_dist_in_cm`` for the input);
-- ``frames_per_s``: refined frames per second of wall time (this machine, one process).
+- ``mpjpe_*_ra_mm``: the same, root-aligned (each frame's pelvis moved onto the truth's: a whole-body
+  translation such as the corruption's shared drift does not count);
+- ``frames_per_s``: refined frames per second of wall time, all clips' windows batched
+  (``HOIFilter.refine_many``); ``frames_per_s_per_clip`` (default block): one clip per call.
 
 Blocks: the default corruption (every category, the IMU present in ~70 % of clips), ``no_imu``
 (no clip has an IMU), ``drift`` (a drift-dominated model the filter was not trained on), and, with
-``--ablation CHECKPOINT``, ``ablation`` (e.g. a model trained without the regularisers).
+``--ablation CHECKPOINT``, ``ablation`` (e.g. a model trained without the regularisers); with
+``--real``, ``real.default`` / ``real.drift``: held-out real motion (the mocap corpus's test split),
+body only.
 """
 from __future__ import annotations
 
@@ -39,10 +44,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                                 "recorded in the checkpoint)")
     p.add_argument("--clip", type=int, default=192, help="frames per evaluation clip (default 192)")
     p.add_argument("--max-clips", type=int, default=120, help="at most this many test clips (default 120)")
-    p.add_argument("--steps", type=int, default=5, help="DDIM sampling steps (default 5)")
+    p.add_argument("--steps", type=int, default=2, help="DDIM sampling steps (default 2; 1, 2 and 5 give the same errors, benchmarks/refine_diagnosis.py)")
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise", help="sampling start (default noise)")
     p.add_argument("--ablation", default=None, metavar="CHECKPOINT", help="a second checkpoint to report as 'ablation'")
     p.add_argument("--seed", type=int, default=0, help="corruption and sampling seed")
+    p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
+                                                       "test split, body only): blocks real.default and real.drift")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
 
@@ -86,10 +93,18 @@ def _hand_dist(f: np.ndarray) -> np.ndarray:
     return np.linalg.norm(_joints(f)[:, _HANDS] - f[:, None, 216:219], axis=-1).min(-1)
 
 
+def _root_aligned(J: np.ndarray, Jc: np.ndarray) -> np.ndarray:
+    """Per-joint errors (T, 24) m after moving each frame's pelvis onto the truth's (root-aligned
+    MPJPE; a whole-body translation such as the corruption's shared drift does not count). NaN where
+    the joint or the frame's pelvis is missing."""
+    return np.linalg.norm((J - J[:, :1]) - (Jc - Jc[:, :1]), axis=-1)
+
+
 def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarray) -> dict[str, float]:
     Jt, Jo, Jc, Js = _joints(tr), _joints(out), _joints(cl), sg.reshape(-1, 24, 3)
     e_in = np.linalg.norm(Jt - Jc, axis=-1)
     obs = np.isfinite(e_in)
+    e_in_ra = _root_aligned(Jt, Jc)
     acc = lambda J: np.diff(J, 2, axis=0)
     a_c = acc(Jc)
     ea_in = np.linalg.norm(acc(Jt) - a_c, axis=-1)
@@ -99,6 +114,9 @@ def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarra
         "mpjpe_out_mm": 1000 * np.linalg.norm(Jo - Jc, axis=-1).mean(),
         "mpjpe_out_observed_mm": 1000 * np.linalg.norm(Jo - Jc, axis=-1)[obs].mean(),
         "mpjpe_savgol_mm": 1000 * np.linalg.norm(Js - Jc, axis=-1).mean(),
+        "mpjpe_in_ra_mm": 1000 * e_in_ra[np.isfinite(e_in_ra)].mean(),
+        "mpjpe_out_ra_mm": 1000 * _root_aligned(Jo, Jc).mean(),
+        "mpjpe_savgol_ra_mm": 1000 * _root_aligned(Js, Jc).mean(),
         "accel_err_in": 1000 * ea_in[np.isfinite(ea_in)].mean(),
         "accel_err_out": 1000 * np.linalg.norm(acc(Jo) - a_c, axis=-1).mean(),
         "accel_err_savgol": 1000 * np.linalg.norm(acc(Js) - a_c, axis=-1).mean(),
@@ -113,20 +131,27 @@ def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarra
     }
 
 
-def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window: int, seed: int, options) -> dict:
-    """Figures of one corruption setting on clean world clips (N, T, 235) with categories."""
+def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window: int, seed: int, options,
+             per_clip_speed: bool = False) -> dict:
+    """Figures of one corruption setting on clean world clips (N, T, 235) with categories. The clips
+    are refined together (``HOIFilter.refine_many``: all windows batched); ``frames_per_s`` is that
+    run's rate. per_clip_speed: also time the clips one by one (``frames_per_s_per_clip``, the
+    one-sequence-per-call rate)."""
     from trumans.hoi.corrupt import corrupt
 
     tracked = corrupt(clean, filt.fps, np.random.default_rng(seed), corruption)
-    rows, frames, seconds = [], 0, 0.0
-    for tr, cl, cat in zip(tracked, clean, cats):
-        t0 = time.perf_counter()
-        out = filt.refine_frames(tr, filt.fps, cat, options)
-        seconds += time.perf_counter() - t0
-        frames += len(tr)
-        rows.append(_clip_figures(tr, out, _savgol(tr, savgol_window), cl))
+    t0 = time.perf_counter()
+    outs = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats), options)
+    seconds = time.perf_counter() - t0
+    rows = [_clip_figures(tr, out, _savgol(tr, savgol_window), cl) for tr, out, cl in zip(tracked, outs, clean)]
     fig = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+    frames = int(sum(len(tr) for tr in tracked))
     fig["frames_per_s"] = frames / max(seconds, 1e-9)
+    if per_clip_speed:
+        t0 = time.perf_counter()
+        for tr, cat in zip(tracked, cats):
+            filt.refine_frames(tr, filt.fps, cat, options)
+        fig["frames_per_s_per_clip"] = frames / max(time.perf_counter() - t0, 1e-9)
     fig["clips"] = len(rows)
     fig["imu_clips"] = int((tracked[:, 0, 234] > 0.5).sum())
     return fig
@@ -142,6 +167,51 @@ def _clips(data: str, split: str, clip: int, fps: float, categories: list[str], 
         idx = np.sort(np.random.default_rng(seed).choice(idx, max_clips, replace=False))
     clean, _, cat = w.batch(idx)
     return add_clean_imu(clean, fps), [categories[c] for c in cat]
+
+
+def _real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
+    """Held-out real-motion clips (N, clip, 235) at 30 fps: the mocap corpus's test split
+    (``trumans.mocap_corpus``, subjects never trained on) cut into ``clip``-frame pieces; joints
+    only (rotations, object and IMU missing: NaN / no IMU)."""
+    from trumans.hoi.frame import pack_frames
+    from trumans.mocap_corpus import load_corpus
+
+    pieces = []
+    for c in load_corpus(split="test"):
+        if abs(c.fps - 30.0) > 1e-6:
+            raise ValueError(f"corpus clip {c.name} is at {c.fps} fps; the real-motion evaluation expects 30")
+        for s in range(0, len(c.joints) - clip + 1, clip):
+            J = c.joints[s:s + clip]
+            pieces.append(pack_frames(J, None, np.full((clip, 4, 4), np.nan)))
+    idx = np.arange(len(pieces))
+    if len(idx) > max_clips:
+        idx = np.sort(np.random.default_rng(seed).choice(idx, max_clips, replace=False))
+    return np.stack([pieces[i] for i in idx])
+
+
+_BODY_KEYS = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_out_observed_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm",
+              "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_err_savgol",
+              "accel_gt", "accel_out", "frames_per_s", "clips")
+
+
+def evaluate_real(filt, clip: int, max_clips: int, savgol_window: int, seed: int, options) -> dict:
+    """Body-only figures on held-out real motion: the default corruption and the drift-dominated one
+    (both without an object IMU: there is no object). The object's category is the filter's first."""
+    import warnings
+    from dataclasses import replace
+
+    from trumans.hoi.corrupt import CorruptionConfig
+
+    clean = _real_clips(clip, max_clips, seed)
+    cats = [filt.categories[0]] * len(clean)
+    res = {}
+    with warnings.catch_warnings():  # the object columns are all missing: their means are NaN and dropped
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for name, cfg in (("default", CorruptionConfig().without_imu()),
+                          ("drift", replace(CorruptionConfig.drift(), p_no_imu=1.0))):
+            fig = evaluate(filt, clean, cats, cfg, savgol_window, seed, options)
+            res[name] = {k: fig[k] for k in _BODY_KEYS}
+    return res
 
 
 def run(args: argparse.Namespace) -> int:
@@ -164,18 +234,21 @@ def run(args: argparse.Namespace) -> int:
     test_clean, cats = _clips(args.data, "test", args.clip, filt.fps, filt.categories, args.max_clips, args.seed)
     res = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "data": str(Path(args.data)), "seed": args.seed,
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
-    res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts))
+    res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)
     res["drift"] = evaluate(filt, test_clean, cats, CorruptionConfig.drift(), sg, args.seed, opts)
+    if args.real:
+        res["real"] = evaluate_real(filt, args.clip, args.max_clips, sg, args.seed, opts)
     if args.ablation:
         abl = HOIFilter.load(args.ablation)
         res["ablation"] = {"checkpoint": args.ablation,
                            **evaluate(abl, test_clean, cats, CorruptionConfig(), sg, args.seed, opts)}
-    keys = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "accel_err_in", "accel_err_out", "accel_gt",
+    keys = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_gt",
             "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg", "frames_per_s")
     for name, block in [("default", res), ("no_imu", res["no_imu"]), ("drift", res["drift"])] + (
-            [("ablation", res["ablation"])] if "ablation" in res else []):
-        print(f"{name:8s} " + "  ".join(f"{k}={block[k]:.1f}" for k in keys))
+            [("ablation", res["ablation"])] if "ablation" in res else []) + (
+            [("real", res["real"]["default"]), ("real_dr", res["real"]["drift"])] if "real" in res else []):
+        print(f"{name:8s} " + "  ".join(f"{k}={block[k]:.1f}" for k in keys if k in block))
     if args.json:
         print(json.dumps(res))
     return 0

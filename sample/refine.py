@@ -35,11 +35,11 @@ class RefineOptions:
     in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
     network call; seed: the sampling noise."""
 
-    num_steps: int = 5
+    num_steps: int = 2
     mode: Mode = "noise"
     strength: float = 0.5
     eta: float = 0.0
-    batch: int = 64
+    batch: int = 256
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -71,13 +71,56 @@ class HOIFilter:
     def refine_frames(self, frames: np.ndarray, fps: float, category: str,
                       options: RefineOptions = RefineOptions()) -> np.ndarray:
         """Tracked world frame vectors (T, 235) at ``fps`` (NaN = missing) -> refined (T, 235)."""
+        return self.refine_many([frames], [fps], [category], options)[0]
+
+    def refine_many(self, frames: list[np.ndarray], fps: list[float], categories: list[str],
+                    options: RefineOptions = RefineOptions()) -> list[np.ndarray]:
+        """Several tracked sequences at once: every window of every sequence goes through the network
+        in batches of ``options.batch`` (one forward per DDIM step and batch, not per window). Each
+        sequence's starting noise is drawn from its own generator seeded with ``options.seed``, so
+        with ``eta = 0`` a sequence's result does not depend on its batch mates.
+        frames[i]: (T_i, 235) world frame vectors at fps[i] (NaN = missing) -> [(T_i, 235)]."""
+        if not len(frames) == len(fps) == len(categories):
+            raise ValueError(f"need one fps and category per sequence, got {len(frames)} / {len(fps)} / {len(categories)}")
+        if not frames:
+            return []
+        cats = category_indices(list(categories), self.categories)
+        parts = [self._windows(f, r) for f, r in zip(frames, fps)]
+        L = self.window
+        cond = torch.cat([p["inp"].cond for p in parts])
+        category = torch.from_numpy(np.concatenate([np.full(len(p["starts"]), c) for p, c in zip(parts, cats)]))
+        noise = torch.cat([torch.randn((len(p["starts"]), L, FRAME_DIM), generator=torch.Generator().manual_seed(int(options.seed)))
+                           for p in parts])
+        gen = torch.Generator().manual_seed(int(options.seed))
+        x0 = torch.empty_like(noise)
+        for s in range(0, len(cond), options.batch):
+            sl = slice(s, s + options.batch)
+            start = cond[sl, :, :FRAME_DIM].clone() if options.mode == "sdedit" else None  # tracked, gaps interpolated
+            x0[sl] = sample_x0(self.model, self.diffusion, cond[sl], category[sl], num_steps=options.num_steps,
+                               eta=options.eta, generator=gen, start=start, noise=noise[sl],
+                               strength=options.strength if options.mode == "sdedit" else 1.0)
+        out = self.normalizer.denormalize(x0.numpy())
+        results, i = [], 0
+        for p, r in zip(parts, fps):
+            n = len(p["starts"])
+            world = from_frame(out[i:i + n], p["inp"].origin, p["inp"].yaw)
+            i += n
+            blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
+            blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
+            results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
+        return results
+
+    def _windows(self, frames: np.ndarray, fps: float) -> dict:
+        """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T
+        and the network inputs (``prepare_windows``)."""
         f = np.asarray(frames, dtype=np.float32)
         if f.ndim != 2 or f.shape[1] != FRAME_DIM:
             raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
         T = f.shape[0]
         if T < 2:
             raise ValueError(f"a tracked sequence needs at least 2 frames, got {T}")
-        cat = category_indices(category, self.categories)[0]
+        if not np.isfinite(fps) or fps <= 0:
+            raise ValueError(f"fps must be a positive number, got {fps}")
         # model frames from time 0 over the whole duration (the last may end just past it)
         g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
         Tm, L = g.shape[0], self.window
@@ -85,24 +128,8 @@ class HOIFilter:
         padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])
         padded[Tm:, IMU_R] = padded[Tm:, IMU_A] = padded[Tm:, IMU_FLAG] = 0.0  # padding: no IMU either
         idx = starts[:, None] + np.arange(L)[None]
-        windows = padded[idx]  # (N, L, 235)
-        inp = prepare_windows(windows, self.normalizer, filled_world=fill_missing(padded)[idx])
-        gen = torch.Generator().manual_seed(int(options.seed))
-        out = np.empty_like(windows)
-        for s in range(0, len(windows), options.batch):
-            sl = slice(s, s + options.batch)
-            cond = inp.cond[sl]
-            start = None
-            if options.mode == "sdedit":
-                start = cond[..., :FRAME_DIM].clone()  # the normalised tracked input, gaps interpolated
-            x0 = sample_x0(self.model, self.diffusion, cond, torch.full((len(cond),), int(cat), dtype=torch.long),
-                           num_steps=options.num_steps, eta=options.eta, generator=gen, start=start,
-                           strength=options.strength if options.mode == "sdedit" else 1.0)
-            out[sl] = self.normalizer.denormalize(x0.numpy())
-        world = from_frame(out, inp.origin, inp.yaw)
-        blended = orthonormalize_6d(blend_windows(world, starts, Tm))
-        blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
-        return resample_frames(blended, self.fps, fps, num_out=T)
+        inp = prepare_windows(padded[idx], self.normalizer, filled_world=fill_missing(padded)[idx])
+        return {"starts": starts, "Tm": Tm, "T": T, "inp": inp}
 
     def refine_sequence(self, seq: Sequence, category: str | None = None, object_name: str | None = None,
                         options: RefineOptions = RefineOptions()) -> tuple[Sequence, str]:

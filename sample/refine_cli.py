@@ -33,7 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--object", default=None, help="object to refine with the human (default: the only one, "
                                                   "else the one that moves most); others pass through")
     p.add_argument("--checkpoint", default=None, help="filter checkpoint (default: the shipped models/refine.pt)")
-    p.add_argument("--steps", type=int, default=5, help="DDIM sampling steps (default 5)")
+    p.add_argument("--steps", type=int, default=2, help="DDIM sampling steps (default 2; 1, 2 and 5 give the same errors, benchmarks/refine_diagnosis.py)")
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise",
                    help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
     p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")

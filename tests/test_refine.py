@@ -215,7 +215,8 @@ def test_eval_refine_command(tmp_path, capsys):
     res = json.loads(out.strip().splitlines()[-1])
     for k in ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "accel_err_in", "accel_err_out", "accel_gt",
               "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg",
-              "hand_obj_dist_cm", "frames_per_s"):
+              "hand_obj_dist_cm", "frames_per_s", "frames_per_s_per_clip", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm",
+              "mpjpe_savgol_ra_mm"):
         assert np.isfinite(res[k]), k
     assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
     assert res["savgol_window"] % 2 == 1
@@ -232,3 +233,43 @@ def test_smooth_time():
     assert torch.equal(smooth_time(lin, 0.0), lin)
     noise = torch.randn(1, 400, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     assert smooth_time(noise, 2.0).std() < 0.5 * noise.std()
+
+
+def test_refine_many_equals_one_by_one(tmp_path):
+    """All windows of several sequences (different lengths, rates, categories) in one batch give what
+    each sequence gives alone (a random network: the equality is not that of an identity), also when
+    the batch is split into chunks."""
+    filt = HOIFilter.load(_ckpt(tmp_path / "f.pt", zero=False))
+    seqs = [_tracked(T=T, seed=i)[1] for i, T in enumerate((100, 10, 150))]
+    fps, cats = [30.0, 30.0, 60.0], ["box", "box", filt.categories[-1]]
+    opts = RefineOptions(num_steps=2)
+    alone = [filt.refine_frames(f, r, c, opts) for f, r, c in zip(seqs, fps, cats)]
+    for batch in (256, 3):
+        together = filt.refine_many(seqs, fps, cats, RefineOptions(num_steps=2, batch=batch))
+        for a, b, f in zip(alone, together, seqs):
+            assert b.shape == f.shape
+            np.testing.assert_allclose(b, a, atol=1e-4)
+    assert not np.allclose(alone[0][:, JOINTS], seqs[0][:, JOINTS], atol=1e-3)  # the network does change it
+    assert filt.refine_many([], [], []) == []
+    with pytest.raises(ValueError, match="one fps and category per sequence"):
+        filt.refine_many(seqs, fps[:2], cats)
+    with pytest.raises(ValueError, match="fps must be a positive number"):
+        filt.refine_many(seqs[:1], [0.0], cats[:1])
+
+
+def test_root_aligned_mpjpe_ignores_a_body_translation_and_real_clips_are_body_only():
+    from sample.eval_refine import _real_clips, _root_aligned
+
+    rng = np.random.default_rng(0)
+    Jc = rng.normal(size=(20, 24, 3))
+    drift = np.cumsum(rng.normal(0, 0.01, (20, 1, 3)), axis=0)  # a whole-body translation per frame
+    np.testing.assert_allclose(_root_aligned(Jc + drift, Jc), 0.0, atol=1e-12)
+    J = Jc.copy()
+    J[:, 5] += [0.0, 0.03, 0.04]  # one joint 5 cm off, the root exact
+    e = _root_aligned(J, Jc)
+    np.testing.assert_allclose(e[:, 5], 0.05)
+    assert np.allclose(np.delete(e, 5, axis=1), 0.0)
+    clips = _real_clips(64, 3, seed=0)
+    assert clips.shape == (3, 64, 235) and np.isfinite(clips[..., JOINTS]).all()
+    assert np.isnan(clips[..., 72:216]).all() and np.isnan(clips[..., OBJ_T]).all()  # no rotations, no object
+    assert (clips[..., 234] == 0).all()  # no IMU

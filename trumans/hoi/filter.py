@@ -121,16 +121,18 @@ def category_indices(names: list[str] | str, categories: list[str]) -> np.ndarra
     return np.array([lut[n] for n in names], dtype=np.int64)
 
 
-@torch.no_grad()
+@torch.inference_mode()
 def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: torch.Tensor, *,
               num_steps: int = 5, eta: float = 0.0, generator: torch.Generator | None = None,
-              start: torch.Tensor | None = None, strength: float = 1.0) -> torch.Tensor:
+              start: torch.Tensor | None = None, strength: float = 1.0,
+              noise: torch.Tensor | None = None) -> torch.Tensor:
     """Reverse diffusion for a batch of windows: -> x̂0 (B, L, 235) normalised.
 
     From noise (``start`` None; the paper's filter): DDIM over ``num_steps`` respaced steps from
     T-1 (``GaussianDiffusion.step``). SDEdit-style (Meng et al. 2022): ``start`` (B, L, 235), the
     normalised tracked windows (missing = 0), is noised to step ``round(strength * (T-1))`` and
-    denoised from there. cond: (B, L, 261); category: (B,) int64.
+    denoised from there. cond: (B, L, 261); category: (B,) int64; noise: the starting noise
+    (B, L, 235) (default: drawn from ``generator``).
     """
     from trumans.model.diffusion import respaced_timesteps
 
@@ -138,7 +140,10 @@ def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: t
         raise ValueError(f"strength must be in (0, 1], got {strength}")
     B, L = cond.shape[:2]
     shape = (B, L, FRAME_DIM)
-    noise = torch.randn(shape, generator=generator)
+    if noise is None:
+        noise = torch.randn(shape, generator=generator)
+    elif tuple(noise.shape) != shape:
+        raise ValueError(f"noise must be {shape}, got {tuple(noise.shape)}")
     T = diffusion.steps
     if start is None:
         t0 = T - 1

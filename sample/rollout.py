@@ -20,6 +20,7 @@ from trumans.model.checkpoint import Checkpoint
 from trumans.skeleton import JOINT_INDEX
 
 from .controller import Controller, Phase, compile_plan
+from .foot_cleanup import clean_feet
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
 
@@ -108,6 +109,8 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
     raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
     world = project_bones(world, lengths)
+    if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
+        world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
 
 

@@ -48,7 +48,9 @@ class SamplerConfig:
     scene_scale / action_scale: classifier-free guidance scales (1 = plain conditional);
     naive: recompute the condition embeddings at every step (the reference sampler);
     goal_guidance: step size of the spatial guidance that pulls the predicted body onto its goal
-    (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step."""
+    (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step;
+    foot_cleanup: lock planted feet on the floor and re-solve the legs after each episode
+    (``sample.foot_cleanup``; applied by ``sample.rollout``)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -57,6 +59,7 @@ class SamplerConfig:
     naive: bool = False
     goal_guidance: float = 0.0
     goal_iters: int = 1
+    foot_cleanup: bool = True
 
     def __post_init__(self) -> None:
         if self.steps < 1:

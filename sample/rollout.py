@@ -23,6 +23,7 @@ from .controller import Controller, Phase, compile_plan
 from .foot_cleanup import clean_feet
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
+from .seams import blend_seam
 
 __all__ = ["SampleResult", "start_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
 
@@ -108,6 +109,8 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     world = sampler.episode(context, labels, goals, generator=generator)
     bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
     raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
+    if sampler.config.seam_blend > 0:
+        world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
     world = project_bones(world, lengths)
     if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
         world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)

@@ -50,7 +50,8 @@ class SamplerConfig:
     goal_guidance: step size of the spatial guidance that pulls the predicted body onto its goal
     (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step;
     foot_cleanup: lock planted feet on the floor and re-solve the legs after each episode
-    (``sample.foot_cleanup``; applied by ``sample.rollout``)."""
+    (``sample.foot_cleanup``; applied by ``sample.rollout``); seam_blend: frames over which the
+    jump at an episode seam is blended out (``sample.seams``; 0 = off)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -60,12 +61,15 @@ class SamplerConfig:
     goal_guidance: float = 0.0
     goal_iters: int = 1
     foot_cleanup: bool = True
+    seam_blend: int = 4
 
     def __post_init__(self) -> None:
         if self.steps < 1:
             raise ValueError(f"steps must be >= 1, got {self.steps}")
         if not self.eta >= 0:
             raise ValueError(f"eta must be >= 0, got {self.eta}")
+        if self.seam_blend < 0:
+            raise ValueError(f"seam_blend must be >= 0 frames, got {self.seam_blend}")
         if self.goal_iters < 1:
             raise ValueError(f"goal_iters must be >= 1, got {self.goal_iters}")
         for name in ("scene_scale", "action_scale", "goal_guidance"):

@@ -1,0 +1,23 @@
+"""Command-line switches of the sampling-time cleanup and guidance steps, shared by
+``trumans sample`` and ``trumans eval synthesis`` (one place, the same defaults as ``SamplerConfig``)."""
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_postprocess_arguments", "postprocess_kwargs"]
+
+
+def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
+    from .sampler import SamplerConfig
+
+    d = SamplerConfig()
+    g = p.add_argument_group("sampling-time cleanup (on by default)")
+    g.add_argument("--no-foot-cleanup", dest="foot_cleanup", action="store_false",
+                   help="keep the network's feet (no foot locks, floor or leg IK; sample/foot_cleanup.py)")
+    g.add_argument("--seam-blend", type=int, default=d.seam_blend, metavar="FRAMES",
+                   help=f"frames over which the jump at episode seams is blended out (0 = off; default {d.seam_blend})")
+
+
+def postprocess_kwargs(args: argparse.Namespace) -> dict:
+    """The ``SamplerConfig`` fields set by the switches above."""
+    return {"foot_cleanup": bool(args.foot_cleanup), "seam_blend": int(args.seam_blend)}

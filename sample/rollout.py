@@ -24,6 +24,7 @@ from .foot_cleanup import clean_feet
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
 from .seams import blend_seam
+from .seat_guidance import seated_heights
 
 __all__ = ["SampleResult", "start_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
 
@@ -103,8 +104,11 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
           lengths: np.ndarray, generator: torch.Generator | None) -> _Episode:
     """One episode for every sample, projected onto the bone ``lengths``."""
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
-    goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading) if c.hand_goal is None else
-             Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide) for c in ctrls]
+    off = sit_offset(start_pose(sampler.ckpt)) if sampler.config.seat_guidance else 0.0
+    seat = [seated_heights(c.phases, ctl.phases, off, sampler.k) if sampler.config.seat_guidance else ()
+            for c, ctl in zip(ctrls, controllers)]
+    goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading, pelvis_z=z) if c.hand_goal is None else
+             Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide, pelvis_z=z) for c, z in zip(ctrls, seat)]
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, generator=generator)
     bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)

@@ -28,6 +28,7 @@ from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 
 HEADING_WEIGHT = 3.0  # the hip-line (heading) term against the position term of the goal guidance
+HEIGHT_WEIGHT = 1.0  # the seated pelvis height term (per frame) against the position term
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,7 @@ class Goal:
     frame: int = -1
     guide: bool = True  # goal guidance applies (``SamplerConfig.goal_guidance``); else inpainting only
     heading: float | None = None  # world heading (rad) the body should have at the goal (sitting down)
+    pelvis_z: tuple[tuple[int, float], ...] = ()  # (episode frame, world pelvis height m): seated frames
 
 
 @dataclass(frozen=True)
@@ -51,7 +53,8 @@ class SamplerConfig:
     (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step;
     foot_cleanup: lock planted feet on the floor and re-solve the legs after each episode
     (``sample.foot_cleanup``; applied by ``sample.rollout``); seam_blend: frames over which the
-    jump at an episode seam is blended out (``sample.seams``; 0 = off)."""
+    jump at an episode seam is blended out (``sample.seams``; 0 = off); seat_guidance: the goal
+    guidance also pulls a seated pelvis to its seat's height (``sample.seat_guidance``)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -62,6 +65,7 @@ class SamplerConfig:
     goal_iters: int = 1
     foot_cleanup: bool = True
     seam_blend: int = 4
+    seat_guidance: bool = True
 
     def __post_init__(self) -> None:
         if self.steps < 1:
@@ -185,7 +189,8 @@ class EpisodeSampler:
         """Per sample, the guidance terms (frame, feature columns, W, target): the loss is
         |W x0[frame, columns] - target|^2 in metres (denormalised, canonical frame). A pelvis goal
         pulls the hip midpoint's x, y (W averages the hips) and, with a heading, the hip line
-        (left minus right hip) onto the heading's left direction; a joint goal pulls that joint."""
+        (left minus right hip) onto the heading's left direction; a joint goal pulls that joint;
+        ``Goal.pelvis_z`` pulls the pelvis height at those frames (seated frames, frames as a tensor)."""
         lay = self.layout
         hips = lay.position_index("left_hip", (0, 1)) + lay.position_index("right_hip", (0, 1))
         mean_w = torch.tensor([[0.5, 0, 0.5, 0], [0, 0.5, 0, 0.5]])
@@ -204,6 +209,11 @@ class EpisodeSampler:
                 local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
                 terms.append((g.frame % self.L, lay.position_index(g.joint), torch.eye(3),
                               torch.as_tensor(local, dtype=torch.float32)))
+            if g.pelvis_z:  # seated frames: the pelvis at its height above the seat (canonical z = world z)
+                frames = torch.as_tensor([f % self.L for f, _ in g.pelvis_z], dtype=torch.long)
+                z = torch.as_tensor([h for _, h in g.pelvis_z], dtype=torch.float32)
+                terms.append((frames, lay.position_index(PELVIS, (2,)), HEIGHT_WEIGHT * torch.eye(len(z)),
+                              HEIGHT_WEIGHT * z))
             out.append(terms)
         return out
 

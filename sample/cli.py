@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .sampling_args import add_postprocess_arguments, postprocess_kwargs
+
 __all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT"]
 
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent.parent / "models" / "generator.pt"
@@ -113,6 +115,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--goal-guidance", type=float, default=20.0,
                    help="spatial guidance step pulling the body onto each episode's goal (0 = inpainting only)")
     p.add_argument("--goal-iters", type=int, default=3, help="guidance updates per denoising step (default 3)")
+    add_postprocess_arguments(p)
     p.add_argument("--max-seconds", type=float, default=600.0, help="give up when the plan is not done by then")
     p.add_argument("--device", default="cpu", help="torch device (cpu, cuda, cuda:1)")
     p.add_argument("--seed", type=int, default=0)
@@ -183,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
                        heading=args.heading if args.heading is not None else plan.heading)
     validate_plan(plan, sc.scene, ckpt.vocabulary)
     config = SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
-                           goal_guidance=args.goal_guidance, goal_iters=args.goal_iters)
+                           goal_guidance=args.goal_guidance, goal_iters=args.goal_iters, **postprocess_kwargs(args))
     sampler = EpisodeSampler(ckpt, sc.grids, config, device=str(device))
     start = np.asarray(plan.start, np.float64) if plan.start is not None else sc.free_point()
     if not sc.walkmap.query(start[None])[0]:

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .sampling_args import add_postprocess_arguments, postprocess_kwargs
+
 __all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS"]
 
 EVAL_ROOM_SEEDS: tuple[int, ...] = (9001, 9002, 9003, 9004, 9005, 9006)
@@ -37,6 +39,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
     p.add_argument("--data", default=None, help="dataset whose test split is the real reference for fid "
                    "(default: the shipped models/synthesis_reference.npz)")
+    add_postprocess_arguments(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
 
@@ -55,7 +58,8 @@ def _plans(sc, seed: int):
 
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
-             guidance: tuple[float, int] = (20.0, 3)) -> dict:
+             guidance: tuple[float, int] = (20.0, 3), post: dict | None = None) -> dict:
+    """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler."""
     import torch
 
     from trumans.model.checkpoint import load_checkpoint
@@ -73,7 +77,7 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
         sc = load_sample_scene(f"room:{room_seed}")
         plan = _plans(sc, seed * 1000 + r)
         sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
-                                                               goal_iters=guidance[1]))
+                                                               goal_iters=guidance[1], **(post or {})))
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
         results.append(res)
@@ -94,7 +98,7 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
         sc, plan, res = first
         naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True))
         fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
-                                                            goal_iters=guidance[1]))
+                                                            goal_iters=guidance[1], **(post or {})))
         t = {}
         for name, s in (("fast", fast), ("naive", naive)):
             t0 = time.perf_counter()
@@ -159,11 +163,12 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--steps must be >= 1 and --naive-episodes >= 0")
     guidance = (args.goal_guidance, args.goal_iters)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data, guidance)
+                    args.data, guidance, postprocess_kwargs(args))
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
-        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance)
+        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance,
+                                           postprocess_kwargs(args))
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

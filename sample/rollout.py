@@ -21,8 +21,11 @@ from trumans.skeleton import JOINT_INDEX
 
 from .carry_plan import planned_object_poses
 from .controller import Controller, Phase, compile_plan
+from .foot_cleanup import clean_feet
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
+from .seams import blend_seam
+from .seat_guidance import seated_heights
 
 __all__ = ["SampleResult", "start_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
 
@@ -103,13 +106,20 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     """One episode for every sample, projected onto the bone ``lengths``."""
     moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
-    goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading) if c.hand_goal is None else
-             Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide) for c in ctrls]
+    off = sit_offset(start_pose(sampler.ckpt)) if sampler.config.seat_guidance else 0.0
+    seat = [seated_heights(c.phases, ctl.phases, off, sampler.k) if sampler.config.seat_guidance else ()
+            for c, ctl in zip(ctrls, controllers)]
+    goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading, pelvis_z=z) if c.hand_goal is None else
+             Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide, pelvis_z=z) for c, z in zip(ctrls, seat)]
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
     bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
     raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
+    if sampler.config.seam_blend > 0:
+        world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
     world = project_bones(world, lengths)
+    if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
+        world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
 
 

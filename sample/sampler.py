@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from einops import rearrange
 
 from scenes.scene_grids import SceneGrids
 from trumans.model.checkpoint import Checkpoint
@@ -25,9 +26,13 @@ from trumans.model.masks import joint_goal_mask, pelvis_goal_mask, transition_ma
 from trumans.model.nets import GuidedDenoiser
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
 
+from .penetration_guidance import SceneSDF, penetration_loss
+
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 
 HEADING_WEIGHT = 3.0  # the hip-line (heading) term against the position term of the goal guidance
+HEIGHT_WEIGHT = 1.0  # the seated pelvis height term (per frame) against the position term
+PENETRATION_WEIGHT = 1.0  # the scene-penetration term (sample.penetration_guidance) against the position term
 
 
 @dataclass(frozen=True)
@@ -40,6 +45,7 @@ class Goal:
     frame: int = -1
     guide: bool = True  # goal guidance applies (``SamplerConfig.goal_guidance``); else inpainting only
     heading: float | None = None  # world heading (rad) the body should have at the goal (sitting down)
+    pelvis_z: tuple[tuple[int, float], ...] = ()  # (episode frame, world pelvis height m): seated frames
 
 
 @dataclass(frozen=True)
@@ -48,7 +54,13 @@ class SamplerConfig:
     scene_scale / action_scale: classifier-free guidance scales (1 = plain conditional);
     naive: recompute the condition embeddings at every step (the reference sampler);
     goal_guidance: step size of the spatial guidance that pulls the predicted body onto its goal
-    (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step."""
+    (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step;
+    foot_cleanup: lock planted feet on the floor and re-solve the legs after each episode
+    (``sample.foot_cleanup``; applied by ``sample.rollout``); seam_blend: frames over which the
+    jump at an episode seam is blended out (``sample.seams``; 0 = off); seat_guidance: the goal
+    guidance also pulls a seated pelvis to its seat's height (``sample.seat_guidance``);
+    penetration_guidance: the goal guidance also pushes the joints out of the scene
+    (``sample.penetration_guidance``; needs grids)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -57,12 +69,18 @@ class SamplerConfig:
     naive: bool = False
     goal_guidance: float = 0.0
     goal_iters: int = 1
+    foot_cleanup: bool = True
+    seam_blend: int = 4
+    seat_guidance: bool = True
+    penetration_guidance: bool = True
 
     def __post_init__(self) -> None:
         if self.steps < 1:
             raise ValueError(f"steps must be >= 1, got {self.steps}")
         if not self.eta >= 0:
             raise ValueError(f"eta must be >= 0, got {self.eta}")
+        if self.seam_blend < 0:
+            raise ValueError(f"seam_blend must be >= 0 frames, got {self.seam_blend}")
         if self.goal_iters < 1:
             raise ValueError(f"goal_iters must be >= 1, got {self.goal_iters}")
         for name in ("scene_scale", "action_scale", "goal_guidance"):
@@ -109,6 +127,8 @@ class EpisodeSampler:
         self.extent = tuple(ckpt.grid.get("extent", (1.2, 1.2, 1.2)))
         self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
         self.hip_width = 0.12  # m, the start pose's hip line length (set by the rollout for its body)
+        self.sdf = SceneSDF(grids.static) if config.penetration_guidance and config.goal_guidance > 0 \
+            and grids is not None else None
 
     # ------------------------------------------------------------------ one episode
     def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:
@@ -165,7 +185,8 @@ class EpisodeSampler:
         acts = torch.as_tensor(cond.actions, dtype=torch.float32, device=self.device)
         emb = self._conditions(scene, acts)
         if self.config.goal_guidance > 0:
-            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, self._goal_targets(cond, goals), generator)
+            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, self._goal_targets(cond, goals), generator,
+                                     cond)
         else:
             x0 = self.diffusion.sample(self._model_fn(emb), (B, self.L, self.layout.dim), mask=mask, given=x_given,
                                        num_steps=self.config.steps, eta=self.config.eta, generator=generator,
@@ -180,7 +201,8 @@ class EpisodeSampler:
         """Per sample, the guidance terms (frame, feature columns, W, target): the loss is
         |W x0[frame, columns] - target|^2 in metres (denormalised, canonical frame). A pelvis goal
         pulls the hip midpoint's x, y (W averages the hips) and, with a heading, the hip line
-        (left minus right hip) onto the heading's left direction; a joint goal pulls that joint."""
+        (left minus right hip) onto the heading's left direction; a joint goal pulls that joint;
+        ``Goal.pelvis_z`` pulls the pelvis height at those frames (seated frames, frames as a tensor)."""
         lay = self.layout
         hips = lay.position_index("left_hip", (0, 1)) + lay.position_index("right_hip", (0, 1))
         mean_w = torch.tensor([[0.5, 0, 0.5, 0], [0, 0.5, 0, 0.5]])
@@ -199,10 +221,16 @@ class EpisodeSampler:
                 local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
                 terms.append((g.frame % self.L, lay.position_index(g.joint), torch.eye(3),
                               torch.as_tensor(local, dtype=torch.float32)))
+            if g.pelvis_z:  # seated frames: the pelvis at its height above the seat (canonical z = world z)
+                frames = torch.as_tensor([f % self.L for f, _ in g.pelvis_z], dtype=torch.long)
+                z = torch.as_tensor([h for _, h in g.pelvis_z], dtype=torch.float32)
+                terms.append((frames, lay.position_index(PELVIS, (2,)), HEIGHT_WEIGHT * torch.eye(len(z)),
+                              HEIGHT_WEIGHT * z))
             out.append(terms)
         return out
 
-    def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, targets, generator) -> torch.Tensor:
+    def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, targets, generator,
+                       cond: EpisodeCondition | None = None) -> torch.Tensor:
         """Respaced DDIM (``GaussianDiffusion.step``) with spatial guidance (OmniControl, Xie et al.
         2024, "spatial guidance"): a sparse inpainted goal (2 of L x F entries) is weakly followed, so
         after each step x_{t-1} moves against the gradient of the squared distance (m^2) between the
@@ -212,6 +240,11 @@ class EpisodeSampler:
         mean = torch.as_tensor(self.norm.mean, dtype=torch.float32)
         std = torch.as_tensor(self.norm.std, dtype=torch.float32)
         x = torch.randn((B, L, F), generator=generator, dtype=torch.float32).to(self.device)
+        if self.sdf is not None and cond is not None:  # canonical -> world of the new frames' joints
+            c, s_ = np.cos(cond.yaw), np.sin(cond.yaw)
+            Rt = torch.as_tensor(np.stack([np.stack([c, s_, 0 * c], -1), np.stack([-s_, c, 0 * c], -1),
+                                           np.stack([0 * c, 0 * c, 1 + 0 * c], -1)], 1), dtype=torch.float32)
+            org = torch.as_tensor(cond.origin, dtype=torch.float32)
         ts = respaced_timesteps(d.steps, self.config.steps).tolist()
         for i, t_i in enumerate(ts):
             x = torch.where(mask, given, x)
@@ -227,6 +260,10 @@ class EpisodeSampler:
                         for f, cols, W, target in terms:
                             pred = W @ (x0_hat[b, f, cols] * std[cols] + mean[cols])
                             loss = loss + ((pred - target) ** 2).sum()
+                    if self.sdf is not None and cond is not None:
+                        pos = (x0_hat[:, self.k:, :NUM_JOINTS * 3] * std[:NUM_JOINTS * 3] + mean[:NUM_JOINTS * 3])
+                        pos = rearrange(pos, "b l (j c) -> b l j c", c=3) @ Rt[:, None] + org[:, None, None]
+                        loss = loss + PENETRATION_WEIGHT * penetration_loss(self.sdf, pos)
                     g, = torch.autograd.grad(loss, xg, allow_unused=True) if loss.requires_grad else (None,)
                     if g is None:
                         break

@@ -1,0 +1,163 @@
+"""Foot cleanup of sampled episodes: planted feet locked in place on the floor, legs re-solved.
+
+The generator's feet slide and sink (foot skate, floor error). After each episode, over the
+context frames (fixed, already cleaned) followed by the new frames:
+
+1. contacts per foot from the height of its lowest foot joint (ankle / toe) above its resting
+   height and from its horizontal speed, with hysteresis (enter when low *and* slow, leave when
+   high *or* fast; in between the previous state holds);
+2. over each contact run the foot is locked at the floor point where it landed (the last context
+   frame when the run began before the episode, so locks carry across seams); outside contacts
+   a foot under the floor is lifted onto it; the correction fades out over ``blend`` frames after
+   a run and in over ``blend`` frames before it (new frames only);
+3. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
+   stays, the ankle goes to its target (clamped to the leg's reach), the knee stays in the plane
+   of its current bend, the toe keeps its offset from the ankle, so every bone length is exact.
+
+The generator outputs joint positions, not rotations, so the positional form of the two-bone
+solve (``trumans.ik.limb`` solves the same chain on rotations) is used; no rotation fit per episode.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trumans.skeleton import JOINT_INDEX
+
+__all__ = ["FootCleanupConfig", "foot_contacts", "clean_feet", "two_bone_positions", "FOOT_REST"]
+
+# (hip, knee, ankle, toe) per leg
+LEGS = {side: tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle", "foot")) for side in ("left", "right")}
+FOOT_REST = np.array([0.08, 0.04])  # resting heights of the ankle / toe joints above the floor, m (synthesis_metrics)
+
+
+@dataclass(frozen=True)
+class FootCleanupConfig:
+    """enter_height / exit_height: foot height above rest (m) to start / end a contact;
+    enter_speed / exit_speed: horizontal foot speed (m/s) to start / end a contact;
+    blend: frames over which a lock's correction fades in and out."""
+
+    enter_height: float = 0.06
+    exit_height: float = 0.10
+    enter_speed: float = 0.35
+    exit_speed: float = 0.8
+    blend: int = 3
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.enter_height <= self.exit_height:
+            raise ValueError(f"need 0 <= enter_height <= exit_height, got {self.enter_height}, {self.exit_height}")
+        if not 0 <= self.enter_speed <= self.exit_speed:
+            raise ValueError(f"need 0 <= enter_speed <= exit_speed, got {self.enter_speed}, {self.exit_speed}")
+        if self.blend < 0:
+            raise ValueError(f"blend must be >= 0 frames, got {self.blend}")
+
+
+def _foot_height(joints: np.ndarray, ankle: int, toe: int) -> np.ndarray:
+    """(..., T) height of the lower of ankle / toe above its resting height, m."""
+    return np.minimum(joints[..., ankle, 2] - FOOT_REST[0], joints[..., toe, 2] - FOOT_REST[1])
+
+
+def foot_contacts(joints: np.ndarray, fps: float, config: FootCleanupConfig = FootCleanupConfig(),
+                  initial: np.ndarray | bool = False) -> np.ndarray:
+    """joints (B, T, 24, 3) world m -> (B, T, 2) bool contacts of the (left, right) foot.
+    ``initial`` (B, 2) or bool: the state before frame 0 (for frames neither entering nor leaving)."""
+    B, T = joints.shape[:2]
+    out = np.zeros((B, T, 2), dtype=bool)
+    init = np.broadcast_to(np.asarray(initial, dtype=bool), (B, 2))
+    for s, (_, _, ankle, toe) in enumerate(LEGS.values()):
+        h = _foot_height(joints, ankle, toe)  # (B, T)
+        mid = 0.5 * (joints[..., ankle, :2] + joints[..., toe, :2])
+        v = np.zeros((B, T))
+        v[:, 1:] = np.linalg.norm(np.diff(mid, axis=1), axis=-1) * fps
+        if T > 1:
+            v[:, 0] = v[:, 1]
+        enter = (h < config.enter_height) & (v < config.enter_speed)
+        leave = (h > config.exit_height) | (v > config.exit_speed)
+        decisive = enter | leave
+        idx = np.where(decisive, np.arange(T)[None], -1)
+        last = np.maximum.accumulate(idx, axis=1)  # last decisive frame at or before t (hysteresis)
+        state = np.take_along_axis(enter, np.maximum(last, 0), axis=1)
+        out[..., s] = np.where(last >= 0, state, init[:, s:s + 1])
+    return out
+
+
+def two_bone_positions(hip: np.ndarray, knee: np.ndarray, target: np.ndarray, l1: float, l2: float
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Analytic two-bone IK on positions (..., 3): the knee at distance l1 from the hip and l2 from
+    the ankle, in the plane of the current bend (law of cosines). Returns (knee, ankle); the ankle
+    is the target clamped to the reach [|l1 - l2|, l1 + l2] (1 mm short of full extension)."""
+    d = target - hip
+    dist = np.linalg.norm(d, axis=-1, keepdims=True)
+    f = d / np.maximum(dist, 1e-9)
+    D = np.clip(dist, abs(l1 - l2) + 1e-4, l1 + l2 - 1e-3)
+    ankle = hip + f * D
+    a = (l1 ** 2 - l2 ** 2 + D ** 2) / (2 * D)  # hip -> knee foot point along the hip-ankle line
+    r = np.sqrt(np.maximum(l1 ** 2 - a ** 2, 0.0))
+    bend = knee - hip
+    perp = bend - (bend * f).sum(-1, keepdims=True) * f
+    n = np.linalg.norm(perp, axis=-1, keepdims=True)
+    fallback = np.cross(f, np.array([0.0, 0.0, 1.0]))  # straight leg: bend sideways of vertical, rarely used
+    perp = np.where(n > 1e-6, perp / np.maximum(n, 1e-12), fallback / np.maximum(
+        np.linalg.norm(fallback, axis=-1, keepdims=True), 1e-12))
+    return hip + f * a + perp * r, ankle
+
+
+def _fade(contact: np.ndarray, fixed: int, blend: int) -> tuple[np.ndarray, np.ndarray]:
+    """For (B, T) contacts: (index (B, T) of the contact frame whose correction applies, weight (B, T)).
+    Inside a run weight 1 and index t; within ``blend`` frames after / before a run the nearest run
+    frame with a linearly falling weight (frames < ``fixed`` are never corrected)."""
+    B, T = contact.shape
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    prev = np.maximum.accumulate(np.where(contact, t, -10 ** 6), axis=1)
+    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(contact, t, 10 ** 6), 1), axis=1), 1)
+    dp, dn = t - prev, nxt - t
+    w_p = np.clip(1 - dp / (blend + 1), 0, 1)
+    w_n = np.clip(1 - dn / (blend + 1), 0, 1)
+    use_prev = w_p >= w_n
+    idx = np.clip(np.where(use_prev, prev, nxt), 0, T - 1)
+    w = np.where(use_prev, w_p, w_n)
+    w[:, :fixed] = 0.0
+    return idx, w
+
+
+def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
+               config: FootCleanupConfig = FootCleanupConfig()) -> np.ndarray:
+    """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
+    (the context) are kept and seed the locks. See the module doc."""
+    J = np.array(joints, dtype=np.float64, copy=True)
+    if J.ndim != 4 or J.shape[2:] != (24, 3):
+        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
+    B, T = J.shape[:2]
+    if not 0 <= fixed <= T:
+        raise ValueError(f"fixed must be in [0, {T}] frames, got {fixed}")
+    contact = foot_contacts(J, fps, config)
+    for s, (hip, knee, ankle, toe) in enumerate(LEGS.values()):
+        c = contact[..., s]
+        h = _foot_height(J, ankle, toe)  # (B, T)
+        # floor-corrected ankle: lowest foot joint at rest height when planted, never under the floor
+        lift = np.where(c, -h, np.maximum(-h, 0.0))
+        A = J[:, :, ankle].copy()
+        A[..., 2] += lift
+        # lock xy: the ankle where the run began (or at the last fixed frame for runs begun before)
+        t = np.broadcast_to(np.arange(T)[None], (B, T))
+        start = np.maximum.accumulate(np.where(c & ~np.concatenate([np.zeros((B, 1), bool), c[:, :-1]], 1),
+                                               t, 0), axis=1)
+        start = np.maximum(start, min(fixed, T) - 1) if fixed > 0 else start
+        lock_xy = np.take_along_axis(A[..., :2], start[..., None], axis=1)
+        A[..., :2] = np.where(c[..., None], lock_xy, A[..., :2])
+        delta = A - J[:, :, ankle]  # (B, T, 3) correction; outside runs only the floor lift
+        idx, w = _fade(c, fixed, config.blend)
+        run_delta = np.take_along_axis(delta, idx[..., None], axis=1) * w[..., None]
+        corr = np.where(c[..., None], delta, run_delta)  # free frames: the faded lock, at least the floor lift
+        corr[..., 2] = np.where(c, delta[..., 2], np.maximum(run_delta[..., 2], delta[..., 2]))
+        corr[:, :fixed] = 0.0
+        target = J[:, :, ankle] + corr
+        toe_off = J[:, :, toe] - J[:, :, ankle]
+        new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
+                                                 float(lengths[knee]), float(lengths[ankle]))
+        solve = (np.abs(corr).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg
+        J[:, :, knee] = np.where(solve, new_knee, J[:, :, knee])
+        J[:, :, ankle] = np.where(solve, new_ankle, J[:, :, ankle])
+        J[:, :, toe] = np.where(solve, new_ankle + toe_off, J[:, :, toe])
+    return J.astype(np.asarray(joints).dtype)

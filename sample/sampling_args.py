@@ -1,0 +1,28 @@
+"""Command-line switches of the sampling-time cleanup and guidance steps, shared by
+``trumans sample`` and ``trumans eval synthesis`` (one place, the same defaults as ``SamplerConfig``)."""
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_postprocess_arguments", "postprocess_kwargs"]
+
+
+def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
+    from .sampler import SamplerConfig
+
+    d = SamplerConfig()
+    g = p.add_argument_group("sampling-time cleanup (on by default)")
+    g.add_argument("--no-foot-cleanup", dest="foot_cleanup", action="store_false",
+                   help="keep the network's feet (no foot locks, floor or leg IK; sample/foot_cleanup.py)")
+    g.add_argument("--no-seat-guidance", dest="seat_guidance", action="store_false",
+                   help="do not pull a seated pelvis to its seat's height (sample/seat_guidance.py)")
+    g.add_argument("--no-penetration-guidance", dest="penetration_guidance", action="store_false",
+                   help="do not push the joints out of the scene (sample/penetration_guidance.py)")
+    g.add_argument("--seam-blend", type=int, default=d.seam_blend, metavar="FRAMES",
+                   help=f"frames over which the jump at episode seams is blended out (0 = off; default {d.seam_blend})")
+
+
+def postprocess_kwargs(args: argparse.Namespace) -> dict:
+    """The ``SamplerConfig`` fields set by the switches above."""
+    return {"foot_cleanup": bool(args.foot_cleanup), "seam_blend": int(args.seam_blend),
+            "seat_guidance": bool(args.seat_guidance), "penetration_guidance": bool(args.penetration_guidance)}

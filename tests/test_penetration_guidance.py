@@ -1,0 +1,64 @@
+"""Scene-penetration guidance (sample.penetration_guidance and its use in sample.sampler)."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from sample.penetration_guidance import SceneSDF, penetration_loss
+from sample.rollout import start_context
+from sample.sampler import EpisodeSampler, Goal, SamplerConfig
+from scenes.occupancy import OccupancyGrid
+from scenes.scene_grids import SceneGrids
+from trumans.contacts.rule import JOINT_CORE_RADIUS
+
+from test_sample_rollout import VOCAB, tiny_checkpoint
+
+
+def _box_room() -> OccupancyGrid:
+    """Floor (z < 0) plus a box x in [1.0, 1.4], y in [0.6, 1.4], z in [0, 1.0] at 2 cm voxels."""
+    origin = np.array([0.01, 0.01, -0.09])
+    c = origin[:, None] + 0.02 * np.arange(120)[None]  # (3, 120) voxel centres per axis
+    x, y, z = np.meshgrid(*c, indexing="ij")
+    grid = (z < 0) | ((x > 1.0) & (x < 1.4) & (y > 0.6) & (y < 1.4) & (z < 1.0))
+    return OccupancyGrid(grid, origin, 0.02)
+
+
+def test_sdf_is_signed_distance_and_ignores_the_floor():
+    sdf = SceneSDF(_box_room())
+    pts = torch.tensor([[0.7, 1.0, 0.5], [1.2, 1.0, 0.5], [1.2, 1.0, 1.3], [0.5, 0.3, 0.05]])
+    d = sdf(pts).numpy()
+    np.testing.assert_allclose(d[0], 0.3, atol=0.03)  # 30 cm in front of the box
+    assert -0.25 < d[1] < -0.15  # 20 cm deep inside
+    np.testing.assert_allclose(d[2], 0.3, atol=0.03)  # above it
+    assert d[3] > 0.3  # near the floor but far from the box: the floor is not an obstacle here
+
+
+def test_descending_the_loss_pushes_a_pose_out_of_the_box():
+    sdf = SceneSDF(_box_room())
+    j = torch.full((24, 3), 0.0)
+    j[:, 0], j[:, 1], j[:, 2] = 1.05, 1.0, torch.linspace(0.1, 1.5, 24)  # a body standing 5 cm into the box
+    j.requires_grad_(True)
+    before = penetration_loss(sdf, j).item()
+    opt = torch.optim.SGD([j], lr=0.5)
+    for _ in range(50):
+        opt.zero_grad()
+        penetration_loss(sdf, j).backward()
+        opt.step()
+    assert before > 0.01 and penetration_loss(sdf, j).item() < 0.05 * before
+    pen = np.maximum(JOINT_CORE_RADIUS - sdf(j.detach()).numpy(), 0)
+    assert pen.max() < 0.02
+
+
+def test_guided_episode_penetrates_less():
+    occ = _box_room()
+    ck = tiny_checkpoint(3)
+    ctx = start_context(ck, np.array([0.9, 1.0]), 0.0)  # facing the box, 10 cm in front of it
+    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    sdfs, pens = SceneSDF(occ), []
+    for on in (False, True):
+        s = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=6, goal_guidance=20.0, goal_iters=3,
+                                                               penetration_guidance=on))
+        out = s.episode(ctx, labels, [Goal((1.3, 1.0), guide=False)], generator=torch.Generator().manual_seed(0))
+        d = sdfs(torch.as_tensor(out[0, 2:], dtype=torch.float32)).numpy()
+        pens.append(np.maximum(JOINT_CORE_RADIUS - d, 0).sum())
+    assert pens[1] < 0.7 * pens[0], pens

@@ -1,0 +1,39 @@
+"""Seated pelvis height guidance (sample.seat_guidance + Goal.pelvis_z in sample.sampler)."""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from sample.controller import Phase
+from sample.rollout import start_context
+from sample.sampler import EpisodeSampler, Goal, SamplerConfig
+from sample.seat_guidance import seated_heights
+from scenes.scene_grids import SceneGrids
+from trumans.skeleton import JOINT_INDEX
+
+from test_sample_rollout import VOCAB, open_room, tiny_checkpoint  # noqa: F401 (fixture)
+
+
+def test_seated_heights_follow_the_sit_phases():
+    phases = [Phase("walk", ("walk",)), Phase("sit", ("sit",), 20, info={"seat_height": 0.45})]
+    phase_of = np.array([-1, -1, 0, 0, 1, 1, 1, -1])
+    out = seated_heights(phase_of, phases, 0.1, k=2)
+    assert [f for f, _ in out] == [4, 5, 6]
+    np.testing.assert_allclose([z for _, z in out], 0.55)
+    assert seated_heights(np.array([1, 1, 0]), phases, 0.1, k=2) == ()  # context frames are not targeted
+
+
+def test_guidance_pulls_the_seated_pelvis_to_the_seat_height(open_room):  # noqa: F811
+    _, occ, _ = open_room
+    ck = tiny_checkpoint(2)
+    ctx = start_context(ck, np.array([1.0, 1.0]), 0.0)
+    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    target = 0.5  # m, well under the standing pelvis (~0.95 m)
+    frames = tuple((f, target) for f in range(8, 16))
+    pelvis = JOINT_INDEX["pelvis"]
+    errs = []
+    for z in ((), frames):
+        s = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=6, goal_guidance=20.0, goal_iters=3))
+        out = s.episode(ctx, labels, [Goal((1.0, 1.0), pelvis_z=z)], generator=torch.Generator().manual_seed(0))
+        errs.append(np.abs(out[0, 8:15, pelvis, 2] - target).mean())  # frame 15: the pelvis is re-attached
+    assert errs[1] < 0.5 * errs[0], errs

@@ -283,6 +283,8 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         return correct_trajectory(root0, frames, pts, fps, config.trajectory) - root0
 
     corr = corrected([], [])
+    joints_sel = joints0.copy()
+    joints_sel[:, :, :2] += corr[:, None]  # the sensors' path with the anchors only: objects are chosen on it
     interactions: list[Interaction] = []
     c_frames: list[int] = []
     c_xy: list[np.ndarray] = []
@@ -297,7 +299,11 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         e1 = segs[-1].end
         used = [h for h in (0, 1) if segs[0].hands[h]]
         span = hand_points(joints[s0:e1])[:, used]  # (n, k, 3) contacting hand points
-        found = select_object(queries, poses, s0, span[:_attach_window(len(span), fps)], cls[i], config.search_radius)
+        # choose the object on the path without earlier contacts' control points: their offset is
+        # only known at those contacts and, carried here, can bring the hands nearer a wrong object
+        # whose control point would then confirm the mismatch (issue 12, seed 1: 3.5 m off)
+        reach = hand_points(joints_sel[s0:e1])[:, used][:_attach_window(len(span), fps)]
+        found = select_object(queries, poses, s0, reach, cls[i], config.search_radius)
         if found is None:
             continue  # no object of that class near the hands: a false positive (§4.1)
         name = found[0]

@@ -7,7 +7,8 @@
 2. threshold, gap filling (<= 0.5 s), contact intervals and hand-set segments (§4.2, supp. §10);
 3. for each interval in time order whose class is a movable dof (slide | hinge | free): the
    nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
-   none -> the contact is a false positive and ignored); its contact point p_c (the closest
+   none -> the contact is a false positive and ignored; judged on the path as sensed, corrected
+   by the anchors only, since the offset of earlier contacts is stale here); its contact point p_c (the closest
    object point to the hand) becomes a control point for the root path, which is bent to it by
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
 4. with the final corrected body, each interaction drives its object within its dof (supp. §10:

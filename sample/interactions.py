@@ -7,7 +7,8 @@
 2. threshold, gap filling (<= 0.5 s), contact intervals and hand-set segments (§4.2, supp. §10);
 3. for each interval in time order whose class is a movable dof (slide | hinge | free): the
    nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
-   none -> the contact is a false positive and ignored); its contact point p_c (the closest
+   none -> the contact is a false positive and ignored; judged on the path as sensed, corrected
+   by the anchors only, since the offset of earlier contacts is stale here); its contact point p_c (the closest
    object point to the hand) becomes a control point for the root path, which is bent to it by
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
 4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
@@ -283,6 +284,8 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         return correct_trajectory(root0, frames, pts, fps, config.trajectory) - root0
 
     corr = corrected([], [])
+    joints_sel = joints0.copy()
+    joints_sel[:, :, :2] += corr[:, None]  # the sensors' path with the anchors only: objects are chosen on it
     interactions: list[Interaction] = []
     c_frames: list[int] = []
     c_xy: list[np.ndarray] = []
@@ -297,7 +300,11 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         e1 = segs[-1].end
         used = [h for h in (0, 1) if segs[0].hands[h]]
         span = hand_points(joints[s0:e1])[:, used]  # (n, k, 3) contacting hand points
-        found = select_object(queries, poses, s0, span[:_attach_window(len(span), fps)], cls[i], config.search_radius)
+        # choose the object on the path without earlier contacts' control points: their offset is
+        # only known at those contacts and, carried here, can bring the hands nearer a wrong object
+        # whose control point would then confirm the mismatch (issue 12, seed 1: 3.5 m off)
+        reach = hand_points(joints_sel[s0:e1])[:, used][:_attach_window(len(span), fps)]
+        found = select_object(queries, poses, s0, reach, cls[i], config.search_radius)
         if found is None:
             continue  # no object of that class near the hands: a false positive (§4.1)
         name = found[0]

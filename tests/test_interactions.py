@@ -106,12 +106,14 @@ def test_a_stale_correction_does_not_pick_a_decoy_object(room):
 
     _, seq, scene, _ = room
     model, _ = load_predictor()
-    carried = [n for n, o in seq.objects.items() if scene.objects[n].dof == "free" and len(moving_intervals(o.pose))]
-    assert carried, "the fixture room must contain a carried object"
-    name = carried[0]
-    s, e = moving_intervals(seq.objects[name].pose)[0]
-    others = [iv for n, o in seq.objects.items() if n != name for iv in moving_intervals(o.pose)]
-    assert others and max(iv[1] for iv in others) < s - 60, "the other interactions must come before the carry"
+    def earlier(name: str, start: int) -> list:
+        return [iv for n, o in seq.objects.items() if n != name for iv in moving_intervals(o.pose) if iv[1] < start - 60]
+
+    carried = [(n, moving_intervals(o.pose)[0]) for n, o in seq.objects.items()
+               if scene.objects[n].dof == "free" and len(moving_intervals(o.pose))]
+    carried = [(n, iv) for n, iv in carried if earlier(n, iv[0])]
+    assert carried, "the fixture room must contain a carried object picked up after another interaction"
+    name, (s, e) = carried[0]
     d1, d2 = np.array([0.12, 0.0]), np.array([0.0, -0.03])
     ramp = np.clip((np.arange(seq.num_frames) - (s - 60)) / 40.0, 0.0, 1.0)[:, None]  # done before the reach
     drift = d1 + ramp * (d2 - d1)

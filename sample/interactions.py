@@ -9,7 +9,8 @@
    nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
    none -> the contact is a false positive and ignored; judged on the path as sensed, corrected
    by the anchors only, since the offset of earlier contacts is stale here); its contact point p_c (the closest
-   object point to the hand) becomes a control point for the root path, which is bent to it by
+   object point to the hand; for a free object taken from above, the footprint's centre: ``grasp_targets``)
+   becomes a control point for the root path, which is bent to it by
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
 4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
    two-hand / one-hand sliding, hinge, free), segment by segment; the object is released at the
@@ -24,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from scenes.distance import SceneDistance
 from scenes.scene import Scene
@@ -39,7 +41,7 @@ from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
 __all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
-           "select_object", "attach_detach", "drive_object", "track", "track_interactions"]
+           "grasp_targets", "select_object", "attach_detach", "drive_object", "track", "track_interactions"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -156,6 +158,22 @@ class _ObjectQueries:
         return closest, dist, closest + gap * out
 
 
+def grasp_targets(targets: np.ndarray, hands: np.ndarray, mesh_vertices: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Where the contacting hands of a free (carried) object should be at the grasp (not in the
+    paper, whose objects are large). targets: (k, 3) the side-contact targets (``hand_radius`` off
+    the closest point); hands: (k, 3) the hand points; mesh_vertices: (V, 3) object frame; pose: (4, 4).
+    A hand above the object's top takes it from above (a phone, a book, a pen): its closest point
+    is straight below it wherever the drifted hand hovers over the footprint, so the closest point
+    says nothing about the horizontal error; the hand then goes over the footprint's centre (xy of
+    the world bounding box; z kept). Side grasps keep their targets. Returns (k, 3) world."""
+    world = mesh_vertices @ pose[:3, :3].T + pose[:3, 3]
+    lo, hi = world.min(0), world.max(0)
+    out = np.array(targets, dtype=np.float64, copy=True)
+    top = hands[:, 2] >= hi[2]
+    out[top, :2] = 0.5 * (lo[:2] + hi[:2])
+    return out
+
+
 def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: int, hands: np.ndarray,
                   dof: str, radius: float) -> tuple[str, float] | None:
     """The object of ``dof`` that the contacting hands come closest to (supp. §10.1: the nearest
@@ -189,15 +207,18 @@ def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: 
     distance (m) to the object at its pose at ``start``. Attach at the first frame within
     ``approach_tol`` of the closest approach in the first ``window_s`` (at most half the interval;
     the first, as a hand lifting an object slides along its side and gets no further from it),
-    detach after the slowest frame of the hands within the last ``window_s`` (the hand stops before
-    it lets go). Returns (attach, detach) frames, start <= attach < detach <= end."""
+    detach after the slowest frame of the hands (speed smoothed over ~0.07 s) within the last
+    ``window_s`` (the hand stops before it lets go). Returns (attach, detach) frames, start <= attach < detach <= end."""
     n = end - start
     w = _attach_window(n, fps, window_s)
     near = dist_at_rest[:w]
     attach = start + int(np.argmax(near <= near.min() + approach_tol))
     if n < 3:
         return attach, end
-    speed = np.linalg.norm(np.gradient(hands, axis=0), axis=-1).mean(-1)  # (n,) m/frame
+    # speed of the hands smoothed over ~0.07 s: tracked hands jitter by millimetres per frame, as much
+    # as the hands move while they slow down to let go
+    smooth = gaussian_filter1d(np.asarray(hands, np.float64), sigma=max(0.033 * fps, 0.5), axis=0, mode="nearest")
+    speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1).mean(-1)  # (n,) m/frame
     lo = max(attach - start + 1, n - w)
     detach = start + lo + int(np.argmin(speed[lo:])) + 1
     return attach, max(detach, attach + 1)
@@ -312,7 +333,10 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, e1, fps)
         segs = _clip(segs, a, d_end)
         closest = near.reshape(span.shape)[a - s0]  # p_c of each contacting hand
-        shift = (target.reshape(span.shape)[a - s0] - span[a - s0])[:, :2]  # hand -> hand_radius off p_c
+        goal = target.reshape(span.shape)[a - s0]  # hand_radius off p_c
+        if cls[i] == "free":
+            goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
+        shift = (goal - span[a - s0])[:, :2]
         interactions.append(Interaction(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
         if config.correct:
             step = shift.mean(0)

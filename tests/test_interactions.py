@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sample.interactions import TrackerConfig, attach_detach, track
+from sample.interactions import TrackerConfig, attach_detach, grasp_targets, track
 from sample.interactions_cli import main as interactions_main
 from trumans.contacts.labels import moving_intervals
 from trumans.contacts.model_io import DEFAULT_CHECKPOINT, load_predictor
@@ -95,6 +95,25 @@ def test_attach_at_grasp_detach_when_the_hand_stops():
     assert a == 100 + 9  # first frame within 1 cm of the closest approach, not the lift's end
     assert 100 + 49 <= d <= 100 + 54
 
+
+
+def test_a_hand_over_a_flat_object_is_sent_to_its_centre_a_side_grasp_keeps_its_target():
+    """A phone (15 x 8 x 1 cm) lies turned by 90 deg at (2, 1, 0.75): a hand hovering above it
+    (drifted 5 cm along the phone) goes over its centre; a hand beside a tall bottle keeps the
+    side target; the mesh is in the object frame and posed by ``pose``."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    phone = trimesh.creation.box((0.15, 0.08, 0.01))
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("z", 90, degrees=True).as_matrix()
+    pose[:3, 3] = (2.0, 1.0, 0.75)
+    hands = np.array([[2.0, 1.05, 0.775], [2.3, 1.0, 0.70]])  # above the top (0.755), and below it
+    side = np.array([[2.0, 1.05, 0.77], [2.06, 1.0, 0.70]])
+    out = grasp_targets(side, hands, np.asarray(phone.vertices), pose)
+    np.testing.assert_allclose(out[0], [2.0, 1.0, 0.77], atol=1e-9)  # centre xy, z kept
+    np.testing.assert_allclose(out[1], side[1])  # not above the top: the side target stands
+    assert not np.shares_memory(out, side)
 
 
 def test_a_stale_correction_does_not_pick_a_decoy_object(room):

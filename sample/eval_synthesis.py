@@ -39,6 +39,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
     p.add_argument("--data", default=None, help="dataset whose test split is the real reference for fid "
                    "(default: the shipped models/synthesis_reference.npz)")
+    p.add_argument("--motion-encoder", default=None, metavar="PATH",
+                   help="motion encoder of fid / diversity / action_acc (default: the shipped one; needs --data)")
     add_postprocess_arguments(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
@@ -58,8 +60,9 @@ def _plans(sc, seed: int):
 
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
-             guidance: tuple[float, int] = (20.0, 3), post: dict | None = None) -> dict:
-    """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler."""
+             guidance: tuple[float, int] = (20.0, 3), post: dict | None = None, encoder: str | None = None) -> dict:
+    """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
+    ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one)."""
     import torch
 
     from trumans.model.checkpoint import load_checkpoint
@@ -110,37 +113,33 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
                 figs["naive_goal_err_cm"] = nf["goal_err_cm"]
         figs["naive_seconds_per_episode"] = round(t["naive"], 4)
         figs["speedup_vs_naive"] = round(t["naive"] / t["fast"], 2)
-    figs.update(_encoder_figures(results, list(ckpt.vocabulary), reference))
+    figs.update(_encoder_figures(results, list(ckpt.vocabulary), reference, encoder))
     return figs
 
 
 def reference_features(enc, data: str, split: str = "test") -> np.ndarray:
     """Motion-encoder features (N, D) of a dataset split's real clips (the FID reference)."""
     from trumans.dataset import Dataset
+    from trumans.model.motion_encoder import split_features
 
-    ds = Dataset(data)
-    feats = []
-    for rel in ds.index["splits"].get(split, []):
-        seq = ds.load(rel)
-        if seq.num_frames / seq.fps >= enc.cfg.window / enc.cfg.fps:
-            feats.append(enc.encode(seq.joints, seq.fps)[0])
-    if not feats:
-        raise ValueError(f"split {split!r} of {data} has no clip long enough for the motion encoder")
-    return np.concatenate(feats)
+    return split_features(enc, Dataset(data), split)
 
 
-def _encoder_figures(results, vocabulary: list[str], reference: str | None) -> dict:
+def _encoder_figures(results, vocabulary: list[str], reference: str | None, encoder: str | None = None) -> dict:
     """fid / diversity / action_acc of the generated clips (first sample of each plan) with the
-    shipped motion encoder, and the real data's values beside them."""
+    motion encoder (default: the shipped one), and the real data's values beside them."""
     from trumans.model.motion_encoder import action_acc, diversity, fid, load_motion_encoder
 
-    enc = load_motion_encoder()
+    enc = load_motion_encoder(encoder)
     fps = results[0].fps
     feats = np.concatenate([enc.encode(r.joints[0], fps)[0] for r in results])
     probs = np.concatenate([enc.classify(r.joints[0], fps)[0] for r in results])
     labels = np.concatenate([enc.window_labels(r.labels[0], vocabulary, fps)[0] for r in results])
     out = {"diversity": round(diversity(feats), 3), "action_acc": round(action_acc(probs, labels), 3),
            "real_action_acc": round(float(enc.info.get("test_acc", float("nan"))), 3)}
+    if reference is None and encoder is not None:
+        raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
+                         "give --data DATASET (its test split is the reference)")
     if reference is None and REFERENCE_FILE.is_file():
         with np.load(REFERENCE_FILE, allow_pickle=False) as z:
             ref = z["features"].astype(np.float64)
@@ -161,14 +160,17 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")
     if args.steps < 1 or args.naive_episodes < 0:
         raise ValueError("--steps must be >= 1 and --naive-episodes >= 0")
+    if args.motion_encoder is not None and args.data is None:
+        raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
+                         "give --data DATASET (its test split is the reference)")
     guidance = (args.goal_guidance, args.goal_iters)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data, guidance, postprocess_kwargs(args))
+                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder)
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
         figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance,
-                                           postprocess_kwargs(args))
+                                           postprocess_kwargs(args), args.motion_encoder)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

@@ -9,7 +9,7 @@ import torch
 
 from trumans.model.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
                                           MotionEncoderNet, action_acc, diversity, dominant_action, fid,
-                                          load_motion_encoder, motion_windows)
+                                          load_motion_encoder, motion_windows, split_features)
 from trumans.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
@@ -113,6 +113,23 @@ def test_encoder_is_invariant_to_world_placement_and_round_trips(tmp_path):
         enc.encode(J[..., :2], 30.0)
 
 
+def test_split_features_skip_clips_shorter_than_the_window():
+    """A split with a 2 s and a 0.5 s clip (window 0.8 s): the short clip has no window and is
+    skipped, the long one gives its windows; a split of short clips only is an error."""
+    from types import SimpleNamespace
+
+    from trumans.sequence import Sequence
+
+    enc = _tiny_encoder()
+    clips = {"long": Sequence(joints=_walk(T=60), fps=30.0), "short": Sequence(joints=_walk(T=15), fps=30.0)}
+    splits = {"test": ["long", "short"], "val": ["short"]}
+    data = SimpleNamespace(root="tiny", split=splits.__getitem__, load=clips.__getitem__)
+    feats = split_features(enc, data, "test")
+    np.testing.assert_allclose(feats, enc.encode(clips["long"].joints, 30.0)[0], atol=1e-6)
+    with pytest.raises(ValueError, match="no clip of at least 0.8 s"):
+        split_features(enc, data, "val")
+
+
 def test_bad_checkpoints_are_refused(tmp_path):
     with pytest.raises(FileNotFoundError, match="train one with"):
         load_motion_encoder(tmp_path / "none.pt")
@@ -141,3 +158,12 @@ def test_shipped_encoder_loads_and_recognises_actions():
     # real motion capture (CMU 131_01 at 120 fps, read through our BVH importer): walking
     walk = import_bvh(Path(__file__).parent / "data" / "cmu_131_01_start_walk_stop_first480.bvh", refine_steps=0)
     assert all(enc.vocabulary[i] == "walk" for i in enc.classify(walk.joints, walk.fps)[0].argmax(-1))
+
+
+def test_eval_synthesis_refuses_a_motion_encoder_without_its_reference(tmp_path):
+    """The shipped fid reference belongs to the shipped encoder: another encoder needs --data,
+    and the command says so before sampling anything."""
+    from trumans.cli import main
+
+    with pytest.raises(ValueError, match="give --data DATASET"):
+        main(["eval", "synthesis", "--motion-encoder", str(tmp_path / "enc.pt"), "--rooms", "1"])

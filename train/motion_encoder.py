@@ -19,8 +19,8 @@ from torch import nn
 
 from trumans.actions import remap_labels
 from trumans.dataset import Dataset
-from trumans.model.motion_encoder import (MotionEncoder, MotionEncoderConfig, MotionEncoderNet, window_inputs,
-                                          action_acc, diversity, dominant_action, fid, motion_windows)
+from trumans.model.motion_encoder import (MotionEncoder, MotionEncoderConfig, MotionEncoderNet, action_acc, diversity,
+                                          dominant_action, fid, motion_windows, split_features, window_inputs)
 from trumans.sequence import atomic_write
 
 __all__ = ["EncoderTrainConfig", "split_windows", "train_motion_encoder", "main"]
@@ -126,10 +126,7 @@ def train_motion_encoder(data_root: str | Path, cfg: MotionEncoderConfig | None 
         "data": data.name, "data_hash": data.hash, "seed": seed,
     }
     # real-vs-real reference figures: windows every window // 2 frames, all of them labelled or not
-    def feats(split: str) -> np.ndarray:
-        return np.concatenate([enc.encode(s.joints[None], s.fps)[0] for s in map(data.load, data.split(split))])
-
-    f_train, f_test = feats("train"), feats("test")
+    f_train, f_test = split_features(enc, data, "train"), split_features(enc, data, "test")
     report.update(fid_train_vs_test=fid(f_train, f_test), diversity_test=diversity(f_test, seed=seed),
                   diversity_train=diversity(f_train, seed=seed), seconds=time.time() - t0)
     enc.info = dict(report)

@@ -31,6 +31,7 @@ __all__ = [
     "MotionEncoder",
     "DEFAULT_MOTION_ENCODER",
     "load_motion_encoder",
+    "split_features",
     "motion_windows",
     "window_inputs",
     "dominant_action",
@@ -215,6 +216,17 @@ def load_motion_encoder(path: str | Path | None = None) -> MotionEncoder:
     net = MotionEncoderNet(cfg)
     net.load_state_dict(d["state_dict"])
     return MotionEncoder(cfg, net, d["mean"].numpy(), d["std"].numpy(), list(d["vocabulary"]), d.get("info"))
+
+
+def split_features(enc: MotionEncoder, data, split: str) -> np.ndarray:
+    """Features (N, D) of every window of a dataset split's clips (a ``trumans.dataset.Dataset``);
+    clips shorter than the encoder's window are skipped (they have no window)."""
+    span = enc.cfg.window / enc.cfg.fps
+    feats = [enc.encode(s.joints[None], s.fps)[0] for s in map(data.load, data.split(split))
+             if s.num_frames / s.fps >= span]
+    if not feats:
+        raise ValueError(f"split {split!r} of {data.root} has no clip of at least {span:.1f} s for the motion encoder")
+    return np.concatenate(feats)
 
 
 def _flat(feats: np.ndarray, what: str) -> np.ndarray:

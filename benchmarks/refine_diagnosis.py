@@ -51,13 +51,16 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("checkpoint", nargs="?", default=None)
-    p.add_argument("--data", default="/work/data/synth")
+    p.add_argument("--data", default=None, help="dataset with val and test splits (default: the checkpoint's)")
     p.add_argument("--clips", type=int, default=20)
     p.add_argument("--steps", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
     filt = HOIFilter.load(a.checkpoint)
+    a.data = a.data or filt.ckpt.data.get("path")
+    if not a.data or not Path(a.data).is_dir():
+        raise FileNotFoundError(f"the checkpoint's dataset {a.data!r} is not on this machine; pass --data DIR")
     val, _ = _clips(a.data, "val", 192, filt.fps, filt.categories, a.clips, a.seed)
     sg = tune_savgol(list(zip(corrupt(val, filt.fps, np.random.default_rng(a.seed + 1), CorruptionConfig()), val)))
     test, cats = _clips(a.data, "test", 192, filt.fps, filt.categories, a.clips, a.seed)

@@ -19,7 +19,7 @@ import torch
 from trumans.hoi.filter import SKIP_SIGMA_FRAMES, FilterModel, category_indices, prepare_windows, sample_x0
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
-from trumans.hoi.outliers import drop_object_flips
+from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips
 from trumans.hoi.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
 from trumans.sequence import Sequence
@@ -34,8 +34,9 @@ Mode = Literal["noise", "sdedit"]
 class RefineOptions:
     """num_steps: DDIM steps; mode: 'noise' (the paper) or 'sdedit'; strength: SDEdit's noise level
     in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
-    network call; seed: the sampling noise; drop_flips: treat object rotations that flip and back
-    within a second as missing before filtering (``trumans.hoi.outliers``)."""
+    network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames and
+    object rotations that flip and back within a second as missing before filtering
+    (``trumans.hoi.outliers``)."""
 
     num_steps: int = 2
     mode: Mode = "noise"
@@ -43,7 +44,7 @@ class RefineOptions:
     eta: float = 0.0
     batch: int = 256
     seed: int = 0
-    drop_flips: bool = True
+    drop_failures: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
@@ -88,7 +89,7 @@ class HOIFilter:
         if not frames:
             return []
         cats = category_indices(list(categories), self.categories)
-        parts = [self._windows(f, r, options.drop_flips) for f, r in zip(frames, fps)]
+        parts = [self._windows(f, r, options.drop_failures) for f, r in zip(frames, fps)]
         L = self.window
         cond = torch.cat([p["inp"].cond for p in parts])
         category = torch.from_numpy(np.concatenate([np.full(len(p["starts"]), c) for p, c in zip(parts, cats)]))
@@ -113,9 +114,10 @@ class HOIFilter:
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 
-    def _windows(self, frames: np.ndarray, fps: float, drop_flips: bool = True) -> dict:
+    def _windows(self, frames: np.ndarray, fps: float, drop_failures: bool = True) -> dict:
         """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T
-        and the network inputs (``prepare_windows``); ``drop_flips``: flipped object rotations -> missing."""
+        and the network inputs (``prepare_windows``); ``drop_failures``: frozen frames and flipped
+        object rotations -> missing."""
         f = np.asarray(frames, dtype=np.float32)
         if f.ndim != 2 or f.shape[1] != FRAME_DIM:
             raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
@@ -124,9 +126,11 @@ class HOIFilter:
             raise ValueError(f"a tracked sequence needs at least 2 frames, got {T}")
         if not np.isfinite(fps) or fps <= 0:
             raise ValueError(f"fps must be a positive number, got {fps}")
+        if drop_failures:
+            f = drop_frozen_frames(f)  # at the input's rate: resampling would blur the exact repeats
         # model frames from time 0 over the whole duration (the last may end just past it)
         g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
-        if drop_flips:
+        if drop_failures:
             g = drop_object_flips(g, self.fps)
         Tm, L = g.shape[0], self.window
         starts = window_starts(Tm, L, self.overlap)

@@ -44,3 +44,21 @@ def test_bad_inputs():
         object_flip_mask(np.zeros((10, 6)), 30.0, max_angle_deg=200)
     with pytest.raises(ValueError, match=r"\(T, 235\)"):
         drop_object_flips(np.zeros((10, 6)), 30.0)
+
+
+def test_frozen_frames_are_exact_repeats_and_become_missing():
+    from trumans.hoi.frame import IMU_R, JOINTS
+    from trumans.hoi.outliers import drop_frozen_frames, frozen_frame_mask
+
+    f = np.random.default_rng(1).normal(size=(20, FRAME_DIM)).astype(np.float32)
+    f[6:9] = f[5]  # the tracker repeats frame 5 three times
+    f[12, JOINTS] = f[11, JOINTS] + 1e-6  # nearly still is not frozen
+    f[15, 0] = np.nan
+    f[16] = f[15]  # a frame with a missing joint is not compared
+    mask = frozen_frame_mask(f)
+    assert mask.tolist() == [i in (6, 7, 8) for i in range(20)]
+    out = drop_frozen_frames(f)
+    assert np.isnan(out[6:9, :IMU_R.start]).all() and np.isfinite(out[6:9, IMU_R.start:]).all()
+    np.testing.assert_array_equal(np.delete(out, np.s_[6:9], 0), np.delete(f, np.s_[6:9], 0))
+    with pytest.raises(ValueError, match=r"\(T, 235\)"):
+        frozen_frame_mask(np.zeros((5, 10)))

@@ -1,4 +1,9 @@
-"""Tracked object rotations that flip: found by a vote of their neighbours, then treated as missing.
+"""Tracking failures that can be recognised before filtering, then treated as missing.
+
+Frozen frames: a tracker that loses its target repeats its last output; a frame whose joints equal
+the previous frame's bit for bit is such a repeat (a body measured by any sensor never does this),
+so its human and object entries are set to NaN and interpolated across (``frozen_frame_mask``).
+Flipped object rotations:
 
 Marker-less and symmetric-object trackers sometimes report an object turned by about π about one
 of its own axes for a run of frames (I'm-HOI §3.2 names such flips among the tracking errors the
@@ -12,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.hoi.frame import FRAME_DIM, OBJ_R
+from trumans.hoi.frame import FRAME_DIM, IMU_R, JOINTS, OBJ_R
 from trumans.rotations import sixd_to_matrix
 
-__all__ = ["object_flip_mask", "drop_object_flips"]
+__all__ = ["object_flip_mask", "drop_object_flips", "frozen_frame_mask", "drop_frozen_frames"]
 
 
 def object_flip_mask(obj6: np.ndarray, fps: float, window_s: float = 1.0, max_angle_deg: float = 150.0) -> np.ndarray:
@@ -53,4 +58,23 @@ def drop_object_flips(frames: np.ndarray, fps: float, window_s: float = 1.0, max
     if f.ndim != 2 or f.shape[1] != FRAME_DIM:
         raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
     f[object_flip_mask(f[:, OBJ_R], fps, window_s, max_angle_deg), OBJ_R] = np.nan
+    return f
+
+
+def frozen_frame_mask(frames: np.ndarray) -> np.ndarray:
+    """Frame vectors (T, 235) -> (T,) bool, True where every joint value equals the previous
+    frame's exactly (a repeated tracker output; frames with missing joints are not compared)."""
+    f = np.asarray(frames)
+    if f.ndim != 2 or f.shape[1] != FRAME_DIM:
+        raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
+    J = f[:, JOINTS]
+    same = np.isfinite(J[1:]).all(-1) & (J[1:] == J[:-1]).all(-1)
+    return np.r_[False, same]
+
+
+def drop_frozen_frames(frames: np.ndarray) -> np.ndarray:
+    """Frame vectors (T, 235) -> a copy whose repeated frames (``frozen_frame_mask``) have NaN human
+    and object entries (the IMU, a separate sensor, is kept)."""
+    f = np.array(frames, dtype=np.float32, copy=True)
+    f[frozen_frame_mask(f), :IMU_R.start] = np.nan
     return f

@@ -24,7 +24,7 @@ from scenes.scene import Scene, SceneObject
 from .motion_labels import MOTION_STATES, segments
 from .skeleton import JOINT_INDEX as J
 
-__all__ = ["fit_seats", "fit_beds", "fit_tables", "fit_scene", "in_the_way", "fitted_contacts", "SEAT_BELOW_HIP_M"]
+__all__ = ["box_object", "fit_seats", "fit_beds", "fit_tables", "fit_scene", "in_the_way", "fitted_contacts", "SEAT_BELOW_HIP_M"]
 
 SEAT_BELOW_HIP_M = 0.10  # hip joint centres sit this far above the seat surface (soft tissue + pelvis)
 SEAT_BEHIND_HIP_M = 0.12
@@ -49,7 +49,7 @@ BED_MIN_HEIGHT_M = 0.30
 BED_BELOW_BODY_M = 0.08
 
 
-def _box_object(name: str, category: str, x: float, y: float, yaw: float, depth: float, width: float,
+def box_object(name: str, category: str, x: float, y: float, yaw: float, depth: float, width: float,
                 height: float, meta: dict, legs: bool = False) -> SceneObject:
     """A box (depth, width, height) m standing on the floor; with ``legs`` a top of ``SEAT_TOP_M``
     on four ``SEAT_LEG_M`` square legs at its corners (feet tucked under a stool stay free)."""
@@ -96,7 +96,7 @@ def fit_seats(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_sec
         width = float(np.median(np.linalg.norm(hips[:, 0] - hips[:, 1], axis=-1))) + 2 * SEAT_SIDE_M
         meta = {"seat_height": height, "seat_center": [0.0, 0.0, height], "sit_yaw": 0.0,
                 "frames": [int(s), int(e)], "fitted": "seated pelvis"}
-        out.append(_box_object(f"seat_{len(out)}", "seat", float(centre[0]), float(centre[1]), yaw,
+        out.append(box_object(f"seat_{len(out)}", "seat", float(centre[0]), float(centre[1]), yaw,
                                front + back, width, height, meta, legs=True))
     return out
 
@@ -124,7 +124,7 @@ def fit_beds(joints: np.ndarray, states: np.ndarray, fps: float = 30.0, min_seco
         height = float(np.percentile(seg[:, body, 2].min(axis=1), 5) - BED_BELOW_BODY_M)
         meta = {"lie_center": [0.0, 0.0, height], "lie_yaw": 0.0, "lie_length": length,
                 "frames": [int(s), int(e)], "fitted": "lying body"}
-        out.append(_box_object(f"bed_{len(out)}", "bed", float(centre[0]), float(centre[1]), yaw, length, 0.9,
+        out.append(box_object(f"bed_{len(out)}", "bed", float(centre[0]), float(centre[1]), yaw, length, 0.9,
                                height, meta))
     return out
 
@@ -166,7 +166,7 @@ def fit_tables(joints: np.ndarray, states: np.ndarray, fps: float = 30.0) -> lis
             centre = hand + f * (depth / 2 - TABLE_EDGE_M)
             meta = {"surface_height": height, "surface_size": [depth, width], "frames": [int(s), int(e)],
                     "fitted": f"resting {side} hand"}
-            t = _box_object(f"table_{len(out)}", "table", float(centre[0]), float(centre[1]),
+            t = box_object(f"table_{len(out)}", "table", float(centre[0]), float(centre[1]),
                             float(np.arctan2(f[1], f[0])), depth, width, height, meta, legs=True)
             if not t.world_mesh().contains(j[s:e].reshape(-1, 3)).any():
                 out.append(t)

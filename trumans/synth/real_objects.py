@@ -197,7 +197,7 @@ def _stand(obj: SceneObject, pose: np.ndarray, bottom: float, supports: list[Sce
         meta = {"surface_height": bottom, "surface_size": [side, side], "surface_center": [0.0, 0.0, bottom],
                 "fitted": f"under {obj.name}"}
         sup = box_object(name, "table", float(c[0]), float(c[1]), float(np.arctan2(-u[1], -u[0])), side, side,
-                         bottom, meta, legs=True)
+                         bottom, meta, legs=True, avoid=joints)
         if not sup.world_mesh().contains(joints.reshape(-1, 3)).any():
             break
     supports.append(sup)

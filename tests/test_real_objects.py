@@ -161,3 +161,39 @@ def test_real_pick_clip_becomes_a_take_with_an_object_track():
     d = np.linalg.norm(palms - track[g][:, None, :3, 3], axis=-1).min(axis=1)
     assert d.max() < 0.25
     assert terms["penetration"].max() < 0.08
+
+
+def test_put_down_by_the_other_hand_takes_it_over_where_the_palms_meet():
+    t = np.arange(T, dtype=np.float64)
+    j = np.repeat(REST_JOINTS[None].astype(np.float64), T, 0)
+    right = np.stack([np.full(T, 0.35), np.full(T, -0.2), np.where(t < 70, _dip(t, PICK, 0.95, 0.2), 0.95)], -1)
+    meet = np.clip(1 - np.abs(t - 70) / 10, 0, 1)  # the left palm comes to the right one at frame 70
+    left = np.stack([np.full(T, 0.35), 0.2 - 0.36 * meet, np.where(t >= 80, _dip(t, PUT, 0.95, 0.2), 0.95)], -1)
+    for side, p in (("right", right), ("left", left)):
+        j[:, J[f"{side}_wrist"]] = p + [0, 0, 0.04]
+        j[:, J[f"{side}_index1"]] = p - [0, 0, 0.04]
+    R = wrist_rotations()
+    h = fit_handled_objects(j, R, "pick up object, set down object")
+    assert [(r.frame, r.hands) for r in h.reaches] == [(PICK, (1,)), (PUT, (0,))]
+    track = h.tracks[h.objects[0].name]
+    for hands, a, b in (((1,), PICK, 70), ((0,), 70, PUT)):
+        H = holding_frames(j, R, hands)
+        rel = inv_h(H[a:b]) @ track[a:b]
+        np.testing.assert_allclose(rel, np.broadcast_to(rel[0], rel.shape), atol=1e-9)
+        assert h.grasp[a:b, hands[0]].all() and not h.grasp[a:b, 1 - hands[0]].any()
+    assert track[-1, 2, 3] == 0.0 and abs(track[-1, 1, 3] - track[0, 1, 3]) > 0.1  # put down by the left hand
+
+
+def test_removing_a_blocking_piece_removes_its_parts_and_what_stands_on_them():
+    import trimesh
+
+    from scenes.scene import Scene, SceneObject
+    from trumans.synth.real_place import _remove
+
+    box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
+    objs = [SceneObject("cabinet_0", "cabinet", box), SceneObject("cabinet_0_drawer_0", "drawer", box, meta={"parent": "cabinet_0"}),
+            SceneObject("cup_0", "cup", box, meta={"support": "cabinet_0_drawer_0"}),
+            SceneObject("book_0", "book", box, meta={"support": "cabinet_0"}), SceneObject("table_0", "table", box)]
+    scene = Scene(name="s", objects={o.name: o for o in objs})
+    assert _remove(scene, ["cabinet_0"]) == ["book_0", "cabinet_0", "cabinet_0_drawer_0", "cup_0"]
+    assert list(scene.objects) == ["table_0"]

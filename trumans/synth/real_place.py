@@ -105,9 +105,15 @@ def _blockers(scene: Scene, joints: np.ndarray, fitted: list[np.ndarray]) -> lis
 
 
 def _remove(scene: Scene, names: list[str]) -> list[str]:
-    """Remove objects ``names`` and the objects supported by them; returns all removed names (sorted)."""
+    """Remove objects ``names`` and the objects supported by them or parts of them (a cabinet's
+    drawers: meta "parent"), transitively; returns all removed names (sorted)."""
     gone = set(names)
-    gone |= {n for n, o in scene.objects.items() if o.meta.get("support") in gone}
+    while True:
+        more = {n for n, o in scene.objects.items() if n not in gone
+                and (o.meta.get("support") in gone or o.meta.get("parent") in gone)}
+        if not more:
+            break
+        gone |= more
     for n in gone:
         del scene.objects[n]
     return sorted(gone)

@@ -191,7 +191,8 @@ def test_removing_a_blocking_piece_removes_its_parts_and_what_stands_on_them():
     from trumans.synth.real_place import _remove
 
     box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
-    objs = [SceneObject("cabinet_0", "cabinet", box), SceneObject("cabinet_0_drawer_0", "drawer", box, meta={"parent": "cabinet_0"}),
+    objs = [SceneObject("cabinet_0", "cabinet", box),
+            SceneObject("cabinet_0_drawer_0", "drawer", box, meta={"parent": "cabinet_0"}),
             SceneObject("cup_0", "cup", box, meta={"support": "cabinet_0_drawer_0"}),
             SceneObject("book_0", "book", box, meta={"support": "cabinet_0"}), SceneObject("table_0", "table", box)]
     scene = Scene(name="s", objects={o.name: o for o in objs})

@@ -111,7 +111,8 @@ def test_fitted_legs_are_disjoint_bodies_and_avoid_the_body():
     assert seat.meta["legs"] == 4
     mesh = seat.world_mesh()
     rng = np.random.default_rng(0)
-    pts = np.asarray(seat.pose[:3, :3] @ (rng.uniform([-0.3, -0.3, 0.0], [0.3, 0.3, 0.5], (400, 3))).T).T + seat.pose[:3, 3]
+    local = rng.uniform([-0.3, -0.3, 0.0], [0.3, 0.3, 0.5], (400, 3))
+    pts = local @ seat.pose[:3, :3].T + seat.pose[:3, 3]
     np.testing.assert_array_equal(SceneDistance({"s": mesh}).query(pts).inside, mesh.contains(pts))
     corner = seat.pose @ np.array([0.2 - SEAT_LEG_M / 2, 0.19 - SEAT_LEG_M / 2, 0.1, 1.0])  # in the (+x, +y) leg
     three = box_object("s", "seat", 1.0, 2.0, 0.3, 0.4, 0.38, 0.45, {}, legs=True, avoid=corner[None, :3])

@@ -66,7 +66,8 @@ def box_object(name: str, category: str, x: float, y: float, yaw: float, depth: 
         top = trimesh.creation.box(extents=(depth, width, SEAT_TOP_M))
         top.apply_translation((0.0, 0.0, height - SEAT_TOP_M / 2))
         h = height - SEAT_TOP_M - GAP
-        local = np.zeros((0, 3)) if avoid is None else (np.asarray(avoid, np.float64).reshape(-1, 3) - pose[:3, 3]) @ pose[:3, :3]
+        pts = np.zeros((0, 3)) if avoid is None else np.asarray(avoid, np.float64).reshape(-1, 3)
+        local = (pts - pose[:3, 3]) @ pose[:3, :3]  # object frame
         local = local[local[:, 2] < h + LEG_CLEAR_M]
         parts = [top]
         for sx in (-1, 1):

@@ -263,7 +263,8 @@ def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: 
         again = next((o for o in out.objects if o.meta.get("put_at") is not None
                       and np.linalg.norm(out.tracks[o.name][pick.frame, :2, 3] - reach_xy) < SAME_OBJECT_M), None)
         if again is None:
-            obj, bottom = _new_object(f"fit_{'box' if len(pick.hands) == 2 else 'bottle'}_{len(out.objects)}", j, pick, rng)
+            kind = "box" if len(pick.hands) == 2 else "bottle"
+            obj, bottom = _new_object(f"fit_{kind}_{len(out.objects)}", j, pick, rng)
             obj.pose, obj.meta["support"] = _stand(obj, obj.pose, bottom, out.supports, j, pick.frame)
             track = np.broadcast_to(obj.pose, (T, 4, 4)).copy()
             out.objects.append(obj)

@@ -198,3 +198,28 @@ def test_removing_a_blocking_piece_removes_its_parts_and_what_stands_on_them():
     scene = Scene(name="s", objects={o.name: o for o in objs})
     assert _remove(scene, ["cabinet_0"]) == ["book_0", "cabinet_0", "cabinet_0_drawer_0", "cup_0"]
     assert list(scene.objects) == ["table_0"]
+
+
+def test_a_carry_under_way_from_the_first_frame():
+    t = np.arange(T, dtype=np.float64)
+    j = np.repeat(REST_JOINTS[None].astype(np.float64), T, 0)
+    j[..., 0] += t[:, None] / 60  # walking 0.5 m/s along +x
+    sway = 0.02 * np.sin(t / 5)
+    for side, y in (("left", 0.19), ("right", -0.19)):
+        p = np.stack([0.35 + t / 60, np.full(T, y), 1.05 + sway], -1)
+        j[:, J[f"{side}_wrist"]] = p + [0, 0, 0.04]
+        j[:, J[f"{side}_index1"]] = p - [0, 0, 0.04]
+    R = wrist_rotations()
+    h = fit_handled_objects(j, R, "Walk and carry")
+    (obj,) = h.objects
+    track = h.tracks[obj.name]
+    assert obj.category == "box" and h.supports == [] and h.grasp.all()
+    assert [(iv.name, iv.start, iv.end) for iv in h.intervals] == [("carry", 0, T)]
+    H = holding_frames(j, R, (0, 1))
+    rel = inv_h(H) @ track
+    np.testing.assert_allclose(rel, np.broadcast_to(rel[0], rel.shape), atol=1e-9)
+    assert track[0, 2, 3] == pytest.approx(1.05 + sway[0] - GRIP_SHARE * obj.meta["size"][2])
+    assert fit_handled_objects(j, R, "walk").objects == []  # only where the description carries
+    j[:, J["left_wrist"], 2] -= 0.3  # one hand hanging: no box
+    j[:, J["left_index1"], 2] -= 0.3
+    assert fit_handled_objects(j, R, "Walk and carry").objects == []

@@ -9,7 +9,9 @@ lift a box between them. Reaches alternate: the first picks an object up, the ne
 the next picks up (the same object when the hand comes within ``SAME_OBJECT_M`` of it, else a new
 one), ...; two hands also put a box down where they open (palms ``RELEASE_SPREAD_M`` farther
 apart than at the grasp: set on a support at that height); an object never put down is carried
-to the clip's end.
+to the clip's end. A clip described as carrying with no reach down whose palms stay
+``BOX_MIN_SPAN_M`` or more and steadily (``STEADY_SPAN_M``) apart, above ``CARRY_ABOVE_M``, on
+``CARRY_SHARE`` of its frames carries a box from its first frame (``carried_from_start``).
 
 The object: one hand -> a bottle (``scenes.furniture.small_object``) gripped from the side, its
 grasp point ``PALM_GAP`` from the palm away from the body; two hands -> a box (category "box")
@@ -63,6 +65,9 @@ SAME_OBJECT_M = 0.30  # m, a pick this close (horizontally) to a put-down object
 HANDOVER_M = 0.15  # m, palms this close can pass an object from one hand to the other
 RELEASE_SPREAD_M = 0.10  # m, two palms this much farther apart than at the grasp have let the box go
 RELEASE_HALF_S = 0.5  # s, a put-down by opening the hands spans this much either side of it
+STEADY_SPAN_M = 0.03  # m, std of the palm distance of two hands that hold one box
+CARRY_ABOVE_M = 0.95  # m, palms above this hold something up (hanging arms: 0.8-0.9 m)
+CARRY_SHARE = 0.8  # share of frames the palms hold a box up, for a carry from the first frame
 FOOTPRINT_EVERY = 10  # frames between the carried poses whose footprints are kept free of furniture
 UP = np.array([0.0, 0.0, 1.0])
 LEFT, RIGHT = 0, 1
@@ -70,12 +75,14 @@ LEFT, RIGHT = 0, 1
 
 @dataclass(frozen=True)
 class Reach:
-    """A reach down on frames [start, end), lowest at ``frame``, by ``hands`` (0 left, 1 right)."""
+    """A reach down on frames [start, end), lowest at ``frame``, by ``hands`` (0 left, 1 right);
+    ``in_hand``: not a reach but a carry already under way at the clip's first frame."""
 
     start: int
     end: int
     frame: int
     hands: tuple[int, ...]
+    in_hand: bool = False
 
 
 @dataclass
@@ -116,6 +123,16 @@ def find_reaches(joints: np.ndarray) -> list[Reach]:
             np.linalg.norm(palms[m, 0] - palms[m, 1]) >= BOX_MIN_SPAN_M
         out.append(Reach(s, e, m, (LEFT, RIGHT) if both else (first,)))
     return out
+
+
+def carried_from_start(joints: np.ndarray) -> Reach | None:
+    """A two-hand carry under way from the first frame (module doc), or None. joints (T, 24, 3) m."""
+    palms = palm_points(np.asarray(joints, np.float64))
+    d = np.linalg.norm(palms[:, 0] - palms[:, 1], axis=-1)
+    up = (palms[..., 2] > CARRY_ABOVE_M).all(axis=1)
+    if d.min() < BOX_MIN_SPAN_M or d.std() > STEADY_SPAN_M or up.mean() < CARRY_SHARE:
+        return None
+    return Reach(0, 0, 0, (LEFT, RIGHT), in_hand=True)
 
 
 def holding_frames(joints: np.ndarray, wrist_rot: np.ndarray, hands: tuple[int, ...]) -> np.ndarray:
@@ -246,6 +263,8 @@ def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: 
     if not hinted(description):
         return out
     out.reaches = reaches = find_reaches(j)
+    if not reaches and "carry" in description.lower():
+        reaches = [r for r in [carried_from_start(j)] if r is not None]
     rng = np.random.default_rng([seed, 23])
     palms = palm_points(j)
     k = 0
@@ -265,7 +284,10 @@ def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: 
         if again is None:
             kind = "box" if len(pick.hands) == 2 else "bottle"
             obj, bottom = _new_object(f"fit_{kind}_{len(out.objects)}", j, pick, rng)
-            obj.pose, obj.meta["support"] = _stand(obj, obj.pose, bottom, out.supports, j, pick.frame)
+            if not pick.in_hand:
+                obj.pose, obj.meta["support"] = _stand(obj, obj.pose, bottom, out.supports, j, pick.frame)
+            else:
+                obj.pose[2, 3] = bottom  # in the hands at the first frame
             track = np.broadcast_to(obj.pose, (T, 4, 4)).copy()
             out.objects.append(obj)
         else:

@@ -240,6 +240,28 @@ def _handover(joints: np.ndarray, a: int, b: int) -> int | None:
     return a + k if d[k] < HANDOVER_M else None
 
 
+def _carry(track: np.ndarray, joints: np.ndarray, wrist_rot: np.ndarray, pick: Reach, put: Reach | None,
+           grasp: np.ndarray) -> np.ndarray:
+    """Fill ``track`` (T, 4, 4) rigid with the holding frame of ``pick``'s hands from its grasp frame
+    to the release (``put.frame``, or the end; a one-hand put-down by the other hand takes over
+    where the palms meet) and flag those hands in ``grasp`` (T, 2). Returns the held pose at the
+    release frame (the last frame when never put down)."""
+    r = put.frame if put is not None else len(track)
+    pieces = [(pick.frame, r, pick.hands)]
+    if put is not None and len(pick.hands) == 1 and len(put.hands) == 1 and put.hands != pick.hands:
+        h = _handover(joints, pick.frame, r)
+        if h is not None:
+            pieces = [(pick.frame, h, pick.hands), (h, r, put.hands)]
+    held = track[pick.frame].copy()
+    for a, b, hands in pieces:
+        H = holding_frames(joints[a:b + 1], wrist_rot[a:b + 1], hands)
+        seg = H @ (inv_h(H[0]) @ held)
+        track[a:b] = seg[: b - a]
+        held = seg[-1]
+        grasp[a:b, list(hands)] = True
+    return held
+
+
 def _spread_release(joints: np.ndarray, a: int, b: int) -> int | None:
     """First frame in (a, b) where the palms are RELEASE_SPREAD_M farther apart than at frame a."""
     palms = palm_points(joints[a:b])
@@ -294,19 +316,7 @@ def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: 
             obj, track = again, out.tracks[again.name]
         out.tracks[obj.name] = track
         r = put.frame if put is not None else T
-        hands = pick.hands
-        pieces = [(pick.frame, r, hands)]
-        if put is not None and len(hands) == 1 and put.hands != hands and len(put.hands) == 1:
-            h = _handover(j, pick.frame, r)
-            if h is not None:
-                pieces = [(pick.frame, h, hands), (h, r, put.hands)]
-        held = track[pick.frame].copy()
-        for a, b, hs in pieces:
-            H = holding_frames(j[a:b + 1], wrist_rot[a:b + 1], hs)
-            seg = H @ (inv_h(H[0]) @ held)
-            track[a:b] = seg[: b - a]
-            held = seg[-1]
-            out.grasp[a:b, list(hs)] = True
+        held = _carry(track, j, wrist_rot, pick, put, out.grasp)
         out.intervals.append(ActionInterval("pick_up", pick.start, pick.end))
         if put is None:
             out.intervals.append(ActionInterval("carry", pick.end, T))

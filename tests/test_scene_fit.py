@@ -99,3 +99,51 @@ def test_contacts_with_the_fitted_scene():
         assert contact[:, J[joint]].all() and (objects[:, J[joint]] == "seat_0").all()
     assert contact[:, J["left_foot"]].all() and (objects[:, J["left_foot"]] == FLOOR_NAME).all()
     assert not contact[:, J["head"]].any()
+
+
+def test_fitted_legs_are_disjoint_bodies_and_avoid_the_body():
+    """Legs share no vertex with the top (else the inside test of scenes.distance sees one open
+    body and calls points beside a leg inside); a leg on a joint's path is left out."""
+    from scenes.distance import SceneDistance
+    from trumans.scene_fit import LEG_CLEAR_M, SEAT_LEG_M, box_object
+
+    seat = box_object("s", "seat", 1.0, 2.0, 0.3, 0.4, 0.38, 0.45, {}, legs=True)
+    assert seat.meta["legs"] == 4
+    mesh = seat.world_mesh()
+    rng = np.random.default_rng(0)
+    local = rng.uniform([-0.3, -0.3, 0.0], [0.3, 0.3, 0.5], (400, 3))
+    pts = local @ seat.pose[:3, :3].T + seat.pose[:3, 3]
+    np.testing.assert_array_equal(SceneDistance({"s": mesh}).query(pts).inside, mesh.contains(pts))
+    corner = seat.pose @ np.array([0.2 - SEAT_LEG_M / 2, 0.19 - SEAT_LEG_M / 2, 0.1, 1.0])  # in the (+x, +y) leg
+    three = box_object("s", "seat", 1.0, 2.0, 0.3, 0.4, 0.38, 0.45, {}, legs=True, avoid=corner[None, :3])
+    assert three.meta["legs"] == 3 and not three.world_mesh().contains(corner[None, :3]).any()
+    away = corner[:3] + seat.pose[:3, 0] * (LEG_CLEAR_M + SEAT_LEG_M)
+    assert box_object("s", "seat", 1.0, 2.0, 0.3, 0.4, 0.38, 0.45, {}, legs=True, avoid=away[None]).meta["legs"] == 4
+
+
+def test_seat_sat_on_again_lower_keeps_the_lowest_and_a_seat_on_the_floor_body_is_dropped():
+    from trumans.scene_fit import fit_scene
+
+    hi, lo = seated_body(seat=0.47), seated_body(seat=0.40)
+    stand = np.repeat(REST_JOINTS[None] + np.array([1.0, 2.0, 0.0]), 60, 0)
+    j = np.concatenate([hi, stand, lo])
+    states = label_states(j, 30.0)
+    (seat,) = fit_scene(j, states).objects.values()
+    assert seat.meta["seat_height"] == pytest.approx(0.40, abs=1e-6) and len(seat.meta["runs"]) == 2
+    # the same seat, then the body on the floor where it stands (0.2 s after getting up): no seat
+    floor = seated_body(seat=0.08, seconds=1.0)
+    j = np.concatenate([hi, floor])
+    states = np.r_[label_states(hi, 30.0), np.full(len(floor), MOTION_STATES.index("stand"))]
+    assert fit_scene(j, states).objects == {}
+
+
+def test_seat_front_cut_back_for_a_foot_on_its_edge():
+    j = seated_body(seat=0.45)
+    knee = j[0, J["left_knee"]]
+    foot = j[:, J["left_ankle"]]
+    foot[45:] = [knee[0] - 0.08, knee[1], 0.44]  # the foot pulled up onto the seat's front edge
+    (seat,) = fit_seats(j, np.full(len(j), SIT))
+    assert not seat.world_mesh().contains(j[:, J["left_ankle"]]).any()
+    probe = j[0, [J["pelvis"]]].copy()
+    probe[:, 2] = 0.44
+    assert seat.world_mesh().contains(probe).all()  # still under the pelvis

@@ -8,11 +8,15 @@ from every procedural floor footprint, and the fitted furniture keeps ``MARGIN``
 ``BODY_RADIUS`` from the door's approach point. Of ``ATTEMPTS`` seeded (room, yaw, offset)
 draws, the first one with no blocking piece is taken; if every draw is blocked, the draw with the
 fewest blocking pieces is taken and those pieces are removed from the room (with the objects
-standing on them). Clips too large for a 20 m room fit no room.
+standing on them). Clips too large for a 20 m room fit no room. ``extra`` objects fitted to the clip
+beforehand (``real_objects``: picked-up objects and their supports, in the clip's frame) move with
+the clip and count as fitted; ``free`` footprints (the places a carried object passes or is put)
+are kept free like fitted ones.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,8 +42,9 @@ SAMPLE_M = 0.05  # m, spacing of the points that sample a fitted footprint
 class Placement:
     """A clip in its room: ``scene`` (procedural room + fitted objects, named ``fit_*``),
     ``joints`` (T, 24, 3) m moved into the room, the applied ``yaw`` (rad, about z through the
-    pelvis path's bbox centre) and ``shift`` (2,) m, the draw ``attempt`` taken and the procedural
-    objects ``removed`` to free the path."""
+    pelvis path's bbox centre) and ``shift`` (2,) m, the draw ``attempt`` taken, the procedural
+    objects ``removed`` to free the path, the ``fitted`` object names and the rigid ``transform``
+    (4, 4) from the clip's frame into the room's (p' = R(yaw) p + shift)."""
 
     scene: Scene
     joints: np.ndarray
@@ -48,6 +53,7 @@ class Placement:
     attempt: int
     removed: list[str]
     fitted: list[str]
+    transform: np.ndarray
 
 
 def turn_and_move(joints: np.ndarray, yaw: float, shift: np.ndarray) -> np.ndarray:
@@ -99,17 +105,26 @@ def _blockers(scene: Scene, joints: np.ndarray, fitted: list[np.ndarray]) -> lis
 
 
 def _remove(scene: Scene, names: list[str]) -> list[str]:
-    """Remove objects ``names`` and the objects supported by them; returns all removed names (sorted)."""
+    """Remove objects ``names`` and the objects supported by them or parts of them (a cabinet's
+    drawers: meta "parent"), transitively; returns all removed names (sorted)."""
     gone = set(names)
-    gone |= {n for n, o in scene.objects.items() if o.meta.get("support") in gone}
+    while True:
+        more = {n for n, o in scene.objects.items() if n not in gone
+                and (o.meta.get("support") in gone or o.meta.get("parent") in gone)}
+        if not more:
+            break
+        gone |= more
     for n in gone:
         del scene.objects[n]
     return sorted(gone)
 
 
-def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps: float = 30.0) -> Placement | None:
+def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps: float = 30.0,
+               extra: Sequence[SceneObject] = (), free: Sequence[np.ndarray] = ()) -> Placement | None:
     """Place a clip (joints (T, 24, 3) m, per-frame ``states`` of ``trumans.motion_labels``) in a
-    procedural room made for it; None when no room can hold it. Deterministic in ``seed``."""
+    procedural room made for it; None when no room can hold it. ``extra``: objects already fitted to
+    the clip (named ``fit_*``, poses in the clip's frame), added with it; ``free``: (4, 2) floor quads
+    m in the clip's frame to keep free of procedural furniture. Deterministic in ``seed``."""
     j0 = np.asarray(joints, np.float64)
     pel = j0[:, JOINT_INDEX["pelvis"], :2]
     centre = (pel.min(0) + pel.max(0)) / 2
@@ -119,7 +134,13 @@ def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps
         yaw = float(rng.uniform(-np.pi, np.pi))
         J = turn_and_move(j0 - np.array([centre[0], centre[1], 0.0]), yaw, np.zeros(2))
         fitted = list(fit_scene(J, states, fps=fps).objects.values())
-        quads = [footprint_quad(o) for o in fitted]
+        M = np.eye(4)
+        M[:3, :3] = yaw_matrix(yaw)
+        M[:2, 3] = _centre_shift(centre, yaw)
+        for o in fitted:
+            o.name = f"fit_{o.name}"
+        fitted += [replace(o, pose=M @ o.pose, meta=dict(o.meta)) for o in extra]
+        quads = [footprint_quad(o) for o in fitted] + [np.asarray(q, np.float64) @ M[:2, :2].T + M[:2, 3] for q in free]
         p = J[:, JOINT_INDEX["pelvis"], :2]
         body = J[:, :, :2].reshape(-1, 2)
         pts = np.concatenate([p - BODY_RADIUS, p + BODY_RADIUS, body - LIMB_CLEARANCE, body + LIMB_CLEARANCE] + quads)
@@ -132,6 +153,7 @@ def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps
         for o in fitted:
             o.pose = o.pose.copy()
             o.pose[:2, 3] += shift
+        M[:2, 3] += shift
         quads = [q + shift for q in quads]
         scene = make_room(int(rng.integers(2**31)), size=(float(size[0]), float(size[1])))
         door = approach_points(scene).get(scene.meta["door"])
@@ -139,7 +161,7 @@ def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps
             continue  # a fitted seat would block the door
         blocking = _blockers(scene, J, quads)
         if best is None or len(blocking) < best[0]:
-            best = (len(blocking), attempt, scene, J, yaw, shift + _centre_shift(centre, yaw), fitted)
+            best = (len(blocking), attempt, scene, J, yaw, M[:2, 3].copy(), fitted)
             best_blocking = blocking
         if not blocking:
             break
@@ -149,12 +171,14 @@ def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps
     removed = _remove(scene, best_blocking) if best_blocking else []
     names = []
     for o in fitted:
-        o.name = f"fit_{o.name}"
         scene.objects[o.name] = o
         names.append(o.name)
     scene.meta = {**scene.meta, "real_clip": name, "placement": {"yaw": yaw, "shift": [float(v) for v in shift]},
                   "removed_for_path": removed, "fitted": names}
-    return Placement(scene, J.astype(np.float32), yaw, shift, attempt, removed, names)
+    transform = np.eye(4)
+    transform[:3, :3] = yaw_matrix(yaw)
+    transform[:2, 3] = shift
+    return Placement(scene, J.astype(np.float32), yaw, shift, attempt, removed, names, transform)
 
 
 def _centre_shift(centre: np.ndarray, yaw: float) -> np.ndarray:

@@ -6,8 +6,11 @@ Labels: the per-frame body states of ``trumans.motion_labels`` (stand / walk / t
 sit / stand_up / lie_down / lie / get_up are names of ``SYNTH_ACTIONS``) as half-open intervals
 (``trumans.actions``); where the CMU description names a whole-clip activity (drinking, a phone
 call, typing) it labels the held stand / sit frames, and "carry" labels the walking frames.
-Contacts: ``trumans.contacts.rule`` on the room with its fitted seats / beds, as for procedural
-takes. Rotations: ``trumans.ik.fit.fit_rotations``; the joints are their forward kinematics (exact
+Objects picked up, carried and put down (``real_objects``: detected from the hands where the
+description hints at it) are dynamic objects of the room with their pose tracks, their
+pick_up / carry / put_down intervals replace the description's "carry", and ``extra/grasp`` flags
+the holding hands. Contacts: ``trumans.contacts.rule`` on the room with its fitted seats / beds /
+supports and the objects at their per-frame poses, as for procedural takes. Rotations: ``trumans.ik.fit.fit_rotations``; the joints are their forward kinematics (exact
 bone lengths, as in procedural takes), within ``fit_error_max_mm`` (a few mm) of the recording.
 The sequence says where it comes from: ``extra/source = "cmu:<clip>"``.
 """
@@ -28,13 +31,14 @@ from trumans.mocap_corpus import MocapClip, load_corpus
 from trumans.motion_labels import MOTION_STATES
 from trumans.rotations import matrix_to_6d, yaw_matrix
 from trumans.sequence import ObjectTrack, Sequence, atomic_write, save_sequence
-from trumans.skeleton import FEET, forward_kinematics
+from trumans.skeleton import FEET, WRISTS, forward_kinematics
+from .real_objects import fit_handled_objects, handled_footprints
 from .real_place import place_clip
 from .vocab import SYNTH_ACTIONS
 
 __all__ = ["select_clips", "real_room_id", "clip_labels", "real_sequence", "build_real_room", "DESCRIPTION_ACTIONS"]
 
-REAL_VERSION = "5"  # bump when the placement, labels or contacts of real takes change (rebuilds real rooms)
+REAL_VERSION = "6"  # bump when the placement, labels or contacts of real takes change (rebuilds real rooms)
 
 TRIM_ERROR_M = 0.01  # m, leading / trailing frames fitted worse than this are dropped
 
@@ -63,14 +67,18 @@ def real_room_id(clip: MocapClip) -> str:
     return f"real_{clip.name}"
 
 
-def clip_labels(states: np.ndarray, description: str) -> np.ndarray:
-    """(T, N_A) action labels with progress over ``SYNTH_ACTIONS`` from per-frame ``states`` (T,)."""
+def clip_labels(states: np.ndarray, description: str, handled: list[ActionInterval] = ()) -> np.ndarray:
+    """(T, N_A) action labels with progress over ``SYNTH_ACTIONS`` from per-frame ``states`` (T,),
+    the description's whole-clip activities and the ``handled`` object intervals (pick_up / carry /
+    put_down of ``real_objects``; where they carry, the description's "carry" is not used)."""
     states = np.asarray(states)
     T = len(states)
     intervals = [ActionInterval(name, s, e) for k, name in enumerate(MOTION_STATES) for s, e in runs(states == k)]
+    intervals += list(handled)
+    found = {iv.name for iv in handled}
     desc = description.lower()
     for word, (action, on) in DESCRIPTION_ACTIONS.items():
-        if word in desc:
+        if word in desc and action not in found:
             mask = np.isin(states, [MOTION_STATES.index(s) for s in on])
             intervals += [ActionInterval(action, s, e) for s, e in runs(mask)]
     return labels_from_intervals(intervals, list(SYNTH_ACTIONS), T)
@@ -102,7 +110,10 @@ def real_sequence(clip: MocapClip, seed: int) -> tuple[Sequence, dict] | None:
     rid = real_room_id(clip)
     keep, rot, root, off, err = fit_clip(clip.joints)
     states = clip.states[keep]
-    pl = place_clip(clip.joints[keep], states, seed, clip.name, clip.fps)
+    P0, G0 = forward_kinematics(rot, root, off)
+    handled = fit_handled_objects(P0, G0[:, list(WRISTS)], clip.description, seed, clip.fps)
+    pl = place_clip(clip.joints[keep], states, seed, clip.name, clip.fps, extra=handled.objects + handled.supports,
+                    free=handled_footprints(handled))
     if pl is None:
         return None
     pl.scene.name = rid
@@ -114,18 +125,19 @@ def real_sequence(clip: MocapClip, seed: int) -> tuple[Sequence, dict] | None:
     P, G = forward_kinematics(rot, root, off)  # joints and rotations agree exactly (as in procedural takes)
     T = len(P)
     contacts = ContactScene(pl.scene)
-    tracks = {n: np.broadcast_to(o.pose, (T, 4, 4)).astype(np.float64)
+    tracks = {n: (pl.transform @ handled.tracks[n] if n in handled.tracks else
+                  np.broadcast_to(o.pose, (T, 4, 4)).astype(np.float64))
               for n, o in pl.scene.objects.items() if o.dynamic}
     res = contacts.query(P, tracks)
     con = contact_rule(P, res, threshold=CONTACT_THRESHOLD, global_rot=G)
     foot_floor = con.contact[:, list(FEET)] & (np.abs(con.closest[:, list(FEET), 2]) < 0.005)
     seq = Sequence(
         joints=P.astype(np.float32), fps=clip.fps, rotations=matrix_to_6d(rot).astype(np.float32),
-        root_pos=root.astype(np.float32), actions=clip_labels(states, clip.description),
+        root_pos=root.astype(np.float32), actions=clip_labels(states, clip.description, handled.intervals),
         action_names=list(SYNTH_ACTIONS), contacts=con.contact, scene=rid,
         objects={n: ObjectTrack(pose=p.astype(np.float32), category=pl.scene.objects[n].category)
                  for n, p in tracks.items()},
-        extra={"offsets": off.astype(np.float32), "foot_contact": foot_floor, "grasp": np.zeros((T, 2), bool),
+        extra={"offsets": off.astype(np.float32), "foot_contact": foot_floor, "grasp": handled.grasp,
                "source": np.asarray(f"cmu:{clip.name}")},
     )
     terms = {"fit_error_max_mm": 1e3 * float(err.max()), "trimmed_frames": len(clip.joints) - T, "penetration": con.penetration.astype(np.float64),

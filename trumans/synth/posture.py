@@ -33,6 +33,8 @@ from .poses import POSES, ease, pose, slerp_poses, slerp_rot
 
 __all__ = [
     "seat_clearance",
+    "draw_stagger",
+    "seated_feet",
     "seated_state",
     "lying_state",
     "lying_extent",
@@ -75,11 +77,39 @@ def _offsets(offsets: np.ndarray) -> np.ndarray:
     return offsets
 
 
+Stagger = tuple[float, float]  # fore-aft offset (m, + forward) of the left / right ankle while seated
+
+
+def draw_stagger(rng: np.random.Generator) -> Stagger:
+    """A sitting's foot stagger: one foot (either) drawn back or pushed forward by 2.5-8 cm, the
+    other where it stood (people do not sit mirror-symmetric; real: 2-10 cm)."""
+    side = int(rng.integers(2))
+    out = [0.0, 0.0]
+    out[side] = float(rng.uniform(0.025, 0.08) * rng.choice([-1.0, 1.0]))
+    return out[0], out[1]
+
+
+def _check_stagger(stagger: Stagger) -> np.ndarray:
+    st = np.asarray(stagger, dtype=np.float64)
+    if st.shape != (2,) or not np.isfinite(st).all() or np.abs(st).max() > 0.2:
+        raise ValueError(f"stagger must be the (left, right) fore-aft ankle offsets in m, each within "
+                         f"+-0.2 m, got {stagger!r}")
+    return st
+
+
+def seated_feet(offsets: np.ndarray, stand_pos: np.ndarray, sit_yaw: float,
+                stagger: Stagger = (0.0, 0.0)) -> np.ndarray:
+    """(2, 3) world ankle places of the seated feet: where they stood in ``standing_state(offsets,
+    stand_pos, sit_yaw)``, each moved ``stagger`` m along the sitting direction."""
+    fwd = np.array([np.cos(sit_yaw), np.sin(sit_yaw), 0.0])
+    return foot_places(offsets, stand_pos, sit_yaw) + _check_stagger(stagger)[:, None] * fwd
+
+
 def seated_state(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-                 base_pose: str = "sit") -> tuple[np.ndarray, np.ndarray]:
+                 base_pose: str = "sit", stagger: Stagger = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """Seated state: (rot (24, 3, 3), root (3,)). Pelvis above ``seat_center`` (3,) by
-    ``seat_clearance``, facing ``sit_yaw`` (rad), upper body ``base_pose``, feet planted where they
-    stood in ``standing_state(offsets, stand_pos, sit_yaw)``. Raises ValueError when the feet
+    ``seat_clearance``, facing ``sit_yaw`` (rad), upper body ``base_pose``, feet planted at
+    ``seated_feet(offsets, stand_pos, sit_yaw, stagger)``. Raises ValueError when the feet
     cannot reach the floor from this seat."""
     offsets = _offsets(offsets)
     seat_center = _vec3(seat_center, "seat_center")
@@ -89,7 +119,7 @@ def seated_state(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, s
     rot = pose(base_pose, offsets)[None].copy()
     rot[0, 0] = yaw_matrix(sit_yaw)
     root = (seat_center + np.array([0.0, 0.0, seat_clearance(offsets)]))[None]
-    feet = foot_places(offsets, stand_pos, sit_yaw)[None]
+    feet = seated_feet(offsets, stand_pos, sit_yaw, stagger)[None]
     rot, reached = solve_legs(rot, root, offsets, feet, foot_rot=np.broadcast_to(yaw_matrix(sit_yaw), (1, 2, 3, 3)))
     if not reached.all():
         raise ValueError(f"feet at stand_pos {stand_pos.tolist()} cannot reach the floor from the seat at "
@@ -220,14 +250,16 @@ def _envelope(T: int, fps: float, ramp: float = 0.6) -> np.ndarray:
 
 
 def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-              rng: np.random.Generator, fps: float, arm_swing: float, up: bool) -> Motion:
+              rng: np.random.Generator, fps: float, arm_swing: float, up: bool, stagger: Stagger) -> Motion:
     """Sit-down (``up`` False: standing -> seated) or stand-up (True: seated -> standing), each with
     its own timing: the sit-down hinges at the hips while the pelvis goes back and down (peak lean
     mid-descent); the stand-up first leans the trunk forward over the feet, then rises. Lean
-    U(50, 64) deg (root and lower spine pitch at the peak, 70 % at the hip, 30 % in the lower spine)."""
+    U(50, 64) deg (root and lower spine pitch at the peak, 70 % at the hip, 30 % in the lower spine).
+    A staggered foot (``stagger``) steps to its seated place early in the sit-down (weight still on
+    the feet, pelvis high) and back late in the stand-up, lifted 2 cm; planted otherwise."""
     offsets = _offsets(offsets)
     stand = standing_state(offsets, _vec2(stand_pos, "stand_pos"), sit_yaw)
-    seated = seated_state(offsets, seat_center, sit_yaw, stand_pos)
+    seated = seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)
     (rot0, root0), (rot1, root1) = (seated, stand) if up else (stand, seated)
     T = int(round((rng.uniform(1.7, 2.5) if up else rng.uniform(1.5, 2.1)) * fps)) + 1
     s = np.linspace(0.0, 1.0, T)
@@ -253,7 +285,12 @@ def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stan
     for side in ("left", "right"):
         j = JOINT_INDEX[f"{side}_shoulder"]
         rot[:, j] = euler_to_matrix(np.stack([z, -arms * lean, z], -1), "ZYX") @ rot[:, j]
-    feet = np.repeat(foot_places(offsets, stand_pos, sit_yaw)[None], T, axis=0)
+    a, b = (0.6, 0.95) if up else (0.05, 0.4)  # the staggered foot's step (fractions of the transfer)
+    u = np.clip((s - a) / (b - a), 0.0, 1.0)
+    w = (1.0 - ease(u) if up else ease(u))[:, None, None]  # 0: standing places, 1: seated ones
+    feet = (1.0 - w) * foot_places(offsets, stand_pos, sit_yaw) + w * seated_feet(offsets, stand_pos, sit_yaw, stagger)
+    moved = np.abs(_check_stagger(stagger)) > 0
+    feet[:, moved, 2] += (0.02 * np.sin(np.pi * u))[:, None]
     h_lim = pelvis_height_limit(rot, root[:, :2], offsets, feet)
     root[:, 2] = np.minimum(root[:, 2], h_lim - 0.001)
     frot = np.broadcast_to(yaw_matrix(sit_yaw), (T, 2, 3, 3))
@@ -261,17 +298,21 @@ def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stan
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=frot, pole_dir=knee)
     rot[0], root[0] = rot0, root0
     rot[-1], root[-1] = rot1, root1
-    return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=np.ones((T, 2), dtype=bool),
+    contact = np.ones((T, 2), dtype=bool)
+    contact[:, moved] = ((u <= 0.0) | (u >= 1.0))[:, None]
+    return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=contact,
                   actions=[ActionInterval("stand_up" if up else "sit_down", 0, T)])
 
 
 def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
+             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0,
+             stagger: Stagger = (0.0, 0.0)) -> Motion:
     """Sit down from ``standing_state(offsets, stand_pos, sit_yaw)`` (standing in front of the seat,
-    facing away from it) to ``seated_state(offsets, seat_center, sit_yaw, stand_pos)``: hips go back
-    and down with a forward hip-hinge lean, the arms come forward with the trunk (``arm_swing``
-    scales that, e.g. 0 at a desk), feet stay planted (leg IK). Label 'sit_down'; about 1.5-2.1 s."""
-    return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=False)
+    facing away from it) to ``seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)``:
+    hips go back and down with a forward hip-hinge lean, the arms come forward with the trunk
+    (``arm_swing`` scales that, e.g. 0 at a desk), feet planted (leg IK) but for the staggered foot's
+    short step early on. Label 'sit_down'; about 1.5-2.1 s."""
+    return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=False, stagger=stagger)
 
 
 def _random_holds(T: int, fps: float, rng: np.random.Generator, scale: np.ndarray,
@@ -291,14 +332,14 @@ def _random_holds(T: int, fps: float, rng: np.random.Generator, scale: np.ndarra
 
 
 def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray, frames: int,
-        rng: np.random.Generator, fps: float = 30.0, shift: float = 1.0) -> Motion:
+        rng: np.random.Generator, fps: float = 30.0, shift: float = 1.0, stagger: Stagger = (0.0, 0.0)) -> Motion:
     """Seated idle for ``frames`` frames, starting and ending exactly in ``seated_state(offsets,
-    seat_center, sit_yaw, stand_pos)``: breathing and head turns, the pelvis shifting on the seat
-    (up to ``shift`` x (6 cm towards the front edge, 2 cm sideways)) with the trunk slouching and leaning, and one foot
-    drawn back or pushed forward (``stagger`` 3-8 cm, people do not sit mirror-symmetric) while
-    the other stays planted. Label 'sit'."""
+    seat_center, sit_yaw, stand_pos, stagger=stagger)``: breathing and head turns, the pelvis shifting
+    on the seat (up to ``shift`` x (6 cm towards the front edge, 2 cm sideways)) with the trunk
+    slouching and leaning; both feet stay planted where the sit-down put them (``stagger``: one
+    foot drawn back or pushed forward, see ``draw_stagger``). Label 'sit'."""
     offsets = _offsets(offsets)
-    rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
+    rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)
     rot = _breathing(rot0, frames, rng, fps, 0.015)
     T = len(rot)
     fwd = np.array([np.cos(sit_yaw), np.sin(sit_yaw), 0.0])
@@ -318,31 +359,23 @@ def sit(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos:
         rot[:, j] = euler_to_matrix(np.stack([z, part * slouch, part * sh[:, 3]], -1), "ZYX") @ rot[:, j]
     j = JOINT_INDEX["neck"]  # the head stays roughly level
     rot[:, j] = euler_to_matrix(np.stack([z, -0.5 * slouch, -0.5 * sh[:, 3]], -1), "ZYX") @ rot[:, j]
-    # One foot staggered: slides to its place in the first second, back in the last.
-    feet = np.repeat(foot_places(offsets, stand_pos, sit_yaw)[None], T, axis=0)
-    side = int(rng.integers(2))
-    stagger = rng.uniform(0.03, 0.08) * rng.choice([-1.0, 1.0])
-    t = np.arange(T) / fps
-    move = min(0.6, 0.3 * t[-1]) if T > 2 else 1.0
-    w = ease((t - 0.1 * move) / move) * ease((t[-1] - 0.1 * move - t) / move) if T > 2 else np.zeros(T)
-    feet[:, side] += (w * stagger)[:, None] * fwd
-    lift = np.sin(np.pi * np.clip(np.minimum(t - 0.1 * move, t[-1] - 0.1 * move - t) / move, 0, 1))
-    feet[:, side, 2] += 0.02 * lift * (w < 0.999) * (w > 0.0)
+    feet = np.repeat(seated_feet(offsets, stand_pos, sit_yaw, stagger)[None], T, axis=0)
     rot, _ = solve_legs(rot, root, offsets, feet, foot_rot=np.broadcast_to(yaw_matrix(sit_yaw), (T, 2, 3, 3)),
                         pole_dir=np.broadcast_to(fwd, (T, 3)))
     contact = np.ones((T, 2), dtype=bool)
-    contact[:, side] = (w <= 0.0) | (w >= 0.999)
     rot[0], root[0], rot[-1], root[-1] = rot0, root0, rot0, root0
     return Motion(rot=rot, root=root, offsets=offsets, fps=fps, foot_contact=contact,
                   actions=[ActionInterval("sit", 0, T)])
 
 
 def stand_up(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand_pos: np.ndarray,
-             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0) -> Motion:
-    """Stand up from ``seated_state`` to ``standing_state(offsets, stand_pos, sit_yaw)`` with its own
-    timing (not a sit-down reversed): the trunk leans forward over the feet first, then the pelvis
-    rises while the trunk straightens; feet planted. Label 'stand_up'; about 1.7-2.5 s."""
-    return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=True)
+             rng: np.random.Generator, fps: float = 30.0, arm_swing: float = 1.0,
+             stagger: Stagger = (0.0, 0.0)) -> Motion:
+    """Stand up from ``seated_state(..., stagger=stagger)`` to ``standing_state(offsets, stand_pos,
+    sit_yaw)`` with its own timing (not a sit-down reversed): the trunk leans forward over the feet
+    first, then the pelvis rises while the trunk straightens; feet planted but for the staggered
+    foot's step back beside the other late in the rise. Label 'stand_up'; about 1.7-2.5 s."""
+    return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=True, stagger=stagger)
 
 
 def _knee_dirs(P: np.ndarray) -> np.ndarray:
@@ -357,15 +390,15 @@ def _knee_dirs(P: np.ndarray) -> np.ndarray:
 
 def lie_down(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_center: np.ndarray,
              rng: np.random.Generator, *, sit_yaw: float, stand_pos: np.ndarray, fps: float = 30.0,
-             leg_reach: float | None = None) -> Motion:
-    """Lie down from sitting on the edge (``seated_state(offsets, seat_center, sit_yaw, stand_pos)``)
+             leg_reach: float | None = None, stagger: Stagger = (0.0, 0.0)) -> Motion:
+    """Lie down from sitting on the edge (``seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)``)
     to ``lying_state(offsets, lie_center, lie_yaw, leg_reach)``: the trunk reclines and turns, the
     pelvis slides to ``lie_center`` at constant clearance over the surface; the feet stay planted a
     moment, then lift (knees up) above the surface height before they swing over the edge onto it
     (ankle paths by leg IK). Label 'lie_down'; about 2.6-3.4 s."""
     offsets = _offsets(offsets)
     lie_center = _vec3(lie_center, "lie_center")
-    rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos)
+    rot0, root0 = seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)
     rot1, root1 = lying_state(offsets, lie_center, lie_yaw, leg_reach)
     T = int(round(rng.uniform(2.6, 3.4) * fps)) + 1
     s = np.linspace(0.0, 1.0, T)
@@ -439,8 +472,8 @@ def lie(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, frames: int
 
 def get_up(offsets: np.ndarray, lie_center: np.ndarray, lie_yaw: float, seat_center: np.ndarray,
            rng: np.random.Generator, *, sit_yaw: float, stand_pos: np.ndarray, fps: float = 30.0,
-           leg_reach: float | None = None) -> Motion:
-    """From ``lying_state`` back to sitting on the edge (``seated_state``): a lie-down played backwards
-    with its own timing from ``rng``. Label 'get_up'."""
+           leg_reach: float | None = None, stagger: Stagger = (0.0, 0.0)) -> Motion:
+    """From ``lying_state`` back to sitting on the edge (``seated_state(..., stagger=stagger)``): a
+    lie-down played backwards with its own timing from ``rng``. Label 'get_up'."""
     return lie_down(offsets, lie_center, lie_yaw, seat_center, rng, sit_yaw=sit_yaw, stand_pos=stand_pos, fps=fps,
-                    leg_reach=leg_reach).reversed("get_up")
+                    leg_reach=leg_reach, stagger=stagger).reversed("get_up")

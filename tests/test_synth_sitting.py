@@ -10,7 +10,7 @@ from trumans.motion_labels import body_features
 from trumans.realism import clip_statistics
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import bone_lengths, forward_kinematics, rest_offsets
-from trumans.synth import posture
+from trumans.synth import lying, posture
 from trumans.synth.legs import standing_state
 from trumans.synth.motion import Motion, concat_motions
 from trumans.synth.locomotion import stand
@@ -80,7 +80,7 @@ def test_seated_idle_shifts_with_the_feet_planted_where_the_sit_down_put_them():
     for seed in range(4):
         rng = np.random.default_rng(seed)
         stagger = posture.draw_stagger(rng)
-        assert sorted(np.abs(stagger))[0] == 0.0 and 0.025 <= max(np.abs(stagger)) <= 0.08  # one foot
+        assert sorted(np.abs(stagger))[0] == 0.0 and 0.02 <= max(np.abs(stagger)) <= 0.065  # one foot
         rot0, root0 = posture.seated_state(off, SEAT, SIT_YAW, STAND_POS, stagger=stagger)
         m = posture.sit(off, SEAT, SIT_YAW, STAND_POS, 240, rng, stagger=stagger)
         j = _joints(m)
@@ -132,7 +132,7 @@ def test_one_foot_stays_staggered_from_the_sit_down_to_the_stand_up(seed):
     assert 0.01 < lift.max() < 0.03 and lift.min() > -1e-6  # a short lifted step, never into the floor
     # the lie-down starts from the staggered seated state (and the get-up ends in it)
     kw = dict(sit_yaw=SIT_YAW, stand_pos=STAND_POS, leg_reach=0.56, stagger=stagger)
-    g = posture.get_up(off, LIE, LIE_YAW, SEAT, np.random.default_rng(seed), **kw)
+    g = lying.get_up(off, LIE, LIE_YAW, SEAT, np.random.default_rng(seed), **kw)
     np.testing.assert_allclose(g.rot[-1], parts[1].rot[-1], atol=1e-9)
 
 
@@ -140,8 +140,8 @@ def test_lying_knees_up_shifts_on_the_surface():
     off = rest_offsets()
     for reach in (None, 0.56):
         rng = np.random.default_rng(5)
-        rot0, root0 = posture.lying_state(off, LIE, LIE_YAW, reach)
-        m = posture.lie(off, LIE, LIE_YAW, 300, rng, leg_reach=reach)
+        rot0, root0 = lying.lying_state(off, LIE, LIE_YAW, reach)
+        m = lying.lie(off, LIE, LIE_YAW, 300, rng, leg_reach=reach)
         j = _joints(m)
         np.testing.assert_allclose(m.rot[[0, -1]], np.stack([rot0, rot0]), atol=1e-9)
         np.testing.assert_allclose(m.root[:, 2], root0[2], atol=1e-9)
@@ -150,7 +150,7 @@ def test_lying_knees_up_shifts_on_the_surface():
         if reach is not None:
             assert m.foot_contact.all()
             assert np.abs(j[:, ANKLES] - j[0, ANKLES]).max() < 1e-6  # planted feet
-        still = posture.lie(off, LIE, LIE_YAW, 300, np.random.default_rng(5), leg_reach=reach, shift=0.0)
+        still = lying.lie(off, LIE, LIE_YAW, 300, np.random.default_rng(5), leg_reach=reach, shift=0.0)
         np.testing.assert_allclose(still.root, np.broadcast_to(root0, still.root.shape), atol=1e-12)
     stats = clip_statistics(concat_motions([m]).joints())
     assert 88 < stats["lying_knee_bend"] < 123
@@ -158,11 +158,11 @@ def test_lying_knees_up_shifts_on_the_surface():
 
 def test_fit_lying_prefers_the_chosen_knees_up_reach():
     off = rest_offsets()
-    shift, reach = posture.fit_lying(off, 2.0, prefer_reach=0.56)
+    shift, reach = lying.fit_lying(off, 2.0, prefer_reach=0.56)
     assert reach == 0.56 and abs(shift) < 1e-12  # fits centred on a bed
-    shift, reach = posture.fit_lying(off, 2.0)
+    shift, reach = lying.fit_lying(off, 2.0)
     assert reach is None
-    short = posture.fit_lying(off, 1.45, prefer_reach=0.7)  # does not fit: the shortest that fits
+    short = lying.fit_lying(off, 1.45, prefer_reach=0.7)  # does not fit: the shortest that fits
     assert short[1] is not None and short[1] < 0.7
     with pytest.raises(ValueError, match="too short"):
-        posture.fit_lying(off, 1.0, prefer_reach=0.56)
+        lying.fit_lying(off, 1.0, prefer_reach=0.56)

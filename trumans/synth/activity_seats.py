@@ -8,7 +8,7 @@ import numpy as np
 
 from trumans.contacts.rule import JOINT_RADIUS
 from trumans.skeleton import SEAT, forward_kinematics
-from . import hands, posture
+from . import hands, lying, posture
 from .motion import Motion, yaw_of
 from .moves import MAX_PENETRATION, approach, check_clean, walk_to, world_point
 from .room import RoomContext
@@ -104,29 +104,29 @@ def run_sit(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
 def run_lie(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:
     """Walk to a bed or sofa, sit on its edge, lie down, lie a while, get up, stand up. The body
     lies along the surface (``lie_center``, ``lie_yaw``, ``lie_length`` meta) where
-    ``posture.fit_lying`` puts it: most takes knees up (bent 95-120 deg, as people lie), else
+    ``lying.fit_lying`` puts it: most takes knees up (bent 95-120 deg, as people lie), else
     straight where the body fits, knees up on a short sofa; the seat place nearest the lying pelvis
     is used. The lying idle shifts the body on the surface, less where a full shift would go into
     the furniture."""
     obj = ctx.scene.objects[name]
     pose = st.poses.get(name, obj.pose)
     ly = yaw_of(pose) + float(obj.meta["lie_yaw"])
-    prefer = posture.min_leg_reach(st.offsets) * rng.uniform(1.11, 1.38) if rng.random() < 0.75 else None
+    prefer = lying.min_leg_reach(st.offsets) * rng.uniform(1.11, 1.38) if rng.random() < 0.75 else None
     try:
-        shift, reach = posture.fit_lying(st.offsets, float(obj.meta["lie_length"]), prefer_reach=prefer)
+        shift, reach = lying.fit_lying(st.offsets, float(obj.meta["lie_length"]), prefer_reach=prefer)
     except ValueError as e:
         raise Skip(f"{name}: {e}") from e
     lc = world_point(pose, obj.meta["lie_center"]) + shift * np.array([np.cos(ly), np.sin(ly), 0.0])
 
-    def lying(seat: np.ndarray, yaw: float, stand: np.ndarray, stagger: posture.Stagger) -> None:
+    def lie_there(seat: np.ndarray, yaw: float, stand: np.ndarray, stagger: posture.Stagger) -> None:
         kw = dict(sit_yaw=yaw, stand_pos=stand, fps=ctx.fps, leg_reach=reach, stagger=stagger)
-        st.append(check_clean(ctx, st, posture.lie_down(st.offsets, lc, ly, seat, rng, **kw), "lie_down"))
+        st.append(check_clean(ctx, st, lying.lie_down(st.offsets, lc, ly, seat, rng, **kw), "lie_down"))
         n = int(rng.uniform(5.0, 12.0) * ctx.fps)
-        st.append(check_clean(ctx, st, _shifting(ctx, st, rng, lambda r, shift: posture.lie(
+        st.append(check_clean(ctx, st, _shifting(ctx, st, rng, lambda r, shift: lying.lie(
             st.offsets, lc, ly, n, r, fps=ctx.fps, leg_reach=reach, shift=shift)), "lie"))
-        st.append(check_clean(ctx, st, posture.get_up(st.offsets, lc, ly, seat, rng, **kw), "get_up"))
+        st.append(check_clean(ctx, st, lying.get_up(st.offsets, lc, ly, seat, rng, **kw), "get_up"))
 
-    _sit_on(ctx, st, rng, name, seated=lying, near=lc)
+    _sit_on(ctx, st, rng, name, seated=lie_there, near=lc)
 
 
 def run_desk_work(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:

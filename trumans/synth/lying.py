@@ -20,8 +20,8 @@ from trumans.rotations import euler_to_matrix, unit, yaw_matrix
 from trumans.skeleton import ANKLES, FEET, HIPS, JOINT_INDEX, KNEES, NUM_JOINTS, forward_kinematics
 from .legs import rest_ankle_rel, solve_legs
 from .motion import Motion
-from .posture import Stagger, _breathing, _leg_scale, _offsets, _random_holds, _vec3, seat_clearance, seated_state
 from .poses import ease, pose, slerp_poses, slerp_rot
+from .posture import Stagger, _breathing, _leg_scale, _offsets, _random_holds, _vec3, seat_clearance, seated_state
 
 __all__ = ["HEAD_TOP", "min_leg_reach", "lying_state", "lying_extent", "fit_lying", "lie_down", "lie", "get_up"]
 

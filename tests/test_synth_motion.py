@@ -12,9 +12,8 @@ from trumans.synth.legs import foot_places, standing_state
 from trumans.synth.locomotion import stand, turn, walk
 from trumans.synth.motion import Motion, concat_motions
 from trumans.synth.poses import POSES, blend_into, ease, keyframe_track, pose, slerp_rot
-from trumans.synth.posture import (
-    get_up, lie, lie_down, lying_state, seat_clearance, seated_state, sit, sit_down, stand_up,
-)
+from trumans.synth.lying import get_up, lie, lie_down, lying_state
+from trumans.synth.posture import seat_clearance, seated_state, sit, sit_down, stand_up
 from trumans.synth.vocab import SYNTH_ACTIONS
 
 ANKLES, FEET = [J["left_ankle"], J["right_ankle"]], [J["left_foot"], J["right_foot"]]

@@ -11,7 +11,7 @@ from trumans.contacts.rule import CONTACT_THRESHOLD, JOINT_RADIUS, contact_rule
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import forward_kinematics
 from trumans import metrics
-from trumans.synth import posture
+from trumans.synth import lying, posture
 from trumans.synth.locomotion import foot_places
 from trumans.synth.activities import ACTIVITIES
 from trumans.synth.activity_furniture import MIN_DOOR_ANGLE
@@ -84,21 +84,21 @@ def test_lying_on_a_bed_or_sofa_happens_on_its_surface(tmp_path, kind):
 
 def test_short_sofa_is_lain_on_with_the_knees_up():
     off = draw_actor(np.random.default_rng(0))
-    head, feet = posture.lying_extent(off)
+    head, feet = lying.lying_extent(off)
     length = head + feet - 0.2  # 20 cm too short to lie straight
-    shift, reach = posture.fit_lying(off, length)
-    assert reach is not None and reach >= posture.min_leg_reach(off)
-    h2, f2 = posture.lying_extent(off, reach)
+    shift, reach = lying.fit_lying(off, length)
+    assert reach is not None and reach >= lying.min_leg_reach(off)
+    h2, f2 = lying.lying_extent(off, reach)
     assert shift + h2 <= length / 2 + 1e-6 and shift - f2 >= -length / 2 - 1e-6  # fits between the ends
     centre = np.array([1.0, 2.0, 0.42])
-    rot, root = posture.lying_state(off, centre, 0.3, reach)
+    rot, root = lying.lying_state(off, centre, 0.3, reach)
     P, _ = forward_kinematics(rot[None], root[None], off)
     ank = P[0, [J["left_ankle"], J["right_ankle"]]]
     flat = foot_places(off, np.zeros(2), 0.0)[:, 2]  # ankle height of a flat foot on the floor
     np.testing.assert_allclose(ank[:, 2], centre[2] + flat, atol=1e-3)  # feet flat on the cushion
     assert (P[0, [J["left_knee"], J["right_knee"]], 2] > centre[2] + 0.2).all()  # knees up
     with pytest.raises(ValueError, match="too short"):
-        posture.fit_lying(off, 1.0)
+        lying.fit_lying(off, 1.0)
 
 
 def test_door_is_pulled_open_wide_with_the_hand_on_the_handle(tmp_path):

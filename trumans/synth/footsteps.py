@@ -72,11 +72,13 @@ def stance_plan(tl: Timeline, offsets: np.ndarray, style: Style, rng: np.random.
 # and rolls down over the planted heel until the swing ends (flat foot).
 SWING_PIVOT = 0.30
 SWING_LAND = 0.88
-_TOE_OFF_PITCH = 0.45  # rad, foot pitch (toe down) when the toe leaves the floor
+_TOE_OFF_PITCH = 0.60  # rad, foot pitch (toe down) when the toe leaves the floor
+_PEAK_PITCH = 0.85  # rad, the largest pitch, reached _PEAK_AFTER (swing fraction) after toe-off: the
+_PEAK_AFTER = 0.20  # foot keeps rotating through toe-off, so the heel rise lifts the ankle steadily
 _HEEL_ON_PITCH = 0.20  # rad, foot pitch (toe up) when the heel touches down
 _MIN_TOE_LIFT = 0.04  # m, least toe clearance of a swing (clears the 2 cm contact band early)
-_TOE_RISE = 0.08  # fraction of the flight over which the toe's vertical speed eases in (and out at landing)
-_GLIDE_DELAY = 0.08  # fraction of the flight before the toe starts to travel horizontally
+_TOE_RISE = 0.35  # fraction of the flight over which the toe's vertical speed eases in (and out at landing)
+_GLIDE_DELAY = 0.12  # fraction of the flight before the toe starts to travel horizontally
 _GLIDE_RAMP = 0.35  # fraction of the toe's travel time spent speeding up (and slowing down)
 
 
@@ -92,11 +94,13 @@ def _glide(x: np.ndarray, ramp: float = _GLIDE_RAMP) -> np.ndarray:
 
 def _swing_pitch(s: np.ndarray) -> np.ndarray:
     """Foot pitch (rad, toe down > 0) at swing phases s (n,): one C2 curve (clamped cubic spline)
-    from flat (0) through _TOE_OFF_PITCH at SWING_PIVOT to -_HEEL_ON_PITCH at SWING_LAND, so the foot
-    keeps rotating through the toe-off -> flight change (no stop-and-go jerk), then an eased roll flat."""
+    from flat (0) through _TOE_OFF_PITCH at SWING_PIVOT and its peak _PEAK_PITCH shortly after to
+    -_HEEL_ON_PITCH at SWING_LAND, so the foot keeps rotating through the toe-off -> flight change (no
+    stop-and-go jerk; the ankle keeps rising, so the trailing knee bends on without straightening
+    again in the heel rise), then an eased roll flat."""
     s = np.clip(s, 0.0, 1.0)
-    knots = np.array([0.0, SWING_PIVOT, SWING_LAND])
-    vals = np.array([0.0, _TOE_OFF_PITCH, -_HEEL_ON_PITCH])
+    knots = np.array([0.0, SWING_PIVOT, SWING_PIVOT + _PEAK_AFTER, SWING_LAND])
+    vals = np.array([0.0, _TOE_OFF_PITCH, _PEAK_PITCH, -_HEEL_ON_PITCH])
     flight = CubicSpline(knots, vals, bc_type="clamped")(np.minimum(s, SWING_LAND))
     # Heel strike: the foot rolls flat from a standstill about the heel (eased).
     return np.where(s < SWING_LAND, flight, -_HEEL_ON_PITCH * (1.0 - ease((s - SWING_LAND) / (1.0 - SWING_LAND))))
@@ -108,8 +112,9 @@ def _swing(s: np.ndarray, place0: np.ndarray, yaw0: float, place1: np.ndarray, y
     the flat stance at ankle xy ``place0`` / foot yaw ``yaw0`` to the one at ``place1`` / ``yaw1``.
 
     Toe-off: the foot pitches toe-down about the toe joint, which stays where it was (no slide);
-    flight: the toe rises ``lift`` m (at least _MIN_TOE_LIFT) before the foot travels (its middle
-    moves, the foot turns about it) to where the heel lands with the toe up; heel strike: the foot pitches flat about the heel point
+    flight: the toe rises ``lift`` m (at least _MIN_TOE_LIFT) before it travels (and the foot turns)
+    to where the heel lands with the toe up, the foot pitching about it on its way (the toe does not
+    slide while still near the floor); heel strike: the foot pitches flat about the heel point
     (``heel_off``, foot frame, on the floor). z0: ankle height of the flat foot; foot_off: the
     ankle -> toe (foot joint) offset in the foot frame."""
     def R(yaw, pitch):
@@ -121,10 +126,6 @@ def _swing(s: np.ndarray, place0: np.ndarray, yaw0: float, place1: np.ndarray, y
     toe0 = a0 + yaw_matrix(yaw0) @ foot_off  # planted toe of the stance that ends
     heel1 = a1 + yaw_matrix(yaw1) @ heel_off  # where the heel lands (on the floor)
     dyaw = float(wrap_angle(yaw1 - yaw0))
-    # In flight the foot moves its middle (half way from the ankle to the toe) and turns about it.
-    mid = 0.5 * foot_off
-    mid0 = toe0 + R(np.array(yaw0), np.array(_TOE_OFF_PITCH)) @ (mid - foot_off)
-    mid_land = heel1 + R(np.array(yaw1), np.array(-_HEEL_ON_PITCH)) @ (mid - heel_off)
     toe_land = heel1 + R(np.array(yaw1), np.array(-_HEEL_ON_PITCH)) @ (foot_off - heel_off)
     ank = np.empty((len(s), 3))
     frot = np.empty((len(s), 3, 3))
@@ -134,21 +135,19 @@ def _swing(s: np.ndarray, place0: np.ndarray, yaw0: float, place1: np.ndarray, y
     if m.any():
         frot[m] = R(np.full(m.sum(), yaw0), pitch[m])
         ank[m] = toe0 - frot[m] @ foot_off
-    # flight: the toe rises, then travels (slow start, so it barely moves while low), turns on the way
+    # flight: the toe rises, then travels (slow start, so it barely moves while low), the foot turns on the way
     m = (s >= SWING_PIVOT) & (s < SWING_LAND)
     if m.any():
         u = (s[m] - SWING_PIVOT) / (SWING_LAND - SWING_PIVOT)
         w = _glide((u - _GLIDE_DELAY) / (1.0 - _GLIDE_DELAY))
         e = ease(u)
-        c = mid0 + w[:, None] * (mid_land - mid0)
-        # The toe rises by about the lift (its height change from the pitch is added back).
-        # sin bump whose ends are eased in: the toe leaves and meets the floor with zero vertical
-        # speed and acceleration (no velocity jump), yet clears the contact band early.
+        # The toe rises by about the lift: a sin bump whose ends are eased in, so the toe leaves and
+        # meets the floor with zero vertical speed and acceleration (no velocity jump).
         bump = np.sin(np.pi * u) * ease(u / _TOE_RISE) * ease((1.0 - u) / _TOE_RISE)
-        toe_z = toe0[2] + e * (toe_land[2] - toe0[2]) + max(lift, _MIN_TOE_LIFT) * bump
-        frot[m] = R(yaw0 + e * dyaw, pitch[m])
-        c[:, 2] = toe_z - (frot[m] @ (foot_off - mid))[:, 2]
-        ank[m] = c - frot[m] @ mid
+        toe = toe0 + w[:, None] * (toe_land - toe0)
+        toe[:, 2] = toe0[2] + e * (toe_land[2] - toe0[2]) + max(lift, _MIN_TOE_LIFT) * bump
+        frot[m] = R(yaw0 + w * dyaw, pitch[m])
+        ank[m] = toe - frot[m] @ foot_off
     # heel strike: roll down over the heel
     m = s >= SWING_LAND
     if m.any():

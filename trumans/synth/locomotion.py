@@ -23,6 +23,12 @@ from .poses import POSES, ease, pose
 
 __all__ = ["walk", "turn", "stand"]
 
+# Pelvis height while walking at >= 1.2 m/s (scaled down with the speed): lowered WALK_CROUCH m below
+# the standing height, so no leg reaches full extension (where the IK knee position jerks), and
+# bobbing +- PELVIS_BOB m once per step, highest in single support, lowest in double support.
+WALK_CROUCH = 0.035
+PELVIS_BOB = 0.007
+
 
 def _arm_phase(tl: Timeline, t: np.ndarray) -> np.ndarray:
     """Arm swing signal (T,) in about [-1, 1] at times t (s): +1 (left arm back, right forward) at
@@ -37,6 +43,22 @@ def _arm_phase(tl: Timeline, t: np.ndarray) -> np.ndarray:
         return np.zeros_like(t)
     # Clamped (zero slope at the first / last strike), held constant outside: C1 everywhere.
     return CubicSpline(tk[keep], vk[keep], bc_type="clamped")(np.clip(t, tk[keep][0], tk[keep][-1]))
+
+
+def _bob_phase(tl: Timeline, t: np.ndarray) -> np.ndarray:
+    """Pelvis drop signal (T,) in about [-1, 1] at times t (s): -1 (highest) at the middle of each
+    swing (single support), +1 (lowest) half way between two swings (double support); a C2 cubic
+    spline through those knots, held constant before the first and after the last swing."""
+    c = np.array(sorted(c for c, _, _ in tl.swings))
+    if len(c) < 2:
+        return np.zeros_like(t)
+    c = c[np.concatenate([[True], np.diff(c) > 1e-3])]
+    if len(c) < 2:
+        return np.zeros_like(t)
+    tk = np.concatenate([c, 0.5 * (c[1:] + c[:-1])])
+    vk = np.concatenate([-np.ones(len(c)), np.ones(len(c) - 1)])
+    o = np.argsort(tk)
+    return CubicSpline(tk[o], vk[o], bc_type="clamped")(np.clip(t, tk.min(), tk.max()))
 
 
 def _gait_motion(tl: Timeline, offsets: np.ndarray, rng: np.random.Generator, base_pose: str) -> Motion:
@@ -88,10 +110,11 @@ def _gait_motion(tl: Timeline, offsets: np.ndarray, rng: np.random.Generator, ba
         rot[:, le] = E(-eb - 0.15 * (a_abs - a), zero, zero) @ rot[:, le]
         rot[:, re] = E(eb + 0.15 * (a_abs + a), zero, zero) @ rot[:, re]
 
-    # Pelvis height: the rest height, lowered where an ankle target would be out of reach.
+    # Pelvis height: crouched a little and bobbing with the steps (see WALK_CROUCH), lowered further
+    # where an ankle target would be out of reach.
     h_lim = pelvis_height_limit(rot, xy_root, offsets, ank)
     h_rest = stand_height(offsets)
-    h_nom = h_rest - 0.012 * np.minimum(vfac, 1.0) * env
+    h_nom = h_rest - (WALK_CROUCH + PELVIS_BOB * _bob_phase(tl, t)) * np.minimum(vfac, 1.0) * env
     deficit = np.maximum(h_nom - (h_lim - 0.002), 0.0)
     if T > 3:  # spread the dips smoothly (a max-filter first so the smoothed dip covers the raw one)
         w = max(int(0.08 * fps), 1)
@@ -156,7 +179,7 @@ def walk(
     y0 = y_path0 if start_yaw is None else float(start_yaw)
     y1 = y_path1 if end_yaw is None else float(end_yaw)
     leg = limb_reach(offsets, "left_leg")[1]
-    step_len = leg * (0.46 + 0.22 * min(speed, 1.8)) * rng.uniform(0.95, 1.05)
+    step_len = leg * min(0.50 + 0.25 * speed, 0.74) * rng.uniform(0.95, 1.05)  # longer steps, slower cadence
     if step_length is not None:
         if not 0.1 <= step_length <= 1.2:
             raise ValueError(f"step_length must be in [0.1, 1.2] m, got {step_length}")

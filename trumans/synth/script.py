@@ -32,7 +32,7 @@ def script_take(ctx: RoomContext, rng: np.random.Generator, n_frames: int, cover
         raise ValueError(f"room {ctx.scene.name!r} has no walkable floor")
     cells = np.argwhere(wm.walkable)
     pos = wm.centers(cells[rng.integers(len(cells))])
-    st = TakeState(offsets=offsets, speed=float(rng.uniform(0.9, 1.4)), pos=pos, yaw=float(rng.uniform(-np.pi, np.pi)),
+    st = TakeState(offsets=offsets, speed=float(rng.uniform(0.75, 1.15)), pos=pos, yaw=float(rng.uniform(-np.pi, np.pi)),
                    poses={n: o.pose.copy() for n, o in ctx.scene.objects.items() if o.dynamic})
     st.append(idle(ctx, st, rng, 0.5, 2.0))
     cands = candidates(ctx.scene)

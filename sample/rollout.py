@@ -24,6 +24,7 @@ from .controller import Controller, Phase, compile_plan
 from .foot_cleanup import clean_feet
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
+from .scene_pushout import push_out
 from .seams import blend_seam
 from .seat_guidance import seated_heights
 
@@ -118,6 +119,9 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     if sampler.config.seam_blend > 0:
         world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
     world = project_bones(world, lengths)
+    if sampler.config.scene_pushout and sampler.scene_sdf is not None:  # before the feet: they re-lock after it
+        # dynamic objects count where they stand until the plan moves one (then the static scene only)
+        world = push_out(world, sampler.scene_sdf_all if moved is None else sampler.scene_sdf, sampler.k)
     if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
         world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)

@@ -10,7 +10,18 @@ context frames (fixed, already cleaned) followed by the new frames:
    frame when the run began before the episode, so locks carry across seams); outside contacts
    a foot under the floor is lifted onto it; the correction fades out over ``blend`` frames after
    a run and in over ``blend`` frames before it (new frames only);
-3. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
+3. a swing (the frames between two locks, or between the last context frame and a lock) goes from
+   where the foot left the floor to where it lands on a smooth path: horizontally a cubic Hermite
+   curve from the first anchor (with its velocity when that anchor is a mid-swing context frame,
+   else at rest) to the landing lock at rest, so it leaves and lands without a jump or a slide (no
+   popping at a lock's release); vertically the network's height, moved by the anchors' height
+   corrections (smoothstep), and raised to at least a clearance arc ``h sin(pi u)`` over the swing
+   (u in [0, 1]) with ``h = min(swing_height, swing_ratio x step length)``: the generator's swing foot
+   shuffles 0-4 cm over the floor at 2-7 m/s, which is a foot sliding on the floor, not a step.
+   A swing still in the air at the episode's end keeps the network's path and rises over
+   ``tail_rise`` frames to the clearance of a step twice its way so far; the next episode starts
+   it from that (context) frame with its velocity and height and lands it;
+4. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
    stays, the ankle goes to its target (clamped to the leg's reach), the knee stays in the plane
    of its current bend, the toe keeps its offset from the ankle, so every bone length is exact.
 
@@ -36,13 +47,19 @@ FOOT_REST = np.array([0.08, 0.04])  # resting heights of the ankle / toe joints 
 class FootCleanupConfig:
     """enter_height / exit_height: foot height above rest (m) to start / end a contact;
     enter_speed / exit_speed: horizontal foot speed (m/s) to start / end a contact;
-    blend: frames over which a lock's correction fades in and out."""
+    blend: frames over which a lock's correction fades in and out (free frames not between two
+    anchors); swing_height (m) / swing_ratio: the least clearance of a swing's lowest foot joint at
+    mid-swing, ``min(swing_height, swing_ratio x step length)`` (0 = the network's height);
+    tail_rise: frames over which a swing still in the air at the episode's end rises to its clearance."""
 
     enter_height: float = 0.06
     exit_height: float = 0.10
     enter_speed: float = 0.35
     exit_speed: float = 0.8
     blend: int = 3
+    swing_height: float = 0.07
+    swing_ratio: float = 0.2
+    tail_rise: int = 3
 
     def __post_init__(self) -> None:
         if not 0 <= self.enter_height <= self.exit_height:
@@ -51,6 +68,9 @@ class FootCleanupConfig:
             raise ValueError(f"need 0 <= enter_speed <= exit_speed, got {self.enter_speed}, {self.exit_speed}")
         if self.blend < 0:
             raise ValueError(f"blend must be >= 0 frames, got {self.blend}")
+        if not (self.swing_height >= 0 and self.swing_ratio >= 0 and self.tail_rise >= 1):
+            raise ValueError(f"need swing_height, swing_ratio >= 0 and tail_rise >= 1, got {self.swing_height}, "
+                             f"{self.swing_ratio}, {self.tail_rise}")
 
 
 def _foot_height(joints: np.ndarray, ankle: int, toe: int) -> np.ndarray:
@@ -121,6 +141,55 @@ def _fade(contact: np.ndarray, fixed: int, blend: int) -> tuple[np.ndarray, np.n
     return idx, w
 
 
+def _swing_paths(ankle: np.ndarray, target: np.ndarray, height: np.ndarray, contact: np.ndarray, fixed: int,
+                 config: FootCleanupConfig) -> np.ndarray:
+    """ankle / target (B, T, 3): the network's ankle and its corrected target (locks, floor);
+    height (B, T): lowest foot joint above rest; contact (B, T) -> target with every swing between
+    two anchors on its smooth path (module doc, step 3). Anchors: contact frames >= ``fixed - 1``
+    and the last context frame; frames < ``fixed`` are kept."""
+    B, T = contact.shape
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    anchor = contact.copy()
+    if fixed > 0:
+        anchor[:, fixed - 1] = True
+    a0 = np.maximum.accumulate(np.where(anchor, t, -1), axis=1)  # last anchor at or before t
+    a1 = np.flip(np.minimum.accumulate(np.flip(np.where(contact, t, T), 1), axis=1), 1)  # next contact at or after t
+    free = ~contact & (a0 >= 0) & (t >= fixed)
+    swing, tail = free & (a1 < T), free & (a1 == T)  # tail: a swing still in the air at the window's end
+    if not free.any():
+        return target
+    a0c, a1c = np.clip(a0, 0, T - 1), np.clip(a1, 0, T - 1)
+    n = np.maximum(a1c - a0c, 1)
+    u = ((t - a0c) / n)[..., None]  # (B, T, 1) in (0, 1) inside a swing
+    take = lambda x, i: np.take_along_axis(x, i[..., None], axis=1)  # noqa: E731
+    p0, p1 = take(target, a0c), take(target, a1c)
+    # the start anchor's velocity (m per swing) and clearance when it is a mid-swing context frame, else at rest
+    vel = np.zeros_like(ankle)
+    vel[:, 1:] = ankle[:, 1:] - ankle[:, :-1]
+    moving = ~np.take_along_axis(contact, a0c, axis=1)
+    m0 = take(vel, a0c) * (n * moving)[..., None]
+    low_t = height + target[..., 2] - ankle[..., 2]  # lowest foot joint above rest on the corrected target
+    low0 = np.maximum(np.take_along_axis(low_t, a0c, axis=1), 0.0) * moving
+    h00, h10, h01 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u, 3 * u ** 2 - 2 * u ** 3
+    xy = h00 * p0[..., :2] + h10 * m0[..., :2] + h01 * p1[..., :2]  # cubic Hermite, landing at rest
+    w = u[..., 0] ** 2 * (3 - 2 * u[..., 0])
+    dz0, dz1 = (p0 - take(ankle, a0c))[..., 2], (p1 - take(ankle, a1c))[..., 2]
+    z = ankle[..., 2] + (1 - w) * dz0 + w * dz1  # the network's height with the anchors' corrections
+    step = np.linalg.norm(p1[..., :2] - p0[..., :2], axis=-1)
+    arc = np.minimum(config.swing_height, config.swing_ratio * step) * np.sin(np.pi * u[..., 0]) + (1 - w) * low0
+    z = z + np.maximum(arc - (height + z - ankle[..., 2]), 0.0)
+    # a tail rises over ``tail_rise`` frames to the clearance of a step twice as long as the way so
+    # far (it is about half-way at the window's end) and holds it; the next episode lands it
+    so_far = np.linalg.norm(ankle[:, -1:, :2] - p0[..., :2], axis=-1)
+    rise = np.sin(0.5 * np.pi * np.clip((t - a0c) / max(config.tail_rise, 1), 0.0, 1.0))
+    lift = np.maximum(np.minimum(config.swing_height, 2 * config.swing_ratio * so_far) * rise, low0)
+    z_tail = target[..., 2] + np.maximum(lift - low_t, 0.0)
+    out = target.copy()
+    out[..., :2] = np.where(swing[..., None], xy, target[..., :2])
+    out[..., 2] = np.where(swing, z, np.where(tail, z_tail, target[..., 2]))
+    return out
+
+
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
                config: FootCleanupConfig = FootCleanupConfig()) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
@@ -153,10 +222,11 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
         corr[..., 2] = np.where(c, delta[..., 2], np.maximum(run_delta[..., 2], delta[..., 2]))
         corr[:, :fixed] = 0.0
         target = J[:, :, ankle] + corr
+        target = _swing_paths(J[:, :, ankle], target, h, c, fixed, config)
         toe_off = J[:, :, toe] - J[:, :, ankle]
         new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
                                                  float(lengths[knee]), float(lengths[ankle]))
-        solve = (np.abs(corr).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg
+        solve = (np.abs(target - J[:, :, ankle]).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg
         J[:, :, knee] = np.where(solve, new_knee, J[:, :, knee])
         J[:, :, ankle] = np.where(solve, new_ankle, J[:, :, ankle])
         J[:, :, toe] = np.where(solve, new_ankle + toe_off, J[:, :, toe])

@@ -24,6 +24,7 @@ from .controller import Controller, Phase, compile_plan
 from .foot_cleanup import clean_feet
 from .plan import Plan
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
+from .scene_pushout import push_out
 from .seams import blend_seam
 from .seat_guidance import seated_heights
 
@@ -50,7 +51,7 @@ class SampleResult:
     episode_starts: list[int] = field(default_factory=list)
     goals: list[tuple[int, int, str, np.ndarray]] = field(default_factory=list)  # (frame, sample, joint, point)
     raw_bone_cv: float = float("nan")  # bone-length std/mean of the network's output before projection
-    sit_offset: float = 0.095  # pelvis height above a seat surface for this body, m
+    sit_offset: float = 0.171  # pelvis height above a seat surface for this body, m (``sit_offset``)
 
     @property
     def seconds_per_episode(self) -> float:
@@ -118,18 +119,31 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     if sampler.config.seam_blend > 0:
         world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
     world = project_bones(world, lengths)
+    if sampler.config.scene_pushout and sampler.scene_sdf is not None:  # before the feet: they re-lock after it
+        # dynamic objects count where they stand until the plan moves one (then the static scene only)
+        world = push_out(world, sampler.scene_sdf_all if moved is None else sampler.scene_sdf, sampler.k)
     if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
         world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
 
 
 def sit_offset(pose: np.ndarray) -> float:
-    """Pelvis height above a seat surface (m) for the body of ``pose`` (24, 3): 0.095 m scaled by
-    its leg length (``trumans.synth.posture.seat_clearance`` convention of the training data)."""
-    from trumans.synth.posture import seat_clearance
-    from trumans.skeleton import offsets_from_joints
+    """Pelvis height above a seat surface (m) for the body of ``pose`` (24, 3), by the training
+    data's convention: the seated state of ``trumans.synth.posture`` (pelvis ``seat_clearance``,
+    0.095 m x leg scale, above the seat) raised until the skin of the seat joints (pelvis, hips:
+    joint height minus ``JOINT_RADIUS``) is not below the surface (``trumans.synth.activity_seats``
+    does this before every sit). For an average body the hips decide: 0.171 m, which is the median
+    seated pelvis height above the seat in the default dataset's procedural takes."""
+    from trumans.contacts.rule import JOINT_RADIUS
+    from trumans.skeleton import SEAT, forward_kinematics, offsets_from_joints
+    from trumans.synth.posture import seated_state
 
-    return float(seat_clearance(offsets_from_joints(np.asarray(pose)[None])))
+    offsets = offsets_from_joints(np.asarray(pose, dtype=np.float64)[None])
+    seat = np.array([0.0, 0.0, 0.45])  # any height: the offset does not depend on it
+    rot, root = seated_state(offsets, seat, 0.0, np.array([0.45, 0.0]))
+    P, _ = forward_kinematics(rot[None], root[None], offsets)
+    gap = P[0, list(SEAT), 2] - seat[2] - JOINT_RADIUS[list(SEAT)]
+    return float(root[2] - seat[2] + max(0.0, -gap.min()))
 
 
 def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,

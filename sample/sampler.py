@@ -60,7 +60,9 @@ class SamplerConfig:
     jump at an episode seam is blended out (``sample.seams``; 0 = off); seat_guidance: the goal
     guidance also pulls a seated pelvis to its seat's height (``sample.seat_guidance``);
     penetration_guidance: the goal guidance also pushes the joints out of the scene
-    (``sample.penetration_guidance``; needs grids)."""
+    (``sample.penetration_guidance``; needs grids); scene_pushout: after each episode a smooth
+    root offset moves the new frames' body out of the scene (``sample.scene_pushout``; applied by
+    ``sample.rollout``; needs grids)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -73,6 +75,7 @@ class SamplerConfig:
     seam_blend: int = 4
     seat_guidance: bool = True
     penetration_guidance: bool = True
+    scene_pushout: bool = True
 
     def __post_init__(self) -> None:
         if self.steps < 1:
@@ -127,8 +130,14 @@ class EpisodeSampler:
         self.extent = tuple(ckpt.grid.get("extent", (1.2, 1.2, 1.2)))
         self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
         self.hip_width = 0.12  # m, the start pose's hip line length (set by the rollout for its body)
-        self.sdf = SceneSDF(grids.static) if config.penetration_guidance and config.goal_guidance > 0 \
-            and grids is not None else None
+        guide_sdf = config.penetration_guidance and config.goal_guidance > 0
+        # the scene's signed distance: for the penetration guidance and the push-out (sample.rollout)
+        self.scene_sdf = SceneSDF(grids.static) if grids is not None and (guide_sdf or config.scene_pushout) else None
+        self.sdf = self.scene_sdf if guide_sdf else None
+        # with the dynamic objects (chairs, stools, doors) at their scene poses: the push-out's field
+        # while the plan has moved none of them (``sample.rollout``)
+        full = getattr(grids, "occ", None) if grids is not None and getattr(grids, "points", None) else None
+        self.scene_sdf_all = SceneSDF(full) if config.scene_pushout and full is not None else self.scene_sdf
 
     # ------------------------------------------------------------------ one episode
     def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:

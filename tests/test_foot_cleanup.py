@@ -97,3 +97,66 @@ def test_swing_foot_is_left_free_and_bad_input_raises():
         clean_feet(J, lengths, FPS, fixed=99)
     with pytest.raises(ValueError, match="enter_height"):
         FootCleanupConfig(enter_height=0.2, exit_height=0.1)
+
+
+def _crouched(T: int) -> np.ndarray:
+    """(1, T, 24, 3) standing with bent knees (facing +x), lowest foot joint at its rest height."""
+    from scipy.spatial.transform import Rotation
+
+    rot = np.broadcast_to(np.eye(3), (T, 24, 3, 3)).copy()
+    for (hip, knee, ankle, _), bend in zip(LEGS.values(), (1.0, 1.0)):
+        rot[:, hip] = Rotation.from_rotvec([0.0, -0.35 * bend, 0.0]).as_matrix()
+        rot[:, knee] = Rotation.from_rotvec([0.0, 0.7 * bend, 0.0]).as_matrix()
+        rot[:, ankle] = Rotation.from_rotvec([0.0, -0.35 * bend, 0.0]).as_matrix()
+    P, _ = forward_kinematics(rot, np.zeros((T, 3)), rest_offsets())
+    L, R = LEGS["left"], LEGS["right"]
+    P[..., 2] -= min((P[0, [L[2], R[2]], 2] - 0.08).min(), (P[0, [L[3], R[3]], 2] - 0.04).min())
+    return P[None]
+
+
+def _shuffle_step(T: int = 30) -> np.ndarray:
+    """Crouched body whose left foot stands (frames 0-9), shuffles 30 cm forward 1 cm over the
+    floor in 7 frames (1.3 m/s, a low swing), and stands again: a step that never leaves the floor."""
+    J = _crouched(T)
+    ankle, toe = LEGS["left"][2:]
+    x = np.r_[np.zeros(10), np.linspace(0.0, 0.3, 8)[1:-1], np.full(T - 16, 0.3)]
+    J[0, :, [ankle, toe], 0] += x[None, :]
+    J[0, 10:16, [ankle, toe], 2] += 0.01
+    return J
+
+
+def test_low_swing_between_plants_is_lifted_and_lands_on_its_lock():
+    J = _shuffle_step()
+    lengths = bone_lengths_of(J[0, 0])
+    ankle, toe = LEGS["left"][2:]
+    assert feet_skate_cm(J[0]) > 10  # by the benchmark's definition the shuffle is a 40 cm slide
+    out = clean_feet(J, lengths, FPS, fixed=0)
+    low = np.minimum(out[0, :, ankle, 2] - 0.08, out[0, :, toe, 2] - 0.04)
+    assert low[12:15].min() > 0.05  # mid-swing clearance min(0.07, 0.2 x 0.3 m) sin(pi u)
+    np.testing.assert_allclose(low[:10], 0.0, atol=1e-6)
+    np.testing.assert_allclose(low[17:], 0.0, atol=1e-6)
+    np.testing.assert_allclose(out[0, 17:, ankle, 0], J[0, 16, ankle, 0], atol=1e-6)  # lands on its lock
+    v = np.linalg.norm(np.diff(out[0, :, ankle, :2], axis=0), axis=-1)
+    assert v[9] < 0.02 and v[16] < 0.02  # leaves and lands at rest: no pop at the lock's release
+    assert np.abs(np.diff(out[0, :, ankle, 0], n=2)).max() < 0.05  # smooth: no jump anywhere
+    assert feet_skate_cm(out[0]) < 3.0
+    np.testing.assert_allclose(bone_lengths_of(out[0, 10:17])[:, 1:], np.broadcast_to(lengths[1:], (7, 23)), atol=1e-6)
+    # swing_height 0 keeps the network's swing height (only the path is smoothed)
+    flat = clean_feet(J, lengths, FPS, config=FootCleanupConfig(swing_height=0.0))
+    low0 = np.minimum(flat[0, :, ankle, 2] - 0.08, flat[0, :, toe, 2] - 0.04)
+    assert low0.max() < 0.02
+
+
+def test_swing_across_an_episode_seam_rises_then_lands_without_a_jump():
+    J = _shuffle_step()
+    lengths = bone_lengths_of(J[0, 0])
+    ankle, toe = LEGS["left"][2:]
+    first = clean_feet(J[:, :13], lengths, FPS)  # the window ends mid-swing (frames 10-12 in the air)
+    second = clean_feet(np.concatenate([first[:, -2:], J[:, 13:]], 1), lengths, FPS, fixed=2)
+    out = np.concatenate([first, second[:, 2:]], 1)
+    low = np.minimum(out[0, :, ankle, 2] - 0.08, out[0, :, toe, 2] - 0.04)
+    assert low[11:16].min() > 0.03 and low[12] > 0.05  # lifted before and after the seam
+    np.testing.assert_allclose(low[17:], 0.0, atol=1e-6)
+    assert np.abs(np.diff(out[0, :, ankle], axis=0)).max() < 0.08  # m per frame: no jump at the seam
+    np.testing.assert_allclose(out[0, 17:, ankle, :2], np.broadcast_to(J[0, 16, ankle, :2], (13, 2)), atol=1e-6)
+    assert feet_skate_cm(out[0]) < 3.0

@@ -37,3 +37,23 @@ def test_guidance_pulls_the_seated_pelvis_to_the_seat_height(open_room):  # noqa
         out = s.episode(ctx, labels, [Goal((1.0, 1.0), pelvis_z=z)], generator=torch.Generator().manual_seed(0))
         errs.append(np.abs(out[0, 8:15, pelvis, 2] - target).mean())  # frame 15: the pelvis is re-attached
     assert errs[1] < 0.5 * errs[0], errs
+
+
+def test_sit_offset_rests_the_seat_joints_on_the_seat():
+    """The data's convention (trumans.synth.activity_seats): the seated body is raised until the
+    skin of pelvis and hips touches the seat, well above ``seat_clearance`` alone."""
+    from trumans.contacts.rule import JOINT_RADIUS
+    from trumans.skeleton import SEAT, forward_kinematics, rest_offsets
+    from trumans.synth.posture import seat_clearance, seated_state
+
+    from sample.rollout import sit_offset
+
+    for scale in (0.9, 1.0, 1.1):
+        off = rest_offsets(scale)
+        pose, _ = forward_kinematics(np.broadcast_to(np.eye(3), (1, 24, 3, 3)), np.zeros((1, 3)), off)
+        h = sit_offset(pose[0])
+        assert 0.14 * scale < h < 0.20 * scale and h > seat_clearance(off) + 0.05, (scale, h)
+        rot, root = seated_state(off, np.array([1.0, 2.0, 0.5]), 0.7, np.array([1.3, 2.2]))
+        P, _ = forward_kinematics(rot[None], (root + [0.0, 0.0, h - (root[2] - 0.5)])[None], off)
+        skin = P[0, list(SEAT), 2] - JOINT_RADIUS[list(SEAT)] - 0.5
+        assert abs(skin.min()) < 1e-6  # resting on the seat: not floating, not sinking

@@ -1,0 +1,74 @@
+"""Post-episode push-out of the body from the scene (sample.scene_pushout) and its place in the rollout."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from sample.foot_cleanup import LEGS, clean_feet
+from sample.penetration_guidance import SceneSDF
+from sample.sampler import bone_lengths_of
+from sample.scene_pushout import PushOutConfig, push_out, push_radii, seam_spline_basis
+
+from test_foot_cleanup import FPS, _standing
+from test_penetration_guidance import _box_room
+
+
+def _depth(sdf: SceneSDF, J: np.ndarray) -> np.ndarray:
+    """(..., 24) depth of the body (push radii, no margin) inside the scene, m."""
+    return np.maximum(push_radii() - sdf(torch.as_tensor(J, dtype=torch.float32)).numpy(), 0.0)
+
+
+def _walk_into_box(T: int = 40, k: int = 4) -> np.ndarray:
+    """A standing body (1, T, 24, 3) whose hips slide from 20 cm in front of the box (x = 1.0) to
+    6 cm inside the box's front face over the new frames, the context (first k frames) outside."""
+    J = _standing(T)
+    J[..., 1] += 1.0
+    J[..., 0] += 0.8 + np.r_[np.zeros(k), np.linspace(0.0, 0.26, T - k)][None, :, None]
+    return J
+
+
+def test_spline_basis_vanishes_at_the_seam():
+    D = seam_spline_basis(20, 4)
+    assert D.shape[0] == 21 and np.abs(D[0]).max() == 0
+    np.testing.assert_allclose(D[-8:].sum(1), 1.0, atol=1e-9)  # a constant offset is representable
+
+
+def test_body_walking_into_a_box_is_pushed_out_smoothly_with_context_and_bones_kept():
+    sdf, k = SceneSDF(_box_room()), 4
+    J = _walk_into_box(k=k)
+    assert _depth(sdf, J).max() > 0.08  # the hips' skin 8+ cm into the box
+    out = push_out(J, sdf, fixed=k)
+    np.testing.assert_array_equal(out[:, :k], J[:, :k])
+    assert _depth(sdf, out).max() < 0.015
+    d = out - J  # a rigid translation per frame
+    np.testing.assert_allclose(d, np.broadcast_to(d[:, :, :1], d.shape), atol=1e-6)
+    np.testing.assert_allclose(bone_lengths_of(out), bone_lengths_of(J), atol=1e-5)
+    jerk = np.abs(np.diff(d[0, :, 0, 0], n=3)).max()
+    assert jerk < 0.01  # m / frame^3: a smooth offset, no jump at the seam
+    # a body already clear of the scene is left exactly as it was
+    clear = J.copy()
+    clear[..., 0] -= 0.5
+    np.testing.assert_array_equal(push_out(clear, sdf, fixed=k), clear)
+
+
+def test_planted_feet_stay_where_they_stood_after_push_out_and_foot_cleanup():
+    sdf, k = SceneSDF(_box_room()), 4
+    J = _walk_into_box(k=k)  # the feet skate with the body into the box
+    lengths = bone_lengths_of(J[0, 0])
+    out = clean_feet(push_out(J, sdf, fixed=k), lengths, FPS, fixed=k)
+    legs = [j for leg in LEGS.values() for j in leg[1:]]  # the straight test legs re-bend to reach the locks
+    upper = [j for j in range(24) if j not in legs]
+    assert _depth(sdf, out)[..., upper].max() < 0.015
+    for hip, knee, ankle, toe in LEGS.values():  # locked where the context stood them
+        np.testing.assert_allclose(out[0, k:, ankle, :2], np.broadcast_to(J[0, k - 1, ankle, :2], (36, 2)), atol=5e-3)
+
+
+def test_bad_input_raises():
+    sdf = SceneSDF(_box_room())
+    with pytest.raises(ValueError, match="joints must be"):
+        push_out(np.zeros((10, 24, 3)), sdf, 2)
+    with pytest.raises(ValueError, match="fixed"):
+        push_out(np.zeros((1, 10, 24, 3)), sdf, 11)
+    with pytest.raises(ValueError, match="knot"):
+        PushOutConfig(knot=0)

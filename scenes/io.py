@@ -95,7 +95,13 @@ def save_scene(scene: Scene, folder: str | Path) -> None:
     scene. An existing ``occupancy.npz`` is carried over (its hash key decides if it is stale).
     Refuses to replace a non-empty folder that is not a scene folder."""
     folder = Path(folder)
-    if folder.exists() and (not folder.is_dir() or (any(folder.iterdir()) and not (folder / SCENE_FILE).is_file())):
+    try:  # one listing: a concurrent saver may swap the folder between two separate checks
+        entries = os.listdir(folder)
+    except FileNotFoundError:
+        entries = []
+    except NotADirectoryError:
+        entries = None
+    if entries is None or (entries and SCENE_FILE not in entries):
         raise ValueError(f"{folder} exists and is not a scene folder; choose an empty or new folder")
     for name, m in scene.static.items():
         if len(m.faces) == 0:

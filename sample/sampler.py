@@ -72,7 +72,7 @@ class SamplerConfig:
     goal_guidance: float = 0.0
     goal_iters: int = 1
     foot_cleanup: bool = True
-    seam_blend: int = 4
+    seam_blend: int = 3
     seat_guidance: bool = True
     penetration_guidance: bool = True
     scene_pushout: bool = True

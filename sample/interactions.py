@@ -8,7 +8,9 @@
 3. for each interval in time order whose class is a movable dof (slide | hinge | free): the
    nearest object of that dof within ``search_radius`` of the contacting hands (supp. §10.1;
    none -> the contact is a false positive and ignored; judged on the path as sensed, corrected
-   by the anchors only, since the offset of earlier contacts is stale here); its contact point p_c (the closest
+   by the anchors only, since the offset of earlier contacts is stale here; for a carried object,
+   of the candidates within ``ambiguity`` of the nearest, the one that rests on a surface where the
+   hands let go: ``sample.object_choice``); its contact point p_c (the closest
    object point to the hand; for a free object taken from above, the footprint's centre: ``grasp_targets``)
    becomes a control point for the root path, which is bent to it by
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
@@ -27,7 +29,6 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from scenes.distance import SceneDistance
 from scenes.scene import Scene
 from trumans.contacts.model_io import ContactModels
 from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, two_hand_motion
@@ -40,8 +41,10 @@ from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
+from .object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
+
 __all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
-           "grasp_targets", "select_object", "attach_detach", "drive_object", "track", "track_interactions"]
+           "attach_detach", "drive_object", "track", "track_interactions"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -50,7 +53,10 @@ _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 class TrackerConfig:
     """post: contact post-processing; trajectory: bending-energy correction; search_radius (m):
     object search around the hands at contact start (0.5 m in the paper); hand_radius (m): the
-    hand point's distance to the surface it touches (the control point puts it there);
+    hand point's distance to the surface it touches (the control point puts it there); ambiguity
+    (m): free objects this much farther from the hands than the nearest one are candidates too,
+    and the one that rests on a surface where the hands let go wins (``sample.object_choice``;
+    0 = the paper's nearest object);
     correct: run the contact-based trajectory correction (False = the ablation); predict_stride:
     one prediction window every that many frames (1 = the paper's centre-frame prediction; 3 is
     about 3x cheaper, see ``predict_contacts``)."""
@@ -59,13 +65,14 @@ class TrackerConfig:
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     search_radius: float = 0.5
     hand_radius: float = 0.015
+    ambiguity: float = 0.15
     correct: bool = True
     predict_stride: int = 3
 
     def __post_init__(self) -> None:
-        if not self.search_radius > 0 or not self.hand_radius >= 0:
-            raise ValueError(f"search_radius must be > 0 and hand_radius >= 0 (m), got "
-                             f"{self.search_radius}, {self.hand_radius}")
+        if not self.search_radius > 0 or not self.hand_radius >= 0 or not self.ambiguity >= 0:
+            raise ValueError(f"search_radius must be > 0, hand_radius and ambiguity >= 0 (m), got "
+                             f"{self.search_radius}, {self.hand_radius}, {self.ambiguity}")
 
 
 @dataclass(frozen=True)
@@ -126,71 +133,6 @@ def interval_classes(class_prob: np.ndarray, segments: list[ContactSegment]) -> 
         frames = np.concatenate([np.arange(s.start, s.end) for s in segments if s.interval == i])
         out[i] = CLASSES[int(class_prob[frames].mean(0).argmax())]
     return out
-
-
-class _ObjectQueries:
-    """Closest points on scene objects posed anywhere (each mesh queried in its own frame)."""
-
-    def __init__(self, scene: Scene) -> None:
-        self.scene = scene
-        self._sd: dict[str, SceneDistance] = {}
-
-    def closest(self, name: str, pose: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """points (n, 3) world -> (closest (n, 3) world, distance (n,)) to object ``name`` at ``pose``."""
-        closest, dist, _ = self.contact_target(name, pose, points, 0.0)
-        return closest, dist
-
-    def contact_target(self, name: str, pose: np.ndarray, points: np.ndarray,
-                       gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Closest points (n, 3), unsigned distances (n,) and where each point should be to touch
-        the object from outside at ``gap`` m (n, 3): off the closest point away from it, or along
-        the outward normal for a point inside the object (all world, object at ``pose``)."""
-        if name not in self._sd:
-            self._sd[name] = SceneDistance({name: self.scene.objects[name].mesh})
-        inv = np.linalg.inv(pose)
-        local = points @ inv[:3, :3].T + inv[:3, 3]
-        r = self._sd[name].query(local)
-        closest = r.closest.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
-        normal = r.normal.astype(np.float64) @ pose[:3, :3].T
-        dist = r.dist.astype(np.float64)
-        away = (points - closest) / np.maximum(dist, 1e-9)[:, None]
-        out = np.where((r.signed < 0)[:, None] | (dist < 1e-9)[:, None], normal, away)
-        return closest, dist, closest + gap * out
-
-
-def grasp_targets(targets: np.ndarray, hands: np.ndarray, mesh_vertices: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """Where the contacting hands of a free (carried) object should be at the grasp (not in the
-    paper, whose objects are large). targets: (k, 3) the side-contact targets (``hand_radius`` off
-    the closest point); hands: (k, 3) the hand points; mesh_vertices: (V, 3) object frame; pose: (4, 4).
-    A hand above the object's top takes it from above (a phone, a book, a pen): its closest point
-    is straight below it wherever the drifted hand hovers over the footprint, so the closest point
-    says nothing about the horizontal error; the hand then goes over the footprint's centre (xy of
-    the world bounding box; z kept). Side grasps keep their targets. Returns (k, 3) world."""
-    world = mesh_vertices @ pose[:3, :3].T + pose[:3, 3]
-    lo, hi = world.min(0), world.max(0)
-    out = np.array(targets, dtype=np.float64, copy=True)
-    top = hands[:, 2] >= hi[2]
-    out[top, :2] = 0.5 * (lo[:2] + hi[:2])
-    return out
-
-
-def select_object(queries: _ObjectQueries, poses: dict[str, np.ndarray], frame: int, hands: np.ndarray,
-                  dof: str, radius: float) -> tuple[str, float] | None:
-    """The object of ``dof`` that the contacting hands come closest to (supp. §10.1: the nearest
-    object of the interaction's class within ``radius``). hands: (n, k, 3) the k contacting hand
-    points over the first n frames of the contact; objects at their ``poses`` at ``frame`` (at
-    rest before the interaction). The closest approach over those frames, not the first frame's
-    distance, decides (the hand reaches for the object during the first frames). Returns (name,
-    closest approach in m) or None when no such object is within ``radius``."""
-    best: tuple[str, float] | None = None
-    for name, obj in queries.scene.objects.items():
-        if obj.dof != dof or name not in poses:
-            continue
-        _, dist = queries.closest(name, poses[name][frame], hands.reshape(-1, 3))
-        d = float(dist.reshape(hands.shape[:2]).mean(1).min())
-        if d <= radius and (best is None or d < best[1]):
-            best = (name, d)
-    return best
 
 
 def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
@@ -264,6 +206,31 @@ def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], join
         track[e:] = track[e - 1]
 
 
+def _attach(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarray, segs: tuple[ContactSegment, ...],
+            s0: int, fps: float, hand_radius: float) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
+    """A contact starting at frame ``s0`` attached to ``name`` (at ``pose``): its segments clipped to
+    the held frames, the attach frame, and the contact points p_c (k, 3) with their targets
+    ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points."""
+    near, dist, target = queries.contact_target(name, pose, span.reshape(-1, 3), hand_radius)
+    a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps)
+    return _clip(segs, a, d_end), a, near.reshape(span.shape)[a - s0], target.reshape(span.shape)[a - s0]
+
+
+def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray], segs: tuple[ContactSegment, ...],
+                 span: np.ndarray, s0: int, fps: float, joints: np.ndarray, wrist_rot: np.ndarray,
+                 hand_radius: float) -> float:
+    """``release_support_gap`` of free object ``name`` carried by this contact and let go where the
+    hands let go; the other objects are where the interactions so far left them."""
+    held, _, closest, _ = _attach(queries, name, poses[name][s0], span, segs, s0, fps, hand_radius)
+    trial = {name: poses[name].copy()}
+    _drive_one(Interaction(name, "free", held[0].start, held[-1].end, held, closest.mean(0)), queries.scene, trial,
+               joints, wrist_rot)
+    e = held[-1].end - 1
+    others = {n: o.pose for n, o in queries.scene.objects.items() if o.dof == "static"}
+    others.update({n: p[e] for n, p in poses.items() if n != name})
+    return release_support_gap(queries, name, trial[name][e], others)
+
+
 def _drive_all(interactions: list[Interaction], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
                wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
     poses = {n: p.copy() for n, p in base.items()}
@@ -297,7 +264,7 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
     _, G = forward_kinematics(sixd_to_matrix(np.asarray(seq.rotations, np.float64)), np.zeros((T, 3)))
     wrist_rot = G[:, list(_WRIST)]  # (T, 2, 3, 3)
     base = {n: np.tile(o.pose, (T, 1, 1)) for n, o in scene.objects.items() if o.dof != "static"}
-    queries = _ObjectQueries(scene)
+    queries = ObjectQueries(scene)
 
     def corrected(c_frames: list[int], c_xy: list[np.ndarray]) -> np.ndarray:
         frames = np.r_[a_frames, np.asarray(c_frames, np.int64)].astype(np.int64)
@@ -325,15 +292,15 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         # only known at those contacts and, carried here, can bring the hands nearer a wrong object
         # whose control point would then confirm the mismatch (issue 12, seed 1: 3.5 m off)
         reach = hand_points(joints_sel[s0:e1])[:, used][:_attach_window(len(span), fps)]
-        found = select_object(queries, poses, s0, reach, cls[i], config.search_radius)
-        if found is None:
+        cands = object_candidates(queries, poses, s0, reach, cls[i], config.search_radius)
+        if not cands:
             continue  # no object of that class near the hands: a false positive (§4.1)
-        name = found[0]
-        near, dist, target = queries.contact_target(name, poses[name][s0], span.reshape(-1, 3), config.hand_radius)
-        a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, e1, fps)
-        segs = _clip(segs, a, d_end)
-        closest = near.reshape(span.shape)[a - s0]  # p_c of each contacting hand
-        goal = target.reshape(span.shape)[a - s0]  # hand_radius off p_c
+        name = cands[0][0]
+        if cls[i] == "free" and len(cands) > 1 and e1 < T:
+            gaps = {n: _release_gap(queries, n, poses, segs, span, s0, fps, joints, wrist_rot, config.hand_radius)
+                    for n, d in cands if d <= cands[0][1] + config.ambiguity}
+            name = choose_free_object(cands, gaps, config.ambiguity)
+        segs, a, closest, goal = _attach(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius)
         if cls[i] == "free":
             goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
         shift = (goal - span[a - s0])[:, :2]

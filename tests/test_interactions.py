@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sample.interactions import TrackerConfig, attach_detach, grasp_targets, track
+from sample.interactions import TrackerConfig, attach_detach, track
+from sample.object_choice import grasp_targets
 from sample.interactions_cli import main as interactions_main
 from trumans.contacts.labels import moving_intervals
 from trumans.contacts.model_io import DEFAULT_CHECKPOINT, load_predictor

@@ -117,18 +117,35 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     return figs
 
 
-def reference_features(enc, data: str, split: str = "test") -> np.ndarray:
-    """Motion-encoder features (N, D) of a dataset split's real clips (the FID reference)."""
+def reference_windows(enc, data: str, train_windows: int = 3000, seed: int = 0) -> dict[str, np.ndarray]:
+    """The fid reference of a dataset: motion-encoder features (N, D) and window labels (N,) of its
+    test split's clips, and of at most ``train_windows`` windows of its train split (seeded) for the
+    real-vs-real value. What ``models/synthesis_reference.npz`` stores."""
     from trumans.dataset import Dataset
-    from trumans.model.motion_encoder import split_features
+    from trumans.model.motion_encoder import split_windows
 
-    return split_features(enc, Dataset(data), split)
+    ds = Dataset(data)
+    f, y = split_windows(enc, ds, "test")
+    tf, ty = split_windows(enc, ds, "train")
+    keep = np.sort(np.random.default_rng(seed).choice(len(tf), min(train_windows, len(tf)), replace=False))
+    return {"features": f.astype(np.float32), "labels": y, "train_features": tf[keep].astype(np.float32),
+            "train_labels": ty[keep], "data_hash": np.str_(ds.hash), "split": np.str_("test")}
+
+
+def _load_reference() -> dict[str, np.ndarray] | None:
+    if not REFERENCE_FILE.is_file():
+        return None
+    with np.load(REFERENCE_FILE, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
 
 
 def _encoder_figures(results, vocabulary: list[str], reference: str | None, encoder: str | None = None) -> dict:
     """fid / diversity / action_acc of the generated clips (first sample of each plan) with the
-    motion encoder (default: the shipped one), and the real data's values beside them."""
-    from trumans.model.motion_encoder import action_acc, diversity, fid, load_motion_encoder
+    motion encoder (default: the shipped one), and the real data's values beside them.
+    ``fid_matched``: fid against the real test windows weighted to the generated windows' action
+    mix (the plans walk, sit and drink; the test split also lies, opens doors, carries ...), with
+    ``real_fid_matched``, train windows against test windows under the same weights, beside it."""
+    from trumans.model.motion_encoder import action_acc, diversity, fid, load_motion_encoder, matched_weights
 
     enc = load_motion_encoder(encoder)
     fps = results[0].fps
@@ -140,16 +157,18 @@ def _encoder_figures(results, vocabulary: list[str], reference: str | None, enco
     if reference is None and encoder is not None:
         raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
                          "give --data DATASET (its test split is the reference)")
-    if reference is None and REFERENCE_FILE.is_file():
-        with np.load(REFERENCE_FILE, allow_pickle=False) as z:
-            ref = z["features"].astype(np.float64)
-    elif reference is not None:
-        ref = reference_features(enc, reference)
-    else:
+    ref = reference_windows(enc, reference) if reference is not None else _load_reference()
+    if ref is None:
         return {**out, "fid": None, "fid_note": f"no reference features: give --data DATASET or ship {REFERENCE_FILE}"}
-    out["fid"] = round(fid(ref, feats), 3)
+    real = ref["features"].astype(np.float64)
+    out["fid"] = round(fid(real, feats), 3)
     out["real_fid"] = round(float(enc.info.get("fid_train_vs_test", float("nan"))), 3)
-    out["real_diversity"] = round(diversity(ref), 3)
+    out["real_diversity"] = round(diversity(real), 3)
+    if "labels" in ref and "train_features" in ref:
+        w_test = matched_weights(ref["labels"], labels)
+        out["fid_matched"] = round(fid(real, feats, real_weights=w_test), 3)
+        out["real_fid_matched"] = round(fid(real, ref["train_features"].astype(np.float64), real_weights=w_test,
+                                            gen_weights=matched_weights(ref["train_labels"], labels)), 3)
     return out
 
 

@@ -9,7 +9,7 @@ import torch
 
 from trumans.model.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
                                           MotionEncoderNet, action_acc, diversity, dominant_action, fid,
-                                          load_motion_encoder, motion_windows, split_features)
+                                          load_motion_encoder, matched_weights, motion_windows, split_features)
 from trumans.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
@@ -48,6 +48,36 @@ def test_fid_analytic_cases():
         fid(a, a[:, :3])
     with pytest.raises(ValueError, match="at least 2 samples"):
         fid(a[:1], a)
+
+
+def test_fid_matched_to_the_generated_action_mix():
+    """Real windows: two actions 50/50 with distinct feature Gaussians; generated: the same two
+    Gaussians mixed 90/10. Plain fid sees the mixture difference; weighted to the generated mix it
+    is ~0. Integer weights give the fid of the set with those samples repeated."""
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(4000, 4))
+    B = rng.normal(size=(4000, 4)) + [6.0, 0.0, 0.0, 0.0]
+    real, real_y = np.concatenate([A[:2000], B[:2000]]), np.r_[np.zeros(2000, int), np.ones(2000, int)]
+    gen, gen_y = np.concatenate([A[2000:3800], B[2000:2200]]), np.r_[np.zeros(1800, int), np.ones(200, int)]
+    w = matched_weights(real_y, gen_y)
+    assert w.sum() == pytest.approx(1.0) and w[:2000].sum() == pytest.approx(0.9)
+    assert fid(real, gen) > 5.0
+    assert fid(real, gen, real_weights=w) < 0.05
+    assert fid(gen, real, gen_weights=w) == pytest.approx(fid(real, gen, real_weights=w), rel=1e-6)
+    dup = np.concatenate([real[:500], real[:500], real[2000:2500]])
+    wts = np.r_[np.full(500, 2.0), np.zeros(1500), np.ones(500), np.zeros(1500)]
+    # reliability weights: the same mean, a covariance within the bias correction (~1e-3)
+    assert fid(real, gen, real_weights=wts) == pytest.approx(fid(dup, gen), rel=2e-3)
+    # actions only one side has: real windows of an action not generated get 0, a generated action
+    # the real set lacks is left out; no shared action is an error
+    w = matched_weights(np.r_[0, 0, 2, 2], np.r_[0, 1, 1])
+    np.testing.assert_allclose(w, [0.5, 0.5, 0.0, 0.0])
+    with pytest.raises(ValueError, match="no action of the generated windows"):
+        matched_weights(np.r_[0, 0], np.r_[1, 1])
+    with pytest.raises(ValueError, match="real_weights must be"):
+        fid(real, gen, real_weights=np.ones(3))
+    with pytest.raises(ValueError, match="gen_weights must be"):
+        fid(real, gen, gen_weights=-np.ones(len(gen)))
 
 
 def test_diversity_and_accuracy():

@@ -32,6 +32,8 @@ __all__ = [
     "DEFAULT_MOTION_ENCODER",
     "load_motion_encoder",
     "split_features",
+    "split_windows",
+    "matched_weights",
     "motion_windows",
     "window_inputs",
     "dominant_action",
@@ -218,15 +220,45 @@ def load_motion_encoder(path: str | Path | None = None) -> MotionEncoder:
     return MotionEncoder(cfg, net, d["mean"].numpy(), d["std"].numpy(), list(d["vocabulary"]), d.get("info"))
 
 
-def split_features(enc: MotionEncoder, data, split: str) -> np.ndarray:
-    """Features (N, D) of every window of a dataset split's clips (a ``trumans.dataset.Dataset``);
-    clips shorter than the encoder's window are skipped (they have no window)."""
+def split_windows(enc: MotionEncoder, data, split: str) -> tuple[np.ndarray, np.ndarray]:
+    """Features (N, D) and dominant-action labels (N,) (encoder vocabulary, -1: none on) of every
+    window of a dataset split's clips (a ``trumans.dataset.Dataset``); clips shorter than the
+    encoder's window are skipped (they have no window)."""
     span = enc.cfg.window / enc.cfg.fps
-    feats = [enc.encode(s.joints[None], s.fps)[0] for s in map(data.load, data.split(split))
-             if s.num_frames / s.fps >= span]
+    feats, labels = [], []
+    for s in map(data.load, data.split(split)):
+        if s.num_frames / s.fps < span:
+            continue
+        feats.append(enc.encode(s.joints[None], s.fps)[0])
+        if s.actions is None:
+            labels.append(np.full(len(feats[-1]), -1, np.int64))
+        else:
+            labels.append(enc.window_labels(s.actions, list(s.action_names), s.fps)[0])
     if not feats:
         raise ValueError(f"split {split!r} of {data.root} has no clip of at least {span:.1f} s for the motion encoder")
-    return np.concatenate(feats)
+    return np.concatenate(feats), np.concatenate(labels)
+
+
+def split_features(enc: MotionEncoder, data, split: str) -> np.ndarray:
+    """Features (N, D) of every window of a dataset split's clips (``split_windows`` without labels)."""
+    return split_windows(enc, data, split)[0]
+
+
+def matched_weights(real_labels: np.ndarray, gen_labels: np.ndarray) -> np.ndarray:
+    """Weights (N,) of real windows that give them the generated windows' action histogram
+    (labels: dominant action per window, -1 = none on, a class of its own). Real windows of an
+    action the generated set lacks get 0; generated actions absent from the real set are left out
+    (the returned weights sum to 1 over the shared actions)."""
+    r, g = np.asarray(real_labels).ravel(), np.asarray(gen_labels).ravel()
+    if len(r) == 0 or len(g) == 0:
+        raise ValueError(f"need real and generated window labels, got {len(r)} and {len(g)}")
+    acts, g_count = np.unique(g, return_counts=True)
+    shared = np.isin(acts, r)
+    if not shared.any():
+        raise ValueError("no action of the generated windows occurs in the real windows; nothing to match")
+    target = dict(zip(acts[shared].tolist(), (g_count[shared] / g_count[shared].sum()).tolist()))
+    r_count = dict(zip(*np.unique(r, return_counts=True)))
+    return np.array([target.get(a, 0.0) / r_count[a] for a in r.tolist()])
 
 
 def _flat(feats: np.ndarray, what: str) -> np.ndarray:
@@ -236,16 +268,28 @@ def _flat(feats: np.ndarray, what: str) -> np.ndarray:
     return f.reshape(-1, f.shape[-1])
 
 
-def fid(real_feats: np.ndarray, gen_feats: np.ndarray) -> float:
+def _weighted(x: np.ndarray, w: np.ndarray | None, what: str) -> tuple[np.ndarray, np.ndarray | None]:
+    if w is None:
+        return x, None
+    w = np.asarray(w, np.float64).ravel()
+    if w.shape != (len(x),) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
+        raise ValueError(f"{what} must be ({len(x)},) finite, >= 0 and not all 0, got shape {w.shape}")
+    return x[w > 0], w[w > 0]
+
+
+def fid(real_feats: np.ndarray, gen_feats: np.ndarray, real_weights: np.ndarray | None = None,
+        gen_weights: np.ndarray | None = None) -> float:
     """Fréchet distance between Gaussians fitted to two feature sets (..., D) (Heusel et al. 2017):
-    ``|mu_r - mu_g|^2 + Tr(S_r + S_g - 2 (S_r S_g)^(1/2))``."""
+    ``|mu_r - mu_g|^2 + Tr(S_r + S_g - 2 (S_r S_g)^(1/2))``. real_weights / gen_weights: optional
+    (N,) sample weights of either set (``matched_weights``: a set's Gaussian under another action mix)."""
     a, b = _flat(real_feats, "real_feats"), _flat(gen_feats, "gen_feats")
     if a.shape[1] != b.shape[1]:
         raise ValueError(f"feature widths differ: {a.shape[1]} vs {b.shape[1]}")
+    (a, wa), (b, wb) = _weighted(a, real_weights, "real_weights"), _weighted(b, gen_weights, "gen_weights")
     if len(a) < 2 or len(b) < 2:
         raise ValueError(f"fid needs at least 2 samples per set, got {len(a)} and {len(b)}")
-    mu_a, mu_b = a.mean(0), b.mean(0)
-    s_a, s_b = np.cov(a, rowvar=False), np.cov(b, rowvar=False)
+    mu_a, mu_b = np.average(a, axis=0, weights=wa), np.average(b, axis=0, weights=wb)
+    s_a, s_b = np.cov(a, rowvar=False, aweights=wa), np.cov(b, rowvar=False, aweights=wb)
     covmean = linalg.sqrtm(s_a @ s_b)
     if not np.isfinite(covmean).all():  # singular product: regularise (as pytorch-fid does)
         eps = 1e-6 * np.eye(len(s_a))

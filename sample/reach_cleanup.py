@@ -11,7 +11,9 @@ wrist target ``P`` (both from the plan's hand phases: ``reach_schedule``, filled
 2. when ``D`` is farther from the shoulder than the arm reaches (upper arm + forearm), the upper
    body (``spine1`` and everything above it) turns rigidly about the pelvis joint in the plane of
    pelvis, shoulder and ``D`` by the least angle that brings the shoulder within reach (closed
-   form, law of cosines), at most ``max_lean``: a lean toward the target, bone lengths unchanged;
+   form, law of cosines), at most ``max_lean`` and never tilting the trunk (pelvis -> neck)
+   beyond ``max_tilt`` from vertical (nor further, when the network's trunk is tilted more
+   already): a lean toward the target, bone lengths unchanged;
 3. the arm is re-solved with the two-bone IK of the legs (``foot_cleanup.two_bone_positions``):
    the shoulder stays, the wrist goes to ``D`` (clamped to the arm's reach: a target still out of
    reach after the lean is approached along the shoulder-target line on a straight arm), the
@@ -42,28 +44,30 @@ from trumans.skeleton import JOINT_INDEX, SUBTREE
 from .foot_cleanup import two_bone_positions
 
 __all__ = ["ReachCleanupConfig", "ARMS", "smoothstep", "reach_schedule", "release_weights", "lean_angle",
-           "clean_reach"]
+           "tilt_limit", "clean_reach"]
 
 # (shoulder, elbow, wrist, index1) per arm; side 0 = left, 1 = right
 ARMS = tuple(tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("shoulder", "elbow", "wrist", "index1"))
              for side in ("left", "right"))
-PELVIS, SPINE1 = JOINT_INDEX["pelvis"], JOINT_INDEX["spine1"]
+PELVIS, SPINE1, NECK = JOINT_INDEX["pelvis"], JOINT_INDEX["spine1"], JOINT_INDEX["neck"]
 
 
 @dataclass(frozen=True)
 class ReachCleanupConfig:
     """ramp_in / ramp_out: seconds over which the correction fades in before a grasp / out after a
-    release; max_lean: the largest turn of the upper body toward an out-of-reach target, rad."""
+    release; max_lean: the largest turn of the upper body toward an out-of-reach target, rad;
+    max_tilt: the lean stops where the trunk (pelvis -> neck) is this far from vertical, rad."""
 
     ramp_in: float = 0.8
     ramp_out: float = 0.6
     max_lean: float = float(np.radians(35.0))
+    max_tilt: float = float(np.radians(55.0))
 
     def __post_init__(self) -> None:
         if not (self.ramp_in > 0 and self.ramp_out > 0):
             raise ValueError(f"ramp_in and ramp_out must be > 0 s, got {self.ramp_in}, {self.ramp_out}")
-        if not 0 <= self.max_lean <= np.pi / 2:
-            raise ValueError(f"max_lean must be in [0, pi/2] rad, got {self.max_lean}")
+        if not (0 <= self.max_lean <= np.pi / 2 and 0 <= self.max_tilt <= np.pi / 2):
+            raise ValueError(f"max_lean and max_tilt must be in [0, pi/2] rad, got {self.max_lean}, {self.max_tilt}")
 
 
 def smoothstep(x: np.ndarray) -> np.ndarray:
@@ -110,6 +114,25 @@ def lean_angle(pivot: np.ndarray, shoulder: np.ndarray, target: np.ndarray, reac
     return np.where(far, np.clip(theta, 0.0, max_lean), 0.0), unit(axis)
 
 
+def tilt_limit(trunk: np.ndarray, axis: np.ndarray, theta: np.ndarray, max_tilt: float, n: int = 64) -> np.ndarray:
+    """The largest angle (...,) in [0, theta] by which ``trunk`` (..., 3) turns about unit ``axis``
+    (..., 3) without tilting beyond ``max_tilt`` rad from vertical (or beyond its own tilt, when
+    that is larger): the first crossing on a grid of ``n`` steps, linearly interpolated."""
+    v = trunk / np.maximum(np.linalg.norm(trunk, axis=-1, keepdims=True), 1e-12)
+    kv = (axis * v).sum(-1, keepdims=True)
+    a = theta[..., None] * np.linspace(0.0, 1.0, n + 1)  # (..., n + 1)
+    # z of v turned by a about the axis (Rodrigues): v_z cos a + (k x v)_z sin a + k_z (k.v)(1 - cos a)
+    z = v[..., 2:3] * np.cos(a) + np.cross(axis, v)[..., 2:3] * np.sin(a) + axis[..., 2:3] * kv * (1 - np.cos(a))
+    floor = np.minimum(np.cos(max_tilt), v[..., 2:3]) - 1e-12  # the least allowed z
+    bad = z < floor
+    first = np.where(bad.any(-1), bad.argmax(-1), n + 1)  # first grid step beyond the limit
+    i = np.clip(first - 1, 0, n)
+    j = np.clip(first, 0, n)
+    zi, zj = np.take_along_axis(z, i[..., None], -1)[..., 0], np.take_along_axis(z, j[..., None], -1)[..., 0]
+    frac = np.clip((zi - floor[..., 0]) / np.maximum(zi - zj, 1e-12), 0.0, 1.0)
+    return np.where(first > n, theta, theta * (i + frac) / n)
+
+
 def _least_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(..., 3, 3) the least rotation turning direction a (..., 3) into direction b."""
     a, b = unit(a), unit(b)
@@ -149,7 +172,7 @@ def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, wei
         l1, l2 = float(lengths[el]), float(lengths[wr])
         # 2. lean the upper body toward a goal beyond the arm's reach
         theta, axis = lean_angle(J[:, :, PELVIS], J[:, :, sh], goal, l1 + l2 - 1e-3, config.max_lean)
-        theta = np.where(act, theta, 0.0)
+        theta = tilt_limit(J[:, :, NECK] - J[:, :, PELVIS], axis, np.where(act, theta, 0.0), config.max_tilt)
         R = rodrigues(axis, theta)  # (B, T, 3, 3); identity where theta = 0
         O = J[:, :, PELVIS][:, :, None]
         turned = O + np.einsum("btij,btnj->btni", R, J[:, :, upper] - O)

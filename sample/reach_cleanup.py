@@ -18,7 +18,9 @@ wrist target ``P`` (both from the plan's hand phases: ``reach_schedule``, filled
    the shoulder stays, the wrist goes to ``D`` (clamped to the arm's reach: a target still out of
    reach after the lean is approached along the shoulder-target line on a straight arm), the
    elbow stays in the plane of the network's own bend, and the hand (index1) turns with the
-   forearm (the least rotation from the old to the new forearm direction), so every bone keeps
+   forearm (the least rotation from the old to the new forearm direction) and then, by the
+   fraction ``w`` of its angle, into line with the forearm (a hand reaching for a handle points
+   along the arm; the network's hand is often folded back 150-170 degrees), so every bone keeps
    its length.
 
 The generator outputs joint positions, not rotations; like the foot cleanup this works on joint
@@ -180,7 +182,11 @@ def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, wei
         # 3. two-bone IK of the arm, the elbow in the plane of the network's bend, the hand turning with the forearm
         new_el, new_wr = two_bone_positions(J[:, :, sh], J[:, :, el], goal, l1, l2)
         turn = _least_rotation(J[:, :, wr] - J[:, :, el], new_wr - new_el)
-        new_ix = new_wr + np.einsum("btij,btj->bti", turn, J[:, :, ix] - J[:, :, wr])
+        hand = np.einsum("btij,btj->bti", turn, J[:, :, ix] - J[:, :, wr])
+        fore = new_wr - new_el
+        cross = np.cross(hand, fore)
+        angle = np.arctan2(np.linalg.norm(cross, axis=-1), (hand * fore).sum(-1))
+        new_ix = new_wr + np.einsum("btij,btj->bti", rodrigues(cross, w[..., 0] * angle), hand)
         m = act[..., None]
         J[:, :, el] = np.where(m, new_el, J[:, :, el])
         J[:, :, wr] = np.where(m, new_wr, J[:, :, wr])

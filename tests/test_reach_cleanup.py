@@ -53,6 +53,8 @@ def test_short_arm_reaches_target_with_bone_lengths_kept():
     old_bend = J[0, 0, EL] - 0.5 * (J[0, 0, SH] + J[0, 0, WR])
     new_bend = out[0, 0, EL] - 0.5 * (out[0, 0, SH] + out[0, 0, WR])
     assert old_bend @ new_bend > 0
+    fore, hand = out[0, 0, WR] - out[0, 0, EL], out[0, 0, IX] - out[0, 0, WR]
+    assert fore @ hand / np.linalg.norm(fore) / np.linalg.norm(hand) == pytest.approx(1.0, abs=1e-9)  # along the arm
 
 
 def test_out_of_reach_without_lean_stretches_along_the_line():

@@ -62,8 +62,8 @@ class ReachCleanupConfig:
 
     ramp_in: float = 0.8
     ramp_out: float = 0.6
-    max_lean: float = float(np.radians(35.0))
-    max_tilt: float = float(np.radians(55.0))
+    max_lean: float = float(np.radians(60.0))
+    max_tilt: float = float(np.radians(50.0))
 
     def __post_init__(self) -> None:
         if not (self.ramp_in > 0 and self.ramp_out > 0):

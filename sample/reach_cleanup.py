@@ -11,9 +11,11 @@ wrist target ``P`` (both from the plan's hand phases: ``reach_schedule``, filled
 2. when ``D`` is farther from the shoulder than the arm reaches (upper arm + forearm), the upper
    body (``spine1`` and everything above it) turns rigidly about the pelvis joint in the plane of
    pelvis, shoulder and ``D`` by the least angle that brings the shoulder within reach (closed
-   form, law of cosines), at most ``max_lean`` and never tilting the trunk (pelvis -> neck)
-   beyond ``max_tilt`` from vertical (nor further, when the network's trunk is tilted more
-   already): a lean toward the target, bone lengths unchanged;
+   form, law of cosines), never tilting the trunk (pelvis -> neck) beyond ``max_tilt`` from
+   vertical (nor further, when the network's trunk is tilted more already) and at most
+   ``max_lean`` (a bound on twists; the tilt limit is the one that acts: being absolute, it does
+   not let the lean jump at a seam when the next episode continues the leaned context): a lean
+   toward the target, bone lengths unchanged;
 3. the arm is re-solved with the two-bone IK of the legs (``foot_cleanup.two_bone_positions``):
    the shoulder stays, the wrist goes to ``D`` (clamped to the arm's reach: a target still out of
    reach after the lean is approached along the shoulder-target line on a straight arm), the
@@ -58,7 +60,8 @@ PELVIS, SPINE1, NECK = JOINT_INDEX["pelvis"], JOINT_INDEX["spine1"], JOINT_INDEX
 class ReachCleanupConfig:
     """ramp_in / ramp_out: seconds over which the correction fades in before a grasp / out after a
     release; max_lean: the largest turn of the upper body toward an out-of-reach target, rad;
-    max_tilt: the lean stops where the trunk (pelvis -> neck) is this far from vertical, rad."""
+    max_tilt: the lean stops where the trunk (pelvis -> neck) is this far from vertical, rad
+    (50 degrees: the door's first grasp, ~0.75 m from where the plan stands the body, needs it)."""
 
     ramp_in: float = 0.8
     ramp_out: float = 0.6

@@ -197,3 +197,43 @@ def test_no_reach_cleanup_flag():
     add_postprocess_arguments(p)
     assert postprocess_kwargs(p.parse_args([]))["reach_cleanup"] is True
     assert postprocess_kwargs(p.parse_args(["--no-reach-cleanup"]))["reach_cleanup"] is False
+
+
+@pytest.mark.parametrize("goal, reached", [([1.05, 0.6, 1.1], True), ([1.4, 0.6, 1.0], False)])
+def test_rollout_reaches_the_hand_goal_or_stretches_toward_it(goal, reached):
+    from test_sample_rollout import tiny_checkpoint
+
+    from sample.plan import plan_from_dict
+    from sample.rollout import sample_plan
+    from sample.sampler import EpisodeSampler, SamplerConfig
+    from scenes.occupancy import OccupancyGrid
+    from scenes.scene import Scene
+    from scenes.scene_grids import SceneGrids
+    from scenes.walkability import walkable_map
+
+    grid = np.zeros((120, 120, 120), dtype=bool)
+    grid[:, :, :5] = True  # floor
+    occ = OccupancyGrid(grid, np.array([0.01, 0.01, -0.09]), 0.02)
+    scene, wm, ck = Scene("open"), walkable_map(occ), tiny_checkpoint()
+    goal = np.array(goal)
+    plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "reach", "target": goal.tolist(), "hand": "right"}]})
+    runs = [sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=2, reach_cleanup=on)), scene, wm,
+                        plan, seed=0) for on in (False, True)]
+    off, on = runs
+    i = next(i for i, p in enumerate(on.phases) if p.hand_goal is not None)
+    frames = np.flatnonzero(on.phase[0] == i)
+    grasp = frames[-1]  # the hand phase's last frame: weight 1
+    J = on.joints[0].astype(np.float64)
+    L = bone_lengths_of(J[0])
+    np.testing.assert_allclose(bone_lengths_of(J), np.broadcast_to(L, J.shape[:2]), atol=1e-4)
+    s, w = J[grasp, SH], J[grasp, WR]
+    assert (np.linalg.norm(w - goal) < 1e-3) == reached  # the untrained body stands still: 0.45 / 0.8 m away
+    if not reached:  # out of reach after the lean: a straight arm toward the goal
+        assert np.linalg.norm(w - s) == pytest.approx(L[EL] + L[WR], abs=3e-3)
+        line = (goal - s) / np.linalg.norm(goal - s)
+        assert np.linalg.norm((w - s) - ((w - s) @ line) * line) < 1e-3
+    before = frames[0]  # the weights are 0 before the hand phase: the same motion bit for bit
+    np.testing.assert_array_equal(on.joints[0, :before], off.joints[0, :before])
+    d_on = np.linalg.norm(on.joints[0, frames, WR] - goal, axis=-1).min()
+    d_off = np.linalg.norm(off.joints[0, frames, WR] - goal, axis=-1).min()
+    assert d_on < d_off

@@ -150,7 +150,8 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
     handle = _local(obj, "handle")
     a, b = articulated_pose(obj, now), articulated_pose(obj, end)
     p0, p1 = a[:3, :3] @ handle + a[:3, 3], b[:3, :3] @ handle + b[:3, 3]
-    path = np.stack([(P := articulated_pose(obj, f))[:3, :3] @ handle + P[:3, 3] for f in np.linspace(now, end, 17)])
+    poses = [articulated_pose(obj, f) for f in np.linspace(now, end, 17)]  # the handle's way (reach cleanup)
+    path = np.stack([P[:3, :3] @ handle + P[:3, 3] for P in poses])
     stand = obj if "approach" in obj.meta else scene.objects.get(obj.meta.get("parent", ""))
     return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), _stand(0.5 * (p0 + p1), stand, pos), b, path)
 

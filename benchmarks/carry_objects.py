@@ -2,6 +2,7 @@
 
     python benchmarks/carry_objects.py --json            # three plans in the default room, seeds 0..2
     python benchmarks/carry_objects.py --smooth 0.1 1 10 # the smoothness weight's effect
+    python benchmarks/carry_objects.py --reach both      # without / with the reach cleanup, same seeds
 
 Plans (default room, procedural room 2): pick up bottle_0 from the cabinet, walk, put it on the
 table; open and close the door; open and close a drawer. For each plan and seed: the body is
@@ -39,17 +40,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--smooth", type=float, nargs="+", default=[CarryConfig().smooth])
+    ap.add_argument("--reach", choices=("on", "off", "both"), default="on",
+                    help="the arm reach cleanup (sample/reach_cleanup.py): on (default), off, or both side by side")
     ap.add_argument("--out", default=None, help="write each plan's seed-0 sequence (npz + glb) under this stem")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     ckpt = load_checkpoint(DEFAULT_CHECKPOINT, kind="generator")
     sc = load_sample_scene("default")
-    sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=20))
+    modes = {"on": (True,), "off": (False,), "both": (False, True)}[args.reach]
+    samplers = {on: EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=20, reach_cleanup=on)) for on in modes}
     report: dict = {}
     for name, d in PLANS.items():
         plan = plan_from_dict(d, name=name)
         validate_plan(plan, sc.scene, ckpt.vocabulary)
-        for smooth in args.smooth:
+        for smooth, on in ((s, on) for s in args.smooth for on in modes):
+            sampler = samplers[on]
             rows, secs = [], []
             for seed in range(args.seeds):
                 res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed)
@@ -58,7 +63,7 @@ def main() -> None:
                                                    CarryConfig(smooth=smooth))
                 secs.append(time.perf_counter() - tic)
                 rows.append(carry_figures(res.joints[0], tracks, its, inits, sc.scene, res.phases))
-                if args.out and seed == 0 and smooth == args.smooth[0]:
+                if args.out and seed == 0 and smooth == args.smooth[0] and on == modes[-1]:
                     from sample.export import export
                     from trumans.sequence import Sequence
                     seq = Sequence(joints=res.joints[0], fps=res.fps, actions=res.labels[0],
@@ -67,9 +72,10 @@ def main() -> None:
             keys = sorted({k for r in rows for k in r})
             fig = {k: round(float(np.mean([r[k] for r in rows if k in r])), 2) for k in keys}
             fig["optimise_seconds"] = round(float(np.mean(secs)), 3)
-            report[f"{name}@smooth={smooth:g}"] = fig
+            key = f"{name}@smooth={smooth:g}" + ("" if args.reach == "on" else f"@reach={'on' if on else 'off'}")
+            report[key] = fig
             if not args.json:
-                print(name, f"smooth={smooth:g}", fig, flush=True)
+                print(key, fig, flush=True)
     if args.json:
         print(json.dumps(report))
 

@@ -47,6 +47,7 @@ class StepGoals:
     spans: tuple[tuple[float, float], ...]
     stand: np.ndarray
     after: np.ndarray | None = None  # (4, 4) world pose of the object when the step is done (None: held)
+    path: np.ndarray | None = None  # (M, 3) world m: the handle's way from points[0] to points[1] (open / close)
 
 
 def _stand(work: np.ndarray, towards_obj, pos: np.ndarray) -> np.ndarray:
@@ -149,8 +150,10 @@ def object_step_goals(scene, step, state: ObjectState, pos: np.ndarray) -> StepG
     handle = _local(obj, "handle")
     a, b = articulated_pose(obj, now), articulated_pose(obj, end)
     p0, p1 = a[:3, :3] @ handle + a[:3, 3], b[:3, :3] @ handle + b[:3, 3]
+    poses = [articulated_pose(obj, f) for f in np.linspace(now, end, 17)]  # the handle's way (reach cleanup)
+    path = np.stack([P[:3, :3] @ handle + P[:3, 3] for P in poses])
     stand = obj if "approach" in obj.meta else scene.objects.get(obj.meta.get("parent", ""))
-    return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), _stand(0.5 * (p0 + p1), stand, pos), b)
+    return StepGoals((p0, p1), ((0.0, GRASP_SPAN), (GRASP_SPAN, 1.0)), _stand(0.5 * (p0 + p1), stand, pos), b, path)
 
 
 _AWAY = np.diag([1.0, 1.0, 1.0, 1.0])

@@ -19,6 +19,7 @@ from scenes.walkability import NoPathError, WalkMap, nearest_walkable, plan_path
 
 from .carry_plan import ObjectState, object_step_goals
 from .plan import Plan
+from .reach_cleanup import ReachCleanupConfig, reach_schedule, release_weights
 
 __all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "seat_target"]
 
@@ -61,7 +62,9 @@ class EpisodeControl:
     """goal: (2,) pelvis xy at the episode's last frame, world m, or None; hand_goal: (3,) world m
     with ``hand`` and ``hand_frame`` (episode frame index) or None; labels: (L, N_A) float with the
     progress indicator for every frame of the episode (the transition frames keep their labels);
-    phases: index of the active phase per episode frame (L,)."""
+    phases: index of the active phase per episode frame (L,); reach_weight (L, 2) / reach_target
+    (L, 2, 3) world m: the (left, right) wrist's reach cleanup weight and target per frame, from the
+    hand phases (``sample.reach_cleanup``; 0 on the k transition frames)."""
 
     goal: np.ndarray | None
     labels: np.ndarray
@@ -71,6 +74,8 @@ class EpisodeControl:
     hand_frame: int = -1
     guide: bool = True
     heading: float | None = None
+    reach_weight: np.ndarray | None = None
+    reach_target: np.ndarray | None = None
 
 
 def _rot_z(yaw: float) -> np.ndarray:
@@ -182,9 +187,11 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             action = s.kind if s.kind in ("pick_up", "put_down") else f"{s.kind}_{scene.objects[s.object].category}"
             hand = "left_wrist" if s.hand == "left" else "right_wrist"
             for part, (point, span) in enumerate(zip(sg.points, sg.spans)):
+                info = {"object": s.object, "do": s.kind, "part": part}
+                if part == 1 and sg.path is not None:  # the moving part: the hand follows the handle (reach cleanup)
+                    info["hand_path"] = sg.path
                 phases.append(Phase("reach", (action,), max(2, int(round((span[1] - span[0]) * frames(action)))),
-                                    hand_goal=point, hand=hand, step=i, span=span,
-                                    info={"object": s.object, "do": s.kind, "part": part}))
+                                    hand_goal=point, hand=hand, step=i, span=span, info=info))
             phases[-1].info["after"] = sg.after  # where the object is once the step is done (scene grids)
         elif s.kind == "reach":
             target = s.target
@@ -213,7 +220,7 @@ class Controller:
     speed, m/s; fps: the model's frame rate."""
 
     def __init__(self, phases: list[Phase], vocabulary: list[str], L: int, k: int, fps: float,
-                 speed: float = 1.0, arrive_m: float = 0.25) -> None:
+                 speed: float = 1.0, arrive_m: float = 0.25, reach: ReachCleanupConfig = ReachCleanupConfig()) -> None:
         if not phases:
             raise ValueError("the plan compiled to no phases (every goal is where the person already stands)")
         self.phases, self.vocab = phases, list(vocabulary)
@@ -226,6 +233,27 @@ class Controller:
         self._cum: np.ndarray | None = None
         self.approach_tries = 0  # extra episodes spent walking onto the stand point of a hand phase
         self.max_approach = 4
+        self.reach = reach
+        # contacts whose release still fades out: (last contact frame relative to the next episode's
+        # frames, wrist target (3,), side 0 left / 1 right)
+        self.releases: list[tuple[int, np.ndarray, int]] = []
+
+    def _release(self, weight: np.ndarray, target: np.ndarray, events: list[tuple[int, np.ndarray, int]]) -> None:
+        """Fade out the contacts that ended (``events`` and the carried-over ``releases``) into the
+        reach ``weight`` (L, 2) / ``target`` (L, 2, 3) of the new frames; keep those still fading."""
+        L, k = len(weight), self.k
+        keep = []
+        for e, point, side in self.releases + events:
+            t = np.arange(max(e + 1, k), L)
+            w_out = release_weights(t - e, self.fps, self.reach)
+            w_in, t_in = weight[t, side], target[t, side]
+            total = np.maximum(w_in + w_out, 1e-12)[:, None]
+            target[t, side] = np.where((w_out > 0)[:, None], (w_in[:, None] * t_in + w_out[:, None] * point) / total,
+                                       t_in)
+            weight[t, side] = np.maximum(w_in, w_out)
+            if release_weights(np.array([L - e]), self.fps, self.reach)[0] > 0:  # next episode's first new frame
+                keep.append((e - (L - k), point, side))
+        self.releases = keep
 
     @property
     def done(self) -> bool:
@@ -271,13 +299,15 @@ class Controller:
         step_m = self.speed / self.fps
         goal = hand_goal = None
         hand, hand_frame, guide, heading = "right_wrist", -1, True, None
+        reach_w, reach_t, events = np.zeros((L, 2)), np.zeros((L, 2, 3)), []
         f = k
         p = self.phases[self.index] if not self.done else None
         approach = self._approach_goal(p, pelvis_xy)
         if approach is not None:  # the body lags behind its path: finish walking before the hand phase
             labels[k:, self.col["walk"]] = 2.0
             phase_of[k:] = self.index - 1
-            return EpisodeControl(approach, labels, phase_of)
+            self._release(reach_w, reach_t, [])
+            return EpisodeControl(approach, labels, phase_of, reach_weight=reach_w, reach_target=reach_t)
         if p is not None and p.kind == "walk":  # anchor on the path where the body really is (closed loop)
             cum = self._arc(p.path)
             self.walk_s = max(self.body_s, self._project(p.path, cum, np.asarray(pelvis_xy, np.float64)))
@@ -310,6 +340,13 @@ class Controller:
                 phase_of[f:f + n] = self.index
                 if p.hand_goal is not None:
                     hand_goal, hand, hand_frame, goal = p.hand_goal, p.hand, f + n - 1, None
+                    side = 0 if p.hand.startswith("left") else 1
+                    reach_w[f:f + n, side], reach_t[f:f + n, side] = reach_schedule(
+                        p, self.elapsed + np.arange(n), self.fps, self.reach)
+                    nxt = self.phases[self.index + 1] if self.index + 1 < len(self.phases) else None
+                    held = nxt is not None and nxt.step == p.step and nxt.hand_goal is not None  # open / close goes on
+                    if self.elapsed + n >= p.frames and not held:
+                        events.append((f + n - 1, reach_t[f + n - 1, side].copy(), side))
                 elif p.goal is not None:
                     goal = np.asarray(p.goal, np.float64)
                 guide, heading = p.guide, p.heading
@@ -327,4 +364,5 @@ class Controller:
                 goal = np.asarray(pelvis_xy, np.float64)
         if goal is None and hand_goal is None:
             goal = np.asarray(pelvis_xy, np.float64)
-        return EpisodeControl(goal, labels, phase_of, hand_goal, hand, hand_frame, guide, heading)
+        self._release(reach_w, reach_t, events)
+        return EpisodeControl(goal, labels, phase_of, hand_goal, hand, hand_frame, guide, heading, reach_w, reach_t)

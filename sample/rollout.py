@@ -23,6 +23,7 @@ from .carry_plan import planned_object_poses
 from .controller import Controller, Phase, compile_plan
 from .foot_cleanup import clean_feet
 from .plan import Plan
+from .reach_cleanup import clean_reach
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
 from .scene_pushout import push_out
 from .seams import blend_seam
@@ -124,6 +125,9 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
         world = push_out(world, sampler.scene_sdf_all if moved is None else sampler.scene_sdf, sampler.k)
     if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
         world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)
+    weight = np.stack([c.reach_weight for c in ctrls])  # (B, L, 2) from the plan's hand phases (controller)
+    if sampler.config.reach_cleanup and (weight > 0).any():  # the acting arm onto its hand target
+        world = clean_reach(world, lengths, np.stack([c.reach_target for c in ctrls]), weight, sampler.k)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
 
 
@@ -225,11 +229,11 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         n = todo.pop(0) if todo else L - k
         if ctrl.done:  # hold: an empty plan keeps the last posture label
             ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
-        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s)
+        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, list(ctrl.releases))
         ep = _step(sampler, [ctrl], context, prev, lengths, g)
         new, lab = ep.new, ep.labels
         if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
-            ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s = snapshot
+            ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, ctrl.releases = snapshot
             _advance(ctrl, n, context[0, -1, PELVIS, :2])
         out = new[:, :n]
         context = np.concatenate([context, out], 1)[:, -k:]

@@ -62,7 +62,9 @@ class SamplerConfig:
     penetration_guidance: the goal guidance also pushes the joints out of the scene
     (``sample.penetration_guidance``; needs grids); scene_pushout: after each episode a smooth
     root offset moves the new frames' body out of the scene (``sample.scene_pushout``; applied by
-    ``sample.rollout``; needs grids)."""
+    ``sample.rollout``; needs grids); reach_cleanup: after each episode the acting arm (and, out of
+    reach, the upper body) is moved onto the hand target of the plan's hand phases
+    (``sample.reach_cleanup``; applied by ``sample.rollout``)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -76,6 +78,7 @@ class SamplerConfig:
     seat_guidance: bool = True
     penetration_guidance: bool = True
     scene_pushout: bool = True
+    reach_cleanup: bool = True
 
     def __post_init__(self) -> None:
         if self.steps < 1:

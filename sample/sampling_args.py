@@ -20,6 +20,9 @@ def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not push the joints out of the scene (sample/penetration_guidance.py)")
     g.add_argument("--no-scene-pushout", dest="scene_pushout", action="store_false",
                    help="do not move the body out of the scene after each episode (sample/scene_pushout.py)")
+    g.add_argument("--no-reach-cleanup", dest="reach_cleanup", action="store_false",
+                   help="keep the network's arm at hand goals (no arm IK / lean onto handles and grasp points; "
+                        "sample/reach_cleanup.py)")
     g.add_argument("--seam-blend", type=int, default=d.seam_blend, metavar="FRAMES",
                    help=f"frames over which the jump at episode seams is blended out (0 = off; default {d.seam_blend})")
 
@@ -28,4 +31,4 @@ def postprocess_kwargs(args: argparse.Namespace) -> dict:
     """The ``SamplerConfig`` fields set by the switches above."""
     return {"foot_cleanup": bool(args.foot_cleanup), "seam_blend": int(args.seam_blend),
             "seat_guidance": bool(args.seat_guidance), "penetration_guidance": bool(args.penetration_guidance),
-            "scene_pushout": bool(args.scene_pushout)}
+            "scene_pushout": bool(args.scene_pushout), "reach_cleanup": bool(args.reach_cleanup)}

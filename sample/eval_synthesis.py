@@ -32,6 +32,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", nargs="?", default=None, help="generator checkpoint (default: the shipped one)")
     p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
     p.add_argument("--steps", type=int, default=20, help="denoising steps of the fast sampler")
+    p.add_argument("--eta", type=float, default=0.0, help="DDIM eta of the fast sampler (0 deterministic, 1 "
+                   "ancestral: with --steps 100 --goal-guidance 0 it samples what the naive sampler samples)")
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
     p.add_argument("--goal-guidance", type=float, default=20.0, help="spatial goal guidance of the fast sampler")
     p.add_argument("--goal-iters", type=int, default=3)
@@ -60,7 +62,8 @@ def _plans(sc, seed: int):
 
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
-             guidance: tuple[float, int] = (20.0, 3), post: dict | None = None, encoder: str | None = None) -> dict:
+             guidance: tuple[float, int] = (20.0, 3), post: dict | None = None, encoder: str | None = None,
+             eta: float = 0.0) -> dict:
     """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
     ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one)."""
     import torch
@@ -79,7 +82,7 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
         plan = _plans(sc, seed * 1000 + r)
-        sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
+        sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, eta=eta, goal_guidance=guidance[0],
                                                                goal_iters=guidance[1], **(post or {})))
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
@@ -177,19 +180,20 @@ def run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.rooms <= len(EVAL_ROOM_SEEDS):
         raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")
-    if args.steps < 1 or args.naive_episodes < 0:
-        raise ValueError("--steps must be >= 1 and --naive-episodes >= 0")
+    if args.steps < 1 or args.naive_episodes < 0 or not 0.0 <= args.eta <= 1.0:
+        raise ValueError(f"--steps must be >= 1, --naive-episodes >= 0 and --eta in [0, 1], got {args.steps}, "
+                         f"{args.naive_episodes}, {args.eta}")
     if args.motion_encoder is not None and args.data is None:
         raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
                          "give --data DATASET (its test split is the reference)")
     guidance = (args.goal_guidance, args.goal_iters)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder)
+                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder, args.eta)
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
         figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance,
-                                           postprocess_kwargs(args), args.motion_encoder)
+                                           postprocess_kwargs(args), args.motion_encoder, args.eta)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

@@ -200,3 +200,13 @@ def test_eval_synthesis_refuses_a_motion_encoder_without_its_reference(tmp_path)
 
     with pytest.raises(ValueError, match="give --data DATASET"):
         main(["eval", "synthesis", "--motion-encoder", str(tmp_path / "enc.pt"), "--rooms", "1"])
+
+
+def test_eval_synthesis_refuses_bad_sampler_settings():
+    """Bad --eta / --steps are refused before any room is built, naming the values."""
+    from trumans.cli import main
+
+    with pytest.raises(ValueError, match=r"--eta in \[0, 1\], got 20, 0, 1.5"):
+        main(["eval", "synthesis", "--rooms", "1", "--eta", "1.5", "--naive-episodes", "0"])
+    with pytest.raises(ValueError, match="--steps must be >= 1"):
+        main(["eval", "synthesis", "--rooms", "1", "--steps", "0"])

@@ -37,6 +37,8 @@ class SceneSDF:
         self.volume = torch.from_numpy(np.ascontiguousarray(np.transpose(sdf, (2, 1, 0)), dtype=np.float32))[None, None]
         self.lo = torch.as_tensor(occ.origin, dtype=torch.float32)
         self.hi = self.lo + occ.voxel * (torch.as_tensor(grid.shape, dtype=torch.float32) - 1)
+        self.voxel = float(occ.voxel)
+        self._with_gradient: torch.Tensor | None = None  # (1, 4, z, y, x): the field and its gradient, lazily
 
     def __call__(self, points: torch.Tensor) -> torch.Tensor:
         """points (..., 3) world m -> (...,) signed distance, m (outside the grid: the border value)."""
@@ -45,6 +47,19 @@ class SceneSDF:
         out = F.grid_sample(self.volume.to(points.device), flat, mode="bilinear", padding_mode="border",
                             align_corners=True)
         return out.reshape(points.shape[:-1])
+
+    def value_and_gradient(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """points (..., 3) world m -> the signed distance (...,) m and its spatial gradient (..., 3)
+        (central differences of the field at the voxel centres, interpolated trilinearly: smooth
+        across cells, unlike the derivative of the trilinear field itself)."""
+        if self._with_gradient is None:
+            vol = self.volume[0, 0]  # (z, y, x)
+            gz, gy, gx = torch.gradient(vol, spacing=self.voxel)
+            self._with_gradient = torch.stack([vol, gx, gy, gz])[None]
+        u = 2.0 * (points - self.lo) / (self.hi - self.lo) - 1.0
+        out = F.grid_sample(self._with_gradient.to(points.device), u.reshape(1, 1, 1, -1, 3), mode="bilinear",
+                            padding_mode="border", align_corners=True)[0, :, 0, 0]  # (4, N)
+        return out[0].reshape(points.shape[:-1]), out[1:].T.reshape(points.shape)
 
 
 def penetration_loss(sdf: SceneSDF, joints: torch.Tensor) -> torch.Tensor:

@@ -104,11 +104,12 @@ class _Episode:
 
 
 def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
-          lengths: np.ndarray, generator: torch.Generator | None) -> _Episode:
-    """One episode for every sample, projected onto the bone ``lengths``."""
+          lengths: np.ndarray, generator: torch.Generator | None, seat_offset: float) -> _Episode:
+    """One episode for every sample, projected onto the bone ``lengths``; ``seat_offset``: the
+    body's pelvis height above a seat surface (``sit_offset``), m."""
     moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
-    off = sit_offset(start_pose(sampler.ckpt)) if sampler.config.seat_guidance else 0.0
+    off = seat_offset if sampler.config.seat_guidance else 0.0
     seat = [seated_heights(c.phases, ctl.phases, off, sampler.k) if sampler.config.seat_guidance else ()
             for c, ctl in zip(ctrls, controllers)]
     goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading, pelvis_z=z) if c.hand_goal is None else
@@ -177,6 +178,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     frames, labels, phase = [context], [np.broadcast_to(stand, (num_samples,) + stand.shape)], \
         [np.full((num_samples, ckpt.k), -1)]
     g = torch.Generator().manual_seed(int(seed))
+    seat = sit_offset(start_pose(ckpt))
     limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
     t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
     bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
@@ -186,7 +188,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
                              f"reach its goals - check the plan or raise --max-seconds")
         tic = time.perf_counter()
         starts.append(sum(f.shape[1] for f in frames) - ckpt.k)
-        ep = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g)
+        ep = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g, seat)
         t0 += time.perf_counter() - tic
         frames.append(ep.new)
         labels.append(ep.labels[:, ckpt.k:])
@@ -201,7 +203,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     bar.close()
     return SampleResult(np.concatenate(frames, 1), np.concatenate(labels, 1), np.concatenate(phase, 1), phases,
                         ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts, goals,
-                        float(np.median(cvs)) if cvs else float("nan"), sit_offset(start_pose(ckpt)))
+                        float(np.median(cvs)) if cvs else float("nan"), seat)
 
 
 def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, seed: int = 0,
@@ -218,6 +220,7 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
     lengths = bone_lengths_of(context[0, 0].astype(np.float64))
     prev = np.zeros((1, k, len(ckpt.vocabulary)), np.float32)
     g = torch.Generator().manual_seed(int(seed))
+    seat = sit_offset(start_pose(ckpt))
 
     def controller_for(p: Plan, at: np.ndarray) -> Controller:
         return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps), ckpt.vocabulary, L, k,
@@ -230,7 +233,7 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         if ctrl.done:  # hold: an empty plan keeps the last posture label
             ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
         snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, list(ctrl.releases))
-        ep = _step(sampler, [ctrl], context, prev, lengths, g)
+        ep = _step(sampler, [ctrl], context, prev, lengths, g, seat)
         new, lab = ep.new, ep.labels
         if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
             ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, ctrl.releases = snapshot

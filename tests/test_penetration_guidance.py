@@ -23,6 +23,15 @@ def _box_room() -> OccupancyGrid:
     return OccupancyGrid(grid, origin, 0.02)
 
 
+def test_sdf_gradient_is_the_outward_normal_and_values_agree():
+    sdf = SceneSDF(_box_room())
+    pts = torch.tensor([[0.8, 1.0, 0.5], [1.05, 1.0, 0.5], [1.2, 0.5, 0.5], [1.2, 1.0, 1.2]])  # front, inside, side, top
+    d, g = sdf.value_and_gradient(pts)
+    np.testing.assert_allclose(d.numpy(), sdf(pts).numpy(), atol=1e-6)
+    np.testing.assert_allclose(g.numpy(), [[-1, 0, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1]], atol=0.05)
+    assert g.shape == pts.shape and sdf.value_and_gradient(pts[None])[1].shape == (1, 4, 3)
+
+
 def test_sdf_is_signed_distance_and_ignores_the_floor():
     sdf = SceneSDF(_box_room())
     pts = torch.tensor([[0.7, 1.0, 0.5], [1.2, 1.0, 0.5], [1.2, 1.0, 1.3], [0.5, 0.3, 0.05]])

@@ -52,6 +52,32 @@ def test_body_walking_into_a_box_is_pushed_out_smoothly_with_context_and_bones_k
     np.testing.assert_array_equal(push_out(clear, sdf, fixed=k), clear)
 
 
+def _objective(J: np.ndarray, out: np.ndarray, sdf: SceneSDF, k: int, c: PushOutConfig = PushOutConfig()) -> float:
+    """The push-out's objective (module doc) of the offsets out - J (frames >= k)."""
+    d = (out - J)[:, k:, 0]
+    x = torch.as_tensor(J[:, k:] + d[:, :, None], dtype=torch.float32)
+    depth = np.maximum(push_radii(c.margin) - sdf(x).numpy(), 0.0)
+    d0 = np.concatenate([np.zeros_like(d[:, :1]), d], 1)
+    return float((depth ** 2).sum() + c.weight * (d ** 2).sum() + c.velocity * (np.diff(d0, axis=1) ** 2).sum()
+                 + c.acceleration * (np.diff(d0, 2, axis=1) ** 2).sum())
+
+
+def test_push_out_minimises_its_objective():
+    sdf, k = SceneSDF(_box_room()), 4
+    J = _walk_into_box(k=k).astype(np.float64)
+    out = push_out(J, sdf, fixed=k)
+    best = _objective(J, out, sdf, k)
+    assert best < 0.2 * _objective(J, J, sdf, k)
+    for scale in (0.8, 0.95, 1.05, 1.25):  # the solution is a minimum along its own direction
+        assert best <= _objective(J, J + scale * (out - J), sdf, k) + 1e-9
+    # and against a constant extra offset in each direction over the frames after the seam
+    for axis in range(3):
+        for sign in (-1, 1):
+            moved = out.copy()
+            moved[:, k:, :, axis] += sign * 0.01 * np.linspace(0, 1, J.shape[1] - k)[None, :, None]
+            assert best <= _objective(J, moved, sdf, k) + 1e-9
+
+
 def test_planted_feet_stay_where_they_stood_after_push_out_and_foot_cleanup():
     sdf, k = SceneSDF(_box_room()), 4
     J = _walk_into_box(k=k)  # the feet skate with the body into the box

@@ -9,7 +9,8 @@ import torch
 
 from trumans.model.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
                                           MotionEncoderNet, action_acc, diversity, dominant_action, fid,
-                                          load_motion_encoder, matched_weights, motion_windows, split_features)
+                                          like_sample, load_motion_encoder, matched_weights, motion_windows,
+                                          split_features)
 from trumans.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
@@ -78,6 +79,22 @@ def test_fid_matched_to_the_generated_action_mix():
         fid(real, gen, real_weights=np.ones(3))
     with pytest.raises(ValueError, match="gen_weights must be"):
         fid(real, gen, gen_weights=-np.ones(len(gen)))
+
+
+def test_like_sample_draws_the_generated_size_and_mix_and_shows_the_small_set_bias():
+    rng = np.random.default_rng(2)
+    pool_y = np.r_[np.zeros(300, int), np.ones(100, int), np.full(5, 2)]
+    idx = like_sample(pool_y, np.r_[np.zeros(20, int), np.ones(10, int), np.full(8, 2), np.full(3, 7)], rng)
+    assert len(idx) == 38  # action 7 is not in the pool: left out
+    np.testing.assert_array_equal(np.bincount(pool_y[idx]), [20, 10, 8])
+    assert len(set(idx[:30].tolist())) == 30  # enough: without replacement; action 2 (5 < 8): with
+    with pytest.raises(ValueError, match="no action of the generated windows"):
+        like_sample(pool_y, np.r_[9, 9], rng)
+    # the same Gaussian: fid of 40 draws against 4000 is far above that of 4000 (why the eval
+    # reports the real-vs-real value at the generated set's size)
+    real, pool = rng.normal(size=(4000, 16)), rng.normal(size=(4000, 16))
+    small = pool[like_sample(np.zeros(4000, int), np.zeros(40, int), rng)]
+    assert fid(real, pool) < 0.2 < 2.0 < fid(real, small)
 
 
 def test_diversity_and_accuracy():

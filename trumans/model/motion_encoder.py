@@ -261,6 +261,23 @@ def matched_weights(real_labels: np.ndarray, gen_labels: np.ndarray) -> np.ndarr
     return np.array([target.get(a, 0.0) / r_count[a] for a in r.tolist()])
 
 
+def like_sample(pool_labels: np.ndarray, gen_labels: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Indices into a pool of windows (labels (N,)) that draw, per action, as many windows as the
+    generated set has (labels (M,)); without replacement where the pool has enough, else with.
+    Generated actions the pool lacks are left out. A real set of the generated set's size and
+    action mix: Fréchet distances of small sets are biased upward (the covariance of a few dozen
+    128-d features), so the real-vs-real value to compare with is taken at the same size."""
+    pool, gen = np.asarray(pool_labels).ravel(), np.asarray(gen_labels).ravel()
+    out = []
+    for a, c in zip(*np.unique(gen, return_counts=True)):
+        have = np.flatnonzero(pool == a)
+        if len(have):
+            out.append(rng.choice(have, int(c), replace=len(have) < c))
+    if not out:
+        raise ValueError("no action of the generated windows occurs in the pool; nothing to draw")
+    return np.concatenate(out)
+
+
 def _flat(feats: np.ndarray, what: str) -> np.ndarray:
     f = np.asarray(feats, np.float64)
     if f.ndim < 2:

@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from scenes.scene import Scene
+from scenes.scene import Scene, SceneObject
 from trumans.contacts.model_io import ContactModels
-from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, two_hand_motion
+from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis, two_hand_motion
 from trumans.contacts.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
 from trumans.contacts.per_dof import predict_dof_contacts
 from trumans.contacts.predictor import CLASSES, ContactPredictor, predict_contacts
@@ -41,10 +41,11 @@ from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
+from .carry import _angles, dof_limits
 from .object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
 __all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
-           "attach_detach", "drive_object", "track", "track_interactions"]
+           "attach_detach", "drive_object", "clip_to_limits", "track", "track_interactions"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -192,6 +193,28 @@ def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np
     raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
 
 
+def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
+    """World poses (n, 4, 4) of a hinged or axis-sliding object moved back within its range
+    (``sample.carry.dof_limits``, from the scene pose: a door's opening angle, a drawer's travel);
+    poses within range and objects without limits are returned unchanged. The hands alone push a
+    drawer past closed or a door through its frame whenever the localisation drifts during the
+    contact; the dof's end stop is where the object really stops (extends the dof model of iReplica
+    supp. §10, which has no range)."""
+    lo, hi = dof_limits(obj)
+    poses = np.asarray(poses, dtype=np.float64)
+    if obj.dof not in ("hinge", "slide") or obj.axis is None or not (np.isfinite(lo) or np.isfinite(hi)):
+        return poses
+    axis = obj.pose[:3, :3] @ obj.axis
+    if obj.dof == "hinge":
+        point = obj.pose[:3, :3] @ obj.hinge_point + obj.pose[:3, 3]
+        angle = _angles(poses @ np.linalg.inv(obj.pose), axis)
+        return rotation_about_axis(np.clip(angle, lo, hi) - angle, axis, point) @ poses
+    travel = (poses[:, :3, 3] - obj.pose[:3, 3]) @ axis
+    out = poses.copy()
+    out[:, :3, 3] += (np.clip(travel, lo, hi) - travel)[:, None] * axis
+    return out
+
+
 def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
                wrist_rot: np.ndarray) -> None:
     """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
@@ -202,7 +225,7 @@ def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], join
         s, e = seg.start, seg.end
         M = drive_object(it.dof, seg, hand_points(joints[s:e]), wrist_rot[s:e], joints[s:e][:, list(_WRIST)], track[s],
                          obj.axis, obj.hinge_point)
-        track[s:e] = M @ track[s]
+        track[s:e] = clip_to_limits(obj, M @ track[s])
         track[e:] = track[e - 1]
 
 

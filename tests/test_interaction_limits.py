@@ -1,0 +1,95 @@
+"""sample.interactions.clip_to_limits: tracked doors and drawers stay within their range."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sample.carry import _dof_value
+from sample.interactions import Interaction, _drive_one, clip_to_limits
+from scenes.procedural import make_room
+from trumans.contacts.objects import rotation_about_axis
+from trumans.contacts.postprocess import ContactSegment
+from trumans.skeleton import JOINT_INDEX
+
+
+@pytest.fixture(scope="module")
+def room():
+    return make_room(2)  # door_0 (hinge, max_angle 1.4), cabinet_0_drawer_* (slide, max_travel), chair_0, cups
+
+
+def _hinge(door) -> tuple[np.ndarray, np.ndarray]:
+    return door.pose[:3, :3] @ door.axis, door.pose[:3, :3] @ door.hinge_point + door.pose[:3, 3]
+
+
+def _slid(drawer, travel: np.ndarray) -> np.ndarray:
+    poses = np.tile(drawer.pose, (len(travel), 1, 1))
+    poses[:, :3, 3] += travel[:, None] * (drawer.pose[:3, :3] @ drawer.axis)
+    return poses
+
+
+def test_a_drawer_stops_at_closed_and_at_full_travel(room):
+    drawer = room.objects["cabinet_0_drawer_0"]
+    top = drawer.meta["max_travel"]
+    travel = np.array([-0.08, 0.0, 0.1, top, top + 0.05])
+    out = clip_to_limits(drawer, _slid(drawer, travel))
+    got = np.array([_dof_value(drawer, p) for p in out])
+    np.testing.assert_allclose(got, [0.0, 0.0, 0.1, top, top], atol=1e-12)
+    np.testing.assert_allclose(out[1:4], _slid(drawer, travel)[1:4], atol=1e-12)  # within range: unchanged
+    np.testing.assert_allclose(out[:, :3, :3], np.tile(drawer.pose[:3, :3], (5, 1, 1)))
+
+
+def test_an_offset_across_the_slide_axis_is_kept(room):
+    drawer = room.objects["cabinet_0_drawer_1"]
+    poses = _slid(drawer, np.array([-0.05]))
+    side = np.cross([0.0, 0.0, 1.0], drawer.pose[:3, :3] @ drawer.axis)
+    poses[0, :3, 3] += 0.02 * side
+    out = clip_to_limits(drawer, poses)
+    np.testing.assert_allclose(out[0, :3, 3], drawer.pose[:3, 3] + 0.02 * side, atol=1e-12)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_door_does_not_swing_through_its_frame_or_past_its_stop(room, sign):
+    door = dataclasses.replace(room.objects["door_0"], meta={**room.objects["door_0"].meta, "open_sign": sign})
+    axis, point = _hinge(door)
+    opened = sign * np.array([-0.3, 0.0, 0.7, 1.4, 1.9, 2.6])  # 2.6 rad: past 180 deg from closed when unwrapped
+    poses = rotation_about_axis(np.unwrap(opened), axis, point) @ door.pose
+    out = clip_to_limits(door, poses)
+    got = np.array([_dof_value(door, p) for p in out])
+    np.testing.assert_allclose(got, sign * np.array([0.0, 0.0, 0.7, 1.4, 1.4, 1.4]), atol=1e-9)
+    np.testing.assert_allclose(out[1:4], poses[1:4], atol=1e-12)
+    np.testing.assert_allclose(out[:, :3, 3] @ axis, np.full(6, door.pose[:3, 3] @ axis), atol=1e-12)  # about the hinge
+
+
+def test_objects_without_a_range_are_unchanged(room):
+    for name in ("chair_0", "cup_0"):
+        obj = room.objects[name]
+        poses = np.tile(obj.pose, (3, 1, 1))
+        poses[:, 0, 3] += [-2.0, 0.0, 3.0]
+        np.testing.assert_array_equal(clip_to_limits(obj, poses), poses)
+    drawer = room.objects["cabinet_0_drawer_0"]
+    no_meta = dataclasses.replace(drawer, meta={k: v for k, v in drawer.meta.items() if k != "max_travel"})
+    poses = _slid(drawer, np.array([-0.3, 0.6]))
+    np.testing.assert_array_equal(clip_to_limits(no_meta, poses), poses)
+
+
+def test_a_hand_pushing_on_past_closed_leaves_the_drawer_closed(room):
+    """The tracker's drive: a drawer pulled out 20 cm, then pushed 30 cm back (the sensed hand overshoots)."""
+    drawer = room.objects["cabinet_0_drawer_0"]
+    axis = drawer.pose[:3, :3] @ drawer.axis
+    handle = drawer.pose[:3, :3] @ np.asarray(drawer.meta["handle"]) + drawer.pose[:3, 3]
+    n, T = 20, 60
+    joints = np.zeros((T, 24, 3))
+    travel = np.r_[np.zeros(10), np.linspace(0.0, 0.2, n), np.full(5, 0.2), np.linspace(0.2, -0.1, n), np.full(5, -0.1)]
+    for j in ("right_wrist", "right_index1"):
+        joints[:, JOINT_INDEX[j]] = handle + travel[:, None] * axis
+    wrist_rot = np.tile(np.eye(3), (T, 2, 1, 1))
+    segs = (ContactSegment(10, 30, (False, True), 0), ContactSegment(35, 55, (False, True), 1))
+    poses = {drawer.name: np.tile(drawer.pose, (T, 1, 1))}
+    for seg in segs:
+        _drive_one(Interaction(drawer.name, "slide", seg.start, seg.end, (seg,), handle), room, poses, joints, wrist_rot)
+    got = np.array([_dof_value(drawer, p) for p in poses[drawer.name]])
+    assert got[29] == pytest.approx(0.2, abs=1e-9)  # opened by the hand
+    assert got.min() == pytest.approx(0.0, abs=1e-12)  # never inside the cabinet
+    assert got[-1] == pytest.approx(0.0, abs=1e-12)  # left closed

@@ -233,8 +233,15 @@ def _attach(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarra
             s0: int, fps: float, hand_radius: float) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
     """A contact starting at frame ``s0`` attached to ``name`` (at ``pose``): its segments clipped to
     the held frames, the attach frame, and the contact points p_c (k, 3) with their targets
-    ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points."""
+    ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points. The
+    attach frame is found on the hands' distance to the object's surface, or to its declared
+    ``grasp_point`` (meta, object frame) when it has one: a hand reaching down over a small object
+    (a mouse) stays about as near its top while it is still moving in, and would drag it along."""
     near, dist, target = queries.contact_target(name, pose, span.reshape(-1, 3), hand_radius)
+    meta = queries.scene.objects[name].meta
+    if "grasp_point" in meta:  # held when the hand is there, not when it first comes near a surface
+        grasp = pose[:3, :3] @ np.asarray(meta["grasp_point"], np.float64).reshape(3) + pose[:3, 3]
+        dist = np.linalg.norm(span.reshape(-1, 3) - grasp, axis=-1)
     a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps)
     return _clip(segs, a, d_end), a, near.reshape(span.shape)[a - s0], target.reshape(span.shape)[a - s0]
 

@@ -1,14 +1,18 @@
-"""sample.interactions.clip_to_limits: tracked doors and drawers stay within their range."""
+"""sample.interactions: tracked doors and drawers stay within their range; a small object is
+attached when the hand reaches its grasp point."""
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
 import pytest
+import trimesh
 
 from sample.carry import _dof_value
-from sample.interactions import Interaction, _drive_one, clip_to_limits
+from sample.interactions import Interaction, _attach, _drive_one, clip_to_limits
+from sample.object_choice import ObjectQueries
 from scenes.procedural import make_room
+from scenes.scene import Scene, SceneObject
 from trumans.contacts.objects import rotation_about_axis
 from trumans.contacts.postprocess import ContactSegment
 from trumans.skeleton import JOINT_INDEX
@@ -93,3 +97,27 @@ def test_a_hand_pushing_on_past_closed_leaves_the_drawer_closed(room):
     assert got[29] == pytest.approx(0.2, abs=1e-9)  # opened by the hand
     assert got.min() == pytest.approx(0.0, abs=1e-12)  # never inside the cabinet
     assert got[-1] == pytest.approx(0.0, abs=1e-12)  # left closed
+
+
+def test_a_hand_reaching_over_a_small_object_attaches_at_its_grasp_point():
+    """A mouse (11 x 6 x 3.6 cm, top at 0.776 m) reached for from +x: the hand comes in 2 cm above
+    its top (frames 0-11, from 10 cm off its centre) and settles 1.5 cm over the grasp point (top
+    centre). Within 1 cm of its closest approach to the surface from frame 4 on, it reaches the
+    grasp point at frame 10: the mouse is held from there, not dragged in from frame 4."""
+    pose = np.eye(4)
+    pose[:3, 3] = (2.0, 1.0, 0.758)
+    top = 0.776
+    hands = np.zeros((40, 1, 3))
+    hands[:, 0, 0] = np.r_[np.linspace(2.10, 2.0, 12), np.full(28, 2.0)]
+    hands[:, 0, 1] = 1.0
+    hands[:, 0, 2] = np.r_[np.full(12, top + 0.02), np.full(28, top + 0.015)]
+    segs = (ContactSegment(100, 140, (False, True), 0),)
+    frames = {}
+    for key, meta in (("grasp", {"grasp_point": [0.0, 0.0, 0.018]}), ("surface", {})):
+        mouse = SceneObject("mouse_0", "mouse", trimesh.creation.box((0.11, 0.06, 0.036)), pose, dof="free",
+                            dynamic=True, meta=meta)
+        held, frames[key], near, target = _attach(ObjectQueries(Scene("desk", objects={"mouse_0": mouse})), "mouse_0",
+                                                  pose, hands, segs, 100, 30.0, 0.015)
+        assert held[0].start == frames[key] and held[-1].end <= 140
+        np.testing.assert_allclose(near[0, 2], top, atol=1e-6)  # the contact point is on its top
+    assert frames == {"grasp": 110, "surface": 104}

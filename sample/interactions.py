@@ -25,6 +25,7 @@ dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -142,29 +143,37 @@ def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
 
 
 def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
-                  window_s: float = 1.0, approach_tol: float = 0.01) -> tuple[int, int]:
+                  window_s: float = 1.0, approach_tol: float = 0.01,
+                  attach: Literal["approach", "stop"] = "approach") -> tuple[int, int]:
     """Refine a contact interval [start, end) to the frames the object is actually held (not in
     the paper; the contact labels switch on a few cm before the hand touches and off a few cm after
     it lets go, and the hands must not drag the object while reaching or retracting).
     hands: (n, k, 3) contacting hand points over the interval; dist_at_rest: (n,) their mean
-    distance (m) to the object at its pose at ``start``. Attach at the first frame within
-    ``approach_tol`` of the closest approach in the first ``window_s`` (at most half the interval;
-    the first, as a hand lifting an object slides along its side and gets no further from it),
-    detach after the slowest frame of the hands (speed smoothed over ~0.07 s) within the last
-    ``window_s`` (the hand stops before it lets go). Returns (attach, detach) frames, start <= attach < detach <= end."""
+    distance (m) to the object at its pose at ``start``. ``attach="approach"``: attach at the first
+    frame within ``approach_tol`` of the closest approach in the first ``window_s`` (at most half
+    the interval; the first, as a hand lifting an object slides along its side and gets no further
+    from it); ``"stop"``: at the slowest frame of the hands in that window (a hand stops on a
+    piece of furniture before it pushes or pulls; unlike the distance, the speed does not depend
+    on the localisation offset). Detach after the slowest frame of the hands (speed smoothed over
+    ~0.07 s) within the last ``window_s`` (the hand stops before it lets go). Returns (attach,
+    detach) frames, start <= attach < detach <= end."""
+    if attach not in ("approach", "stop"):
+        raise ValueError(f"attach must be 'approach' or 'stop', got {attach!r}")
     n = end - start
     w = _attach_window(n, fps, window_s)
     near = dist_at_rest[:w]
-    attach = start + int(np.argmax(near <= near.min() + approach_tol))
+    first = start + int(np.argmax(near <= near.min() + approach_tol))
     if n < 3:
-        return attach, end
+        return first, end
     # speed of the hands smoothed over ~0.07 s: tracked hands jitter by millimetres per frame, as much
     # as the hands move while they slow down to let go
     smooth = gaussian_filter1d(np.asarray(hands, np.float64), sigma=max(0.033 * fps, 0.5), axis=0, mode="nearest")
     speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1).mean(-1)  # (n,) m/frame
-    lo = max(attach - start + 1, n - w)
+    if attach == "stop":
+        first = start + int(np.argmin(speed[:w]))
+    lo = max(first - start + 1, n - w)
     detach = start + lo + int(np.argmin(speed[lo:])) + 1
-    return attach, max(detach, attach + 1)
+    return first, max(detach, first + 1)
 
 
 def _clip(segs: tuple[ContactSegment, ...], a: int, d: int) -> tuple[ContactSegment, ...]:
@@ -242,7 +251,10 @@ def _attach(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarra
     if "grasp_point" in meta:  # held when the hand is there, not when it first comes near a surface
         grasp = pose[:3, :3] @ np.asarray(meta["grasp_point"], np.float64).reshape(3) + pose[:3, 3]
         dist = np.linalg.norm(span.reshape(-1, 3) - grasp, axis=-1)
-    a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps)
+    # a sliding object (furniture, a drawer) is taken when the hand stops on it: the measured
+    # distance to it at rest is off by the localisation error (a chair's pull began 0.6 s late)
+    mode = "stop" if queries.scene.objects[name].dof == "slide" else "approach"
+    a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps, attach=mode)
     return _clip(segs, a, d_end), a, near.reshape(span.shape)[a - s0], target.reshape(span.shape)[a - s0]
 
 

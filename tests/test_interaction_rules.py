@@ -1,5 +1,5 @@
 """sample.interactions: tracked doors and drawers stay within their range; a small object is
-attached when the hand reaches its grasp point."""
+attached when the hand reaches its grasp point, furniture when the hand stops on it."""
 from __future__ import annotations
 
 import dataclasses
@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from sample.carry import _dof_value
-from sample.interactions import Interaction, _attach, _drive_one, clip_to_limits
+from sample.interactions import Interaction, _attach, _drive_one, attach_detach, clip_to_limits
 from sample.object_choice import ObjectQueries
 from scenes.procedural import make_room
 from scenes.scene import Scene, SceneObject
@@ -121,3 +121,22 @@ def test_a_hand_reaching_over_a_small_object_attaches_at_its_grasp_point():
         assert held[0].start == frames[key] and held[-1].end <= 140
         np.testing.assert_allclose(near[0, 2], top, atol=1e-6)  # the contact point is on its top
     assert frames == {"grasp": 110, "surface": 104}
+
+
+def test_furniture_is_taken_where_the_hand_stops_whatever_the_offset():
+    """A hand comes 20 cm in to a chair's back (surface at x = 0; frames 0-10), rests on it
+    (10-12) and pulls it 30 cm (12-40). Sensed 10 cm too far in (the localisation error), the
+    hand is nearest the chair at rest mid-reach; the stop rule attaches at the rest either way."""
+    ease = lambda n: 0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n))
+    x = np.r_[0.2 * (1 - ease(11)), np.zeros(2), 0.3 * ease(27)]
+    near = {}
+    for offset in (0.0, -0.1):
+        hands = np.zeros((40, 1, 3))
+        hands[:, 0, 0] = x + offset
+        dist = np.abs(hands[:, 0, 0])  # to the chair's back at rest
+        stop, detach = attach_detach(hands, dist, 100, 140, 30.0, attach="stop")
+        assert 110 <= stop <= 112 and detach > stop
+        near[offset] = attach_detach(hands, dist, 100, 140, 30.0)[0]
+    assert near[0.0] >= 109 and near[-0.1] <= 106  # the approach rule: drifted, attached mid-reach
+    with pytest.raises(ValueError, match="attach must be"):
+        attach_detach(hands, dist, 100, 140, 30.0, attach="grasp")

@@ -15,8 +15,8 @@
    becomes a control point for the root path, which is bent to it by
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
 4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
-   two-hand / one-hand sliding, hinge, free), segment by segment; the object is released at the
-   contact's end and stays where it was left.
+   two-hand / one-hand sliding, hinge, free), segment by segment, doors and drawers within their
+   range (``clip_to_limits``); the object is released at the contact's end and stays where it was left.
 The result is a Sequence with the corrected joints / root and ``objects/<name>/pose`` for every
 dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)``,
 ``root_correction (T, 2)`` (m) and ``interactions (N, 5)`` int64 rows, one per hand-set segment,
@@ -32,7 +32,8 @@ from scipy.ndimage import gaussian_filter1d
 
 from scenes.scene import Scene, SceneObject
 from trumans.contacts.model_io import ContactModels
-from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis, two_hand_motion
+from trumans.contacts.objects import (free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
+                                      two_hand_motion)
 from trumans.contacts.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
 from trumans.contacts.per_dof import predict_dof_contacts
 from trumans.contacts.predictor import CLASSES, ContactPredictor, predict_contacts

@@ -15,8 +15,8 @@
    becomes a control point for the root path, which is bent to it by
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
 4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
-   two-hand / one-hand sliding, hinge, free), segment by segment; the object is released at the
-   contact's end and stays where it was left.
+   two-hand / one-hand sliding, hinge, free), segment by segment, doors and drawers within their
+   range (``clip_to_limits``); the object is released at the contact's end and stays where it was left.
 The result is a Sequence with the corrected joints / root and ``objects/<name>/pose`` for every
 dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)``,
 ``root_correction (T, 2)`` (m) and ``interactions (N, 5)`` int64 rows, one per hand-set segment,
@@ -25,13 +25,15 @@ dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from scenes.scene import Scene
+from scenes.scene import Scene, SceneObject
 from trumans.contacts.model_io import ContactModels
-from trumans.contacts.objects import free_motion, hand_points, hinge_motion, one_hand_motion, two_hand_motion
+from trumans.contacts.objects import (free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
+                                      two_hand_motion)
 from trumans.contacts.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
 from trumans.contacts.per_dof import predict_dof_contacts
 from trumans.contacts.predictor import CLASSES, ContactPredictor, predict_contacts
@@ -41,10 +43,11 @@ from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
+from .carry import _angles, dof_limits
 from .object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
 __all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
-           "attach_detach", "drive_object", "track", "track_interactions"]
+           "attach_detach", "drive_object", "clip_to_limits", "track", "track_interactions"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -141,29 +144,37 @@ def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
 
 
 def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
-                  window_s: float = 1.0, approach_tol: float = 0.01) -> tuple[int, int]:
+                  window_s: float = 1.0, approach_tol: float = 0.01,
+                  attach: Literal["approach", "stop"] = "approach") -> tuple[int, int]:
     """Refine a contact interval [start, end) to the frames the object is actually held (not in
     the paper; the contact labels switch on a few cm before the hand touches and off a few cm after
     it lets go, and the hands must not drag the object while reaching or retracting).
     hands: (n, k, 3) contacting hand points over the interval; dist_at_rest: (n,) their mean
-    distance (m) to the object at its pose at ``start``. Attach at the first frame within
-    ``approach_tol`` of the closest approach in the first ``window_s`` (at most half the interval;
-    the first, as a hand lifting an object slides along its side and gets no further from it),
-    detach after the slowest frame of the hands (speed smoothed over ~0.07 s) within the last
-    ``window_s`` (the hand stops before it lets go). Returns (attach, detach) frames, start <= attach < detach <= end."""
+    distance (m) to the object at its pose at ``start``. ``attach="approach"``: attach at the first
+    frame within ``approach_tol`` of the closest approach in the first ``window_s`` (at most half
+    the interval; the first, as a hand lifting an object slides along its side and gets no further
+    from it); ``"stop"``: at the slowest frame of the hands in that window (a hand stops on a
+    piece of furniture before it pushes or pulls; unlike the distance, the speed does not depend
+    on the localisation offset). Detach after the slowest frame of the hands (speed smoothed over
+    ~0.07 s) within the last ``window_s`` (the hand stops before it lets go). Returns (attach,
+    detach) frames, start <= attach < detach <= end."""
+    if attach not in ("approach", "stop"):
+        raise ValueError(f"attach must be 'approach' or 'stop', got {attach!r}")
     n = end - start
     w = _attach_window(n, fps, window_s)
     near = dist_at_rest[:w]
-    attach = start + int(np.argmax(near <= near.min() + approach_tol))
+    first = start + int(np.argmax(near <= near.min() + approach_tol))
     if n < 3:
-        return attach, end
+        return first, end
     # speed of the hands smoothed over ~0.07 s: tracked hands jitter by millimetres per frame, as much
     # as the hands move while they slow down to let go
     smooth = gaussian_filter1d(np.asarray(hands, np.float64), sigma=max(0.033 * fps, 0.5), axis=0, mode="nearest")
     speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1).mean(-1)  # (n,) m/frame
-    lo = max(attach - start + 1, n - w)
+    if attach == "stop":
+        first = start + int(np.argmin(speed[:w]))
+    lo = max(first - start + 1, n - w)
     detach = start + lo + int(np.argmin(speed[lo:])) + 1
-    return attach, max(detach, attach + 1)
+    return first, max(detach, first + 1)
 
 
 def _clip(segs: tuple[ContactSegment, ...], a: int, d: int) -> tuple[ContactSegment, ...]:
@@ -192,6 +203,28 @@ def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np
     raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
 
 
+def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
+    """World poses (n, 4, 4) of a hinged or axis-sliding object moved back within its range
+    (``sample.carry.dof_limits``, from the scene pose: a door's opening angle, a drawer's travel);
+    poses within range and objects without limits are returned unchanged. The hands alone push a
+    drawer past closed or a door through its frame whenever the localisation drifts during the
+    contact; the dof's end stop is where the object really stops (extends the dof model of iReplica
+    supp. §10, which has no range)."""
+    lo, hi = dof_limits(obj)
+    poses = np.asarray(poses, dtype=np.float64)
+    if obj.dof not in ("hinge", "slide") or obj.axis is None or not (np.isfinite(lo) or np.isfinite(hi)):
+        return poses
+    axis = obj.pose[:3, :3] @ obj.axis
+    if obj.dof == "hinge":
+        point = obj.pose[:3, :3] @ obj.hinge_point + obj.pose[:3, 3]
+        angle = _angles(poses @ np.linalg.inv(obj.pose), axis)
+        return rotation_about_axis(np.clip(angle, lo, hi) - angle, axis, point) @ poses
+    travel = (poses[:, :3, 3] - obj.pose[:3, 3]) @ axis
+    out = poses.copy()
+    out[:, :3, 3] += (np.clip(travel, lo, hi) - travel)[:, None] * axis
+    return out
+
+
 def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
                wrist_rot: np.ndarray) -> None:
     """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
@@ -202,7 +235,7 @@ def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], join
         s, e = seg.start, seg.end
         M = drive_object(it.dof, seg, hand_points(joints[s:e]), wrist_rot[s:e], joints[s:e][:, list(_WRIST)], track[s],
                          obj.axis, obj.hinge_point)
-        track[s:e] = M @ track[s]
+        track[s:e] = clip_to_limits(obj, M @ track[s])
         track[e:] = track[e - 1]
 
 
@@ -210,9 +243,19 @@ def _attach(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarra
             s0: int, fps: float, hand_radius: float) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
     """A contact starting at frame ``s0`` attached to ``name`` (at ``pose``): its segments clipped to
     the held frames, the attach frame, and the contact points p_c (k, 3) with their targets
-    ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points."""
+    ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points. The
+    attach frame is found on the hands' distance to the object's surface, or to its declared
+    ``grasp_point`` (meta, object frame) when it has one: a hand reaching down over a small object
+    (a mouse) stays about as near its top while it is still moving in, and would drag it along."""
     near, dist, target = queries.contact_target(name, pose, span.reshape(-1, 3), hand_radius)
-    a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps)
+    meta = queries.scene.objects[name].meta
+    if "grasp_point" in meta:  # held when the hand is there, not when it first comes near a surface
+        grasp = pose[:3, :3] @ np.asarray(meta["grasp_point"], np.float64).reshape(3) + pose[:3, 3]
+        dist = np.linalg.norm(span.reshape(-1, 3) - grasp, axis=-1)
+    # a sliding object (furniture, a drawer) is taken when the hand stops on it: the measured
+    # distance to it at rest is off by the localisation error (a chair's pull began 0.6 s late)
+    mode = "stop" if queries.scene.objects[name].dof == "slide" else "approach"
+    a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps, attach=mode)
     return _clip(segs, a, d_end), a, near.reshape(span.shape)[a - s0], target.reshape(span.shape)[a - s0]
 
 

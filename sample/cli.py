@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .sampling_args import add_postprocess_arguments, postprocess_kwargs
+from .sampling_args import add_guidance_arguments, add_postprocess_arguments, postprocess_kwargs
 
 __all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT"]
 
@@ -112,9 +112,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta", type=float, default=0.0, help="DDIM eta (0 deterministic, 1 ancestral)")
     p.add_argument("--guidance", type=float, nargs=2, default=(1.0, 1.0), metavar=("SCENE", "ACTION"),
                    help="classifier-free guidance scales (default 1 1)")
-    p.add_argument("--goal-guidance", type=float, default=20.0,
-                   help="spatial guidance step pulling the body onto each episode's goal (0 = inpainting only)")
-    p.add_argument("--goal-iters", type=int, default=3, help="guidance updates per denoising step (default 3)")
+    add_guidance_arguments(p)
     add_postprocess_arguments(p)
     p.add_argument("--max-seconds", type=float, default=600.0, help="give up when the plan is not done by then")
     p.add_argument("--device", default="cpu", help="torch device (cpu, cuda, cuda:1)")

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .sampling_args import add_postprocess_arguments, postprocess_kwargs
+from .sampling_args import (GOAL_GUIDANCE, GOAL_ITERS, add_guidance_arguments, add_postprocess_arguments,
+                            postprocess_kwargs)
 
 __all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS"]
 
@@ -37,8 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta", type=float, default=0.0, help="DDIM eta of the fast sampler (0 deterministic, 1 "
                    "ancestral: with --steps 100 --goal-guidance 0 it samples what the naive sampler samples)")
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
-    p.add_argument("--goal-guidance", type=float, default=20.0, help="spatial goal guidance of the fast sampler")
-    p.add_argument("--goal-iters", type=int, default=3)
+    add_guidance_arguments(p)
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
     p.add_argument("--data", default=None, help="dataset whose test split is the real reference for fid "
@@ -64,7 +64,7 @@ def _plans(sc, seed: int):
 
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
-             guidance: tuple[float, int] = (20.0, 3), post: dict | None = None, encoder: str | None = None,
+             guidance: tuple[float, int] = (GOAL_GUIDANCE, GOAL_ITERS), post: dict | None = None, encoder: str | None = None,
              eta: float = 0.0) -> dict:
     """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
     ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one)."""

@@ -31,8 +31,8 @@ from trumans.rotations import rodrigues, skew, unit
 from trumans.sequence import ObjectTrack
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["CarryConfig", "Interaction", "hand_track", "plan_interactions", "dof_limits", "initial_motion",
-           "optimise_motion", "put_down_pose", "object_tracks"]
+__all__ = ["CarryConfig", "Interaction", "hand_track", "plan_interactions", "dof_limits", "rotation_angles",
+           "initial_motion", "optimise_motion", "put_down_pose", "object_tracks"]
 
 InteractionKind = Literal["carry", "open", "close"]
 
@@ -160,7 +160,7 @@ def initial_motion(obj, pose0: np.ndarray, hand_pts: np.ndarray, hand_rot: np.nd
         axis, point = _hinge_frame(obj)
         lo, hi = dof_limits(obj)
         M = hinge_motion(mid, point, axis)
-        angle = np.clip(_dof_value(obj, pose0) + _angles(M, axis), lo, hi)
+        angle = np.clip(_dof_value(obj, pose0) + rotation_angles(M, axis), lo, hi)
         return rotation_about_axis(angle, axis, point) @ obj.pose
     if obj.dof == "slide":
         axis = None if obj.axis is None else obj.pose[:3, :3] @ obj.axis
@@ -175,7 +175,7 @@ def initial_motion(obj, pose0: np.ndarray, hand_pts: np.ndarray, hand_rot: np.nd
     raise ValueError(f"object {obj.name!r} is static (dof {obj.dof}); only free, hinge and slide objects move")
 
 
-def _angles(M: np.ndarray, axis: np.ndarray) -> np.ndarray:
+def rotation_angles(M: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """Rotation angles (n,) about ``axis`` of (n, 4, 4) motions that rotate about it."""
     ref = np.cross(axis, [1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.cross(axis, [0.0, 1.0, 0.0])
     return np.unwrap(signed_angle(np.broadcast_to(ref, (len(M), 3)), M[:, :3, :3] @ ref, axis))

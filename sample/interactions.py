@@ -43,7 +43,7 @@ from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
-from .carry import _angles, dof_limits
+from .carry import dof_limits, rotation_angles
 from .object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
 __all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
@@ -217,7 +217,7 @@ def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
     axis = obj.pose[:3, :3] @ obj.axis
     if obj.dof == "hinge":
         point = obj.pose[:3, :3] @ obj.hinge_point + obj.pose[:3, 3]
-        angle = _angles(poses @ np.linalg.inv(obj.pose), axis)
+        angle = rotation_angles(poses @ np.linalg.inv(obj.pose), axis)
         return rotation_about_axis(np.clip(angle, lo, hi) - angle, axis, point) @ poses
     travel = (poses[:, :3, 3] - obj.pose[:3, 3]) @ axis
     out = poses.copy()

@@ -52,6 +52,16 @@ def test_round_trip(tmp_path):
     assert ds.hash == index["hash"] == content_hash(tmp_path, [str(p.relative_to(tmp_path)) for p in ds.files])
 
 
+def test_relative_root_loads_its_split_paths(tmp_path, monkeypatch):
+    """A dataset opened by a relative path loads the paths its own ``split`` returns (was: the root joined twice)."""
+    _make(tmp_path / "ds")
+    monkeypatch.chdir(tmp_path)
+    ds = Dataset("ds")
+    assert all(p.is_absolute() for p in ds.split("train"))
+    assert ds.load(ds.split("train")[1]).scene == "train_room1"
+    assert ds.load("sequences/val_room0.npz").scene == "val_room0"
+
+
 def test_hash_changes_with_content(tmp_path):
     index = _make(tmp_path)
     files = [p for v in index["splits"].values() for p in v]

@@ -117,7 +117,7 @@ class Dataset:
     """
 
     def __init__(self, root: str | Path) -> None:
-        self.root = Path(root)
+        self.root = Path(root).absolute()  # split paths are absolute, so `load` of one never joins the root twice
         self.index = load_index(self.root)
         absent = [p for p in self.files if not p.is_file()]
         absent += [self.root / d for d in self.index["scenes"].values() if not (self.root / d).is_dir()]

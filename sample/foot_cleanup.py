@@ -5,9 +5,11 @@ context frames (fixed, already cleaned) followed by the new frames:
 
 1. contacts per foot from the height of its lowest foot joint (ankle / toe) above its resting
    height and from its horizontal speed, with hysteresis (enter when low *and* slow, leave when
-   high *or* fast; in between the previous state holds);
-2. over each contact run the foot is locked at the floor point where it landed (the last context
-   frame when the run began before the episode, so locks carry across seams); outside contacts
+   high *or* fast; in between the previous state holds); on upright frames where neither foot is
+   planted (the network's feet both slide, which would give each its own swing: a flight phase,
+   which walking does not have), the foot that is lower and slower is planted (``support_foot``);
+2. over each contact run the foot is locked on the floor at its mean position over the run (at the
+   last context frame when the run began before the episode, so locks carry across seams); outside contacts
    a foot under the floor is lifted onto it; the correction fades out over ``blend`` frames after
    a run and in over ``blend`` frames before it (new frames only);
 3. a swing (the frames between two locks, or between the last context frame and a lock) goes from
@@ -21,7 +23,10 @@ context frames (fixed, already cleaned) followed by the new frames:
    A swing still in the air at the episode's end keeps the network's path and rises over
    ``tail_rise`` frames to the clearance of a step twice its way so far; the next episode starts
    it from that (context) frame with its velocity and height and lands it;
-4. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
+4. with the scene's signed distance field (``clean_feet(..., sdf=)``, given by the sampler), a foot
+   target whose ankle or toe is inside furniture (closer than its core radius) moves out along the
+   field's gradient, horizontally while planted (the lock moves as one), in 3D while swinging;
+5. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
    stays, the ankle goes to its target (clamped to the leg's reach), the knee stays in the plane
    of its current bend, the toe keeps its offset from the ankle, so every bone length is exact.
 
@@ -34,9 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["FootCleanupConfig", "foot_contacts", "clean_feet", "two_bone_positions", "FOOT_REST"]
+__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "clean_feet", "two_bone_positions", "FOOT_REST"]
 
 # (hip, knee, ankle, toe) per leg
 LEGS = {side: tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle", "foot")) for side in ("left", "right")}
@@ -50,7 +56,11 @@ class FootCleanupConfig:
     blend: frames over which a lock's correction fades in and out (free frames not between two
     anchors); swing_height (m) / swing_ratio: the least clearance of a swing's lowest foot joint at
     mid-swing, ``min(swing_height, swing_ratio x step length)`` (0 = the network's height);
-    tail_rise: frames over which a swing still in the air at the episode's end rises to its clearance."""
+    tail_rise: frames over which a swing still in the air at the episode's end rises to its clearance;
+    support: plant one foot on upright frames where neither is (``support_foot``; walking has no
+    flight phase), the one whose height + ``support_speed_weight`` x horizontal speed (m per m/s) is
+    lower; lock_at_mean: a contact run begun in this episode is locked at its mean position, not at
+    its first (a sliding foot is moved half as far, so a locked leg overstretches less)."""
 
     enter_height: float = 0.06
     exit_height: float = 0.10
@@ -60,6 +70,9 @@ class FootCleanupConfig:
     swing_height: float = 0.07
     swing_ratio: float = 0.2
     tail_rise: int = 3
+    support: bool = True
+    support_speed_weight: float = 0.1
+    lock_at_mean: bool = True
 
     def __post_init__(self) -> None:
         if not 0 <= self.enter_height <= self.exit_height:
@@ -99,6 +112,41 @@ def foot_contacts(joints: np.ndarray, fps: float, config: FootCleanupConfig = Fo
         last = np.maximum.accumulate(idx, axis=1)  # last decisive frame at or before t (hysteresis)
         state = np.take_along_axis(enter, np.maximum(last, 0), axis=1)
         out[..., s] = np.where(last >= 0, state, init[:, s:s + 1])
+    return out
+
+
+def support_foot(contact: np.ndarray, joints: np.ndarray, leg_length: float, fps: float, fixed: int = 0,
+                 margin: float = 0.02, upright: float = 0.8, speed_weight: float = 0.0) -> np.ndarray:
+    """(B, T, 2) contacts -> the same with one foot planted on every new frame (>= ``fixed``) where
+    neither is and the body stands upright (hip above the lower ankle by at least ``upright`` x
+    ``leg_length``, m): the lower foot (lowest foot joint above rest), switching only when the other
+    is ``margin`` m lower or planted (hysteresis). Walking has no flight phase; a generated body whose
+    feet both slide too fast to count as planted stands on the one nearer the floor. Sitting down,
+    crouching and lying are left to the detected contacts."""
+    B, T, _ = contact.shape
+    legs = list(LEGS.values())
+    h = np.stack([_foot_height(joints, a, t) for _, _, a, t in legs], -1)  # (B, T, 2)
+    hip_z = 0.5 * (joints[..., legs[0][0], 2] + joints[..., legs[1][0], 2])
+    low_ankle = np.minimum(joints[..., legs[0][2], 2], joints[..., legs[1][2], 2])
+    stands = hip_z - low_ankle >= upright * leg_length
+    score = h.copy()
+    if speed_weight > 0 and T > 1:
+        mid = np.stack([0.5 * (joints[..., a, :2] + joints[..., t, :2]) for _, _, a, t in legs], 2)  # (B, T, 2, 2)
+        v = np.zeros((B, T, 2))
+        v[:, 1:] = np.linalg.norm(np.diff(mid, axis=1), axis=-1) * fps
+        v[:, 0] = v[:, 1]
+        score = score + speed_weight * v  # m of height per m/s
+    lower = (score[..., 1] < score[..., 0]).astype(np.int64)  # 0 left, 1 right
+    one = contact.sum(-1) == 1
+    pick = np.where(one, contact[..., 1].astype(np.int64), lower)
+    decisive = one | (np.abs(score[..., 0] - score[..., 1]) > margin)
+    t = np.arange(T)[None]
+    last = np.maximum.accumulate(np.where(decisive, t, -1), axis=1)
+    foot = np.where(last >= 0, np.take_along_axis(pick, np.maximum(last, 0), axis=1), lower[:, :1])
+    add = stands & ~contact.any(-1) & (t >= fixed)
+    out = contact.copy()
+    out[..., 0] |= add & (foot == 0)
+    out[..., 1] |= add & (foot == 1)
     return out
 
 
@@ -190,10 +238,43 @@ def _swing_paths(ankle: np.ndarray, target: np.ndarray, height: np.ndarray, cont
     return out
 
 
+def out_of_scene(ankle: np.ndarray, toe_off: np.ndarray, sdf, radii: tuple[float, float], free: np.ndarray | None = None,
+                 iters: int = 2, max_step: float = 0.15) -> np.ndarray:
+    """Foot targets (B, T, 3) moved out of the scene: where the ankle or the toe (ankle + ``toe_off``)
+    is closer to a surface than its ``radii`` (m), the ankle moves along the field's gradient by the
+    depth (at most ``max_step`` m per iteration): horizontally on planted frames (the foot stays on
+    the floor; a lock's frames share one target, so they move together and the lock holds), in 3D
+    on ``free`` (B, T) frames (a swing under a seat's top goes over it). sdf: ``SceneSDF`` (floor
+    excluded)."""
+    import torch
+
+    out = np.array(ankle, dtype=np.float64, copy=True)
+    r = np.asarray(radii, dtype=np.float64)
+    for _ in range(iters):
+        pts = np.stack([out, out + toe_off], -2)  # (B, T, 2, 3)
+        d, g = sdf.value_and_gradient(torch.as_tensor(pts, dtype=torch.float32))
+        depth = r - d.double().numpy()  # (B, T, 2)
+        g = g.double().numpy()
+        if free is None:
+            g[..., 2] = 0.0
+        else:
+            g[..., 2] *= free[..., None]
+        n = np.linalg.norm(g, axis=-1, keepdims=True)
+        move = np.where((depth > 0)[..., None] & (n > 1e-6), g / np.maximum(n, 1e-6) * np.minimum(depth, max_step)[..., None], 0.0)
+        pick = np.argmax(np.where(depth > 0, depth, -np.inf), axis=-1)  # the deeper of ankle / toe
+        step = np.take_along_axis(move, pick[..., None, None], axis=-2)[..., 0, :]
+        if not np.abs(step).any():
+            break
+        out += step
+    return out
+
+
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
-               config: FootCleanupConfig = FootCleanupConfig()) -> np.ndarray:
+               config: FootCleanupConfig = FootCleanupConfig(), sdf=None) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
-    (the context) are kept and seed the locks. See the module doc."""
+    (the context) are kept and seed the locks. sdf: a ``SceneSDF`` of the scene (floor excluded) or
+    None; with it, planted and swinging feet are moved out of furniture (``out_of_scene``, core
+    radii). See the module doc."""
     J = np.array(joints, dtype=np.float64, copy=True)
     if J.ndim != 4 or J.shape[2:] != (24, 3):
         raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
@@ -201,6 +282,10 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
     if not 0 <= fixed <= T:
         raise ValueError(f"fixed must be in [0, {T}] frames, got {fixed}")
     contact = foot_contacts(J, fps, config)
+    if config.support:
+        l, r = LEGS["left"], LEGS["right"]
+        leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
+        contact = support_foot(contact, J, float(leg), fps, fixed, speed_weight=config.support_speed_weight)
     for s, (hip, knee, ankle, toe) in enumerate(LEGS.values()):
         c = contact[..., s]
         h = _foot_height(J, ankle, toe)  # (B, T)
@@ -214,6 +299,12 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
                                                t, 0), axis=1)
         start = np.maximum(start, min(fixed, T) - 1) if fixed > 0 else start
         lock_xy = np.take_along_axis(A[..., :2], start[..., None], axis=1)
+        if config.lock_at_mean:  # a run begun in this episode is locked at its mean, not its first, position
+            key = (np.arange(B)[:, None] * T + start)[c]
+            n = np.bincount(key, minlength=B * T)
+            mean = np.stack([np.bincount(key, A[..., i][c], minlength=B * T) / np.maximum(n, 1) for i in range(2)], -1)
+            own = (start >= fixed) if fixed > 0 else np.ones_like(c)
+            lock_xy = np.where((c & own)[..., None], mean.reshape(B, T, 2)[np.arange(B)[:, None], start], lock_xy)
         A[..., :2] = np.where(c[..., None], lock_xy, A[..., :2])
         delta = A - J[:, :, ankle]  # (B, T, 3) correction; outside runs only the floor lift
         idx, w = _fade(c, fixed, config.blend)
@@ -224,6 +315,9 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
         target = J[:, :, ankle] + corr
         target = _swing_paths(J[:, :, ankle], target, h, c, fixed, config)
         toe_off = J[:, :, toe] - J[:, :, ankle]
+        if sdf is not None:
+            target[:, fixed:] = out_of_scene(target[:, fixed:], toe_off[:, fixed:], sdf,
+                                             (float(JOINT_CORE_RADIUS[ankle]), float(JOINT_CORE_RADIUS[toe])), ~c[:, fixed:])
         new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
                                                  float(lengths[knee]), float(lengths[ankle]))
         solve = (np.abs(target - J[:, :, ankle]).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg

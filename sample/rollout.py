@@ -121,11 +121,13 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     if sampler.config.seam_blend > 0:
         world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
     world = project_bones(world, lengths)
-    if sampler.config.scene_pushout and sampler.scene_sdf is not None:  # before the feet: they re-lock after it
-        # dynamic objects count where they stand until the plan moves one (then the static scene only)
-        world = push_out(world, sampler.scene_sdf_all if moved is None else sampler.scene_sdf, sampler.k)
+    # dynamic objects count where they stand until the plan moves one (then the static scene only)
+    sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
+    if sampler.config.scene_pushout and sdf is not None:  # before the feet: they re-lock after it
+        world = push_out(world, sdf, sampler.k)
     if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
-        world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k)
+        world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k,
+                           sdf=sdf if sampler.config.scene_pushout else None)
     weight = np.stack([c.reach_weight for c in ctrls])  # (B, L, 2) from the plan's hand phases (controller)
     if sampler.config.reach_cleanup and (weight > 0).any():  # the acting arm onto its hand target
         world = clean_reach(world, lengths, np.stack([c.reach_target for c in ctrls]), weight, sampler.k)

@@ -1,8 +1,9 @@
 """Foot cleanup of sampled episodes (sample.foot_cleanup): locks, floor, bone lengths, context."""
 import numpy as np
 import pytest
+import torch
 
-from sample.foot_cleanup import LEGS, FootCleanupConfig, clean_feet, foot_contacts, two_bone_positions
+from sample.foot_cleanup import LEGS, FootCleanupConfig, clean_feet, foot_contacts, support_foot, two_bone_positions
 from sample.sampler import bone_lengths_of
 from sample.synthesis_metrics import feet_skate_cm, floor_err_cm
 from trumans.skeleton import rest_offsets, forward_kinematics
@@ -160,3 +161,76 @@ def test_swing_across_an_episode_seam_rises_then_lands_without_a_jump():
     assert np.abs(np.diff(out[0, :, ankle], axis=0)).max() < 0.08  # m per frame: no jump at the seam
     np.testing.assert_allclose(out[0, 17:, ankle, :2], np.broadcast_to(J[0, 16, ankle, :2], (13, 2)), atol=1e-6)
     assert feet_skate_cm(out[0]) < 3.0
+
+
+def test_support_foot_plants_the_lower_foot_only_when_upright():
+    """Both feet sliding fast (no detected contact): the lower one is planted, with hysteresis; a body
+    whose hips are low (sitting down) gets no support foot."""
+    T = 20
+    J = np.repeat(_standing(1), T, axis=1)
+    (_, _, la, lt), (_, _, ra, rt) = LEGS["left"], LEGS["right"]
+    # left foot 3 cm up for frames 0-9, then 5 cm; the right the other way round (1 cm differences within
+    # the margin never switch); both feet slide 3 cm a frame, too fast to count as planted
+    J[0, :, la, 2] += np.r_[np.full(10, 0.03), np.full(10, 0.05)]
+    J[0, :, lt, 2] += np.r_[np.full(10, 0.03), np.full(10, 0.05)]
+    right = np.r_[np.full(10, 0.05), np.full(5, 0.04), np.full(5, 0.02)]
+    J[0, :, ra, 2] += right
+    J[0, :, rt, 2] += right
+    for j in (la, lt, ra, rt):
+        J[0, :, j, 0] += 0.03 * np.arange(T)
+    assert not foot_contacts(J, FPS).any()
+    lengths = bone_lengths_of(J[0, 0])
+    leg = lengths[LEGS["left"][1]] + lengths[LEGS["left"][2]]
+    c = support_foot(foot_contacts(J, FPS), J, float(leg), FPS)[0]
+    assert (c.sum(-1) == 1).all()
+    assert c[:10, 0].all()  # left lower by 2 cm
+    assert c[10:15, 0].all()  # right lower by only 1 cm: the left keeps the support
+    assert c[15:, 1].all()  # right lower by 3 cm: switches
+    assert not support_foot(foot_contacts(J, FPS), J, float(leg), FPS, fixed=5)[0, :5].any()
+    low = J.copy()  # hips 40 % of the leg lower: crouching / sitting down, left to the detected contacts
+    low[0, :, [i for i in range(24) if i not in (la, lt, ra, rt)], 2] -= 0.4 * leg
+    assert not support_foot(foot_contacts(low, FPS), low, float(leg), FPS).any()
+
+
+def test_support_removes_flight_phases():
+    """Two feet whose free (sliding) spans overlap, as a shuffling network's do, are never both in the
+    air after the cleanup with support; without it each swing gets its clearance arc and both lift."""
+    T = 30
+    J = np.repeat(_standing(1), T, axis=1)
+    (_, _, la, lt), (_, _, ra, rt) = LEGS["left"], LEGS["right"]
+    t = np.arange(T)
+    for (a, b), (t0, t1) in (((la, lt), (6, 20)), ((ra, rt), (3, 17))):  # slides 3 cm a frame over [t0, t1)
+        x = 0.03 * np.clip(t - t0, 0, t1 - t0)
+        J[0, :, a, 0] += x
+        J[0, :, b, 0] += x
+    lengths = bone_lengths_of(J[0, 0])
+
+    def lowest(P):  # (T,) the lower foot's lowest joint above its rest height
+        return np.stack([np.minimum(P[0, :, a, 2] - 0.08, P[0, :, b, 2] - 0.04) for a, b in ((la, lt), (ra, rt))], -1).min(-1)
+
+    assert (lowest(clean_feet(J, lengths, FPS, config=FootCleanupConfig(support=False))) > 0.01).any()
+    assert (lowest(clean_feet(J, lengths, FPS, config=FootCleanupConfig(support=True))) < 0.005).all()
+
+
+def test_out_of_scene_moves_feet_out_of_furniture_and_keeps_locks():
+    """A planted foot 2 cm inside a box's front face moves out along -x until both ankle and toe clear
+    their core radii; a lock's frames move together; a foot in the open is untouched; a free foot
+    under the top goes up."""
+    from sample.foot_cleanup import out_of_scene
+    from sample.penetration_guidance import SceneSDF
+    from test_penetration_guidance import _box_room
+
+    sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4]
+    ankle = np.array([[[1.02, 1.0, 0.08]] * 4 + [[0.5, 1.0, 0.08]]])  # (1, 5, 3): a lock of 4 frames, then the open
+    toe_off = np.broadcast_to(np.array([0.0, 0.12, -0.04]), ankle.shape)  # the toe points along +y
+    r = (0.04, 0.03)
+    out = out_of_scene(ankle, toe_off, sdf, r, iters=4)
+    d_ankle = sdf(torch.as_tensor(out[0, :4], dtype=torch.float32)).numpy()
+    d_toe = sdf(torch.as_tensor(out[0, :4] + toe_off[0, :4], dtype=torch.float32)).numpy()
+    assert (d_ankle > r[0] - 0.01).all() and (d_toe > r[1] - 0.01).all()
+    assert np.allclose(out[0, :4], out[0, 0]) and (out[0, :4, 0] < 1.0).all()  # moved out the front, together
+    np.testing.assert_allclose(out[0, :, 1:], ankle[0, :, 1:])  # along x only; heights kept
+    np.testing.assert_array_equal(out[0, 4], ankle[0, 4])
+    under_top = np.array([[[1.2, 1.0, 0.97]]])  # a swinging foot 3 cm under the box's top goes up over it
+    up = out_of_scene(under_top, np.zeros_like(under_top), sdf, r, free=np.ones((1, 1), bool), iters=4)
+    assert up[0, 0, 2] > 1.0 + r[0] - 0.01 and np.allclose(up[0, 0, :2], under_top[0, 0, :2], atol=0.01)

@@ -9,8 +9,8 @@ import pytest
 from trumans.bvh import import_bvh
 from trumans.importers.fbx import FBX_TICKS, import_fbx, joint_positions, read_fbx, up_axis_matrix
 from trumans.importers.fbx_nodes import parse_ascii, parse_binary, read_fbx_nodes
-from trumans.importers.joint_maps import detect_skeleton, floor_height
-from trumans.skeleton import JOINT_INDEX
+from trumans.importers.joint_maps import detect_skeleton, floor_height, place_pelvis
+from trumans.skeleton import JOINT_INDEX, REST_JOINTS
 
 DATA = Path(__file__).parent / "data"
 CMU_FBX = DATA / "cmu_13_10_daz_first12keys.fbx"
@@ -261,3 +261,37 @@ def test_bvh_with_the_hip_height_in_its_root_offset(tmp_path):
     assert float(fixed.extra["floor_shift_m"]) == pytest.approx(0.85, abs=0.01)
     np.testing.assert_allclose(fixed.joints, good.joints - [0, 0, floor_height(good.joints)], atol=1e-4)
     np.testing.assert_allclose(fixed.root_pos[:, :2], low.root_pos[:, :2], atol=1e-6)
+
+
+def _hips_to_pelvis_up(P):
+    """Height of the pelvis joint over the hip joints' midpoint, along the hips -> spine1 direction (T,)."""
+    J = JOINT_INDEX
+    mid = 0.5 * (P[:, J["left_hip"]] + P[:, J["right_hip"]])
+    up = P[:, J["spine1"]] - mid
+    up /= np.linalg.norm(up, axis=-1, keepdims=True)
+    return np.einsum("ti,ti->t", P[:, J["pelvis"]] - mid, up)
+
+
+def test_place_pelvis_leaves_our_convention_alone():
+    P = np.repeat(REST_JOINTS[None], 5, 0) + np.array([1.0, 2.0, 0.0])
+    np.testing.assert_array_equal(place_pelvis(P), P)
+
+
+def test_place_pelvis_lifts_a_hip_level_root_into_the_pelvis():
+    """A root at the hips' midpoint (CMU's "hip") goes where the rest pose has our pelvis relative to
+    the hips and spine1, in a turned and tilted body too; every other joint stays."""
+    from scipy.spatial.transform import Rotation
+    J = JOINT_INDEX
+    R = Rotation.from_euler("zx", [[t, 0.3 * np.sin(t)] for t in np.linspace(0, 3, 7)])
+    P = np.stack([r.apply(REST_JOINTS) for r in R]) + np.array([0.5, -1.0, 0.2])
+    want = P[:, J["pelvis"]].copy()
+    P[:, J["pelvis"]] = 0.5 * (P[:, J["left_hip"]] + P[:, J["right_hip"]])
+    out = place_pelvis(P)
+    np.testing.assert_allclose(out[:, J["pelvis"]], want, atol=1e-9)
+    np.testing.assert_array_equal(np.delete(out, J["pelvis"], 1), np.delete(P, J["pelvis"], 1))
+    assert _hips_to_pelvis_up(out).min() > 0.05
+
+
+def test_cmu_pelvis_sits_above_the_hips_like_ours(cmu_fbx):
+    rest = _hips_to_pelvis_up(REST_JOINTS[None])[0]
+    np.testing.assert_allclose(_hips_to_pelvis_up(cmu_fbx.joints), rest, atol=0.02)

@@ -81,8 +81,8 @@ def test_walker_statistics_are_its_parameters():
 
 def test_seated_statistics():
     s = clip_statistics(seated())
-    trunk = REST_JOINTS[J["neck"]] - REST_JOINTS[J["pelvis"]]
-    rest_tilt = np.degrees(np.arccos(trunk[2] / np.linalg.norm(trunk)))  # the rest pose leans 4 deg back
+    trunk = REST_JOINTS[J["neck"]] - 0.5 * (REST_JOINTS[J["left_hip"]] + REST_JOINTS[J["right_hip"]])
+    rest_tilt = np.degrees(np.arccos(trunk[2] / np.linalg.norm(trunk)))  # the rest pose leans 3 deg back (hips -> neck)
     assert s["seated_trunk_tilt"] == pytest.approx(rest_tilt, abs=0.5)
     assert s["seated_pelvis_motion_5s"] == pytest.approx(0, abs=0.01)
     assert s["seated_foot_stagger"] == pytest.approx(0, abs=0.01)  # perfect symmetry

@@ -1,8 +1,9 @@
 """Body states found from the motion itself: standing, walking, turning, sitting, lying, and the
 transitions between them, named with the synthetic vocabulary (``trumans.synth.vocab``).
 
-Per frame (z up, metres): pelvis height against the standing pelvis height (where the body stands straight),
-pelvis ground speed, heading rate, trunk tilt (pelvis -> neck against vertical) and thigh angle.
+Per frame (z up, metres): hip height (the hip joints' midpoint, the same in every skeleton convention)
+against the standing hip height (where the body stands straight),
+hip ground speed, heading rate, trunk tilt (hips -> neck against vertical) and thigh angle.
 States are smoothed with a 0.5 s majority window; the frames between standing and a sitting /
 lying state become ``sit_down`` / ``stand_up`` / ``lie_down`` / ``get_up``.
 """
@@ -22,12 +23,12 @@ TURN_RATE = np.deg2rad(45.0)  # rad/s heading rate above which a body that does 
 
 
 def body_features(joints: np.ndarray, fps: float) -> dict[str, np.ndarray]:
-    """Per-frame features of joints (T, 24, 3): pelvis height ``h`` (m), standing pelvis height
+    """Per-frame features of joints (T, 24, 3): hip-midpoint height ``h`` (m), standing hip height
     ``h_stand`` (scalar, m), ground ``speed`` (m/s), ``heading`` and ``yaw_rate`` (rad, rad/s), trunk
     ``tilt`` (rad from vertical), mean ``thigh`` angle from vertical (rad)."""
     joints = np.asarray(joints, np.float64)
     win = max(1, int(round(0.5 * fps)))
-    pel = joints[:, J["pelvis"]]
+    pel = 0.5 * (joints[:, J["left_hip"]] + joints[:, J["right_hip"]])  # hip joints: the same in every skeleton convention
     thigh_len = np.median(np.linalg.norm(joints[:, J["left_knee"]] - joints[:, J["left_hip"]], axis=-1))
     shin_len = np.median(np.linalg.norm(joints[:, J["left_ankle"]] - joints[:, J["left_knee"]], axis=-1))
     trunk = joints[:, J["neck"]] - pel
@@ -55,7 +56,7 @@ def label_states(joints: np.ndarray, fps: float) -> np.ndarray:
     T = len(f["h"])
     rel = f["h"] / f["h_stand"]
     lie = (f["tilt"] > np.deg2rad(60)) & (rel < 0.75)  # on the floor or a bed
-    sit = ~lie & (rel < 0.85) & (f["thigh"] > np.deg2rad(40)) & (f["speed"] < WALK_SPEED)  # chairs to high stools
+    sit = ~lie & (rel < 0.88) & (f["thigh"] > np.deg2rad(40)) & (f["speed"] < WALK_SPEED)  # chairs to high stools (hips at 0.87 of standing)
     walk = ~lie & ~sit & (f["speed"] > WALK_SPEED)
     turn = ~lie & ~sit & ~walk & (np.abs(f["yaw_rate"]) > TURN_RATE)
     base = np.zeros(T, np.int64)  # stand

@@ -27,7 +27,7 @@ from trumans.sequence import Sequence
 from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, REST_JOINTS
 
 __all__ = ["DEFAULT_JOINT_MAP", "SKELETON_MAPS", "KNOWN_UNITS", "map_joints", "detect_skeleton", "retarget_joints",
-           "guess_unit_scale", "sequence_from_joints", "floor_height", "place_on_floor"]
+           "guess_unit_scale", "sequence_from_joints", "floor_height", "place_on_floor", "place_pelvis"]
 
 log = logging.getLogger(__name__)
 
@@ -211,7 +211,45 @@ def retarget_joints(names: list[str], P: np.ndarray, joint_map: dict[str, str] |
         if have[j] and name in _CHAIN_NEXT and have[PARENTS[j]] and (joint_map is None or name not in joint_map):
             if np.median(np.linalg.norm(out[:, j] - out[:, PARENTS[j]], axis=-1)) < _DEGENERATE_M:
                 have[j] = False
-    return synthesise(out, have)
+    out = synthesise(out, have)
+    if joint_map is None or "pelvis" not in joint_map:
+        out = place_pelvis(out)
+    return out
+
+
+_PELVIS, _LHIP, _RHIP, _SPINE1 = (JOINT_INDEX[n] for n in ("pelvis", "left_hip", "right_hip", "spine1"))
+PELVIS_ABOVE_HIPS_M = 0.04  # a mapped root less than this over the hip joints' line is a hip-level root
+
+
+def _pelvis_frame(P: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) pelvis frames (columns: left, forward, up) from the hips and spine1 of P (..., 24, 3)."""
+    x = P[..., _LHIP, :] - P[..., _RHIP, :]
+    x = x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-9)
+    up = P[..., _SPINE1, :] - 0.5 * (P[..., _LHIP, :] + P[..., _RHIP, :])
+    up = up - (up * x).sum(-1, keepdims=True) * x
+    up = up / np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-9)
+    return np.stack([x, np.cross(up, x), up], -1)
+
+
+def place_pelvis(P: np.ndarray) -> np.ndarray:
+    """Our pelvis joint sits inside the pelvis, 9 cm above the hip joints (``REST_JOINTS``); skeletons
+    whose root is at hip level (the CMU FBX / BVH "hip" / "Hips") put it there instead. When the mapped
+    pelvis of P (T, 24, 3) is less than ``PELVIS_ABOVE_HIPS_M`` above the hips' midpoint (median,
+    along the hips-to-spine1 up axis), it is placed where the rest pose has it in the pelvis frame
+    of the hips and spine1, scaled by the hips-to-spine1 distance (so it keeps the rest pose's place
+    between them); otherwise P is returned unchanged."""
+    mid = 0.5 * (P[:, _LHIP] + P[:, _RHIP])
+    F = _pelvis_frame(P)  # (T, 3, 3)
+    height = np.einsum("ti,ti->t", P[:, _PELVIS] - mid, F[..., 2])
+    if np.median(height) >= PELVIS_ABOVE_HIPS_M:
+        return P
+    R = REST_JOINTS
+    rest_mid = 0.5 * (R[_LHIP] + R[_RHIP])
+    local = _pelvis_frame(R).T @ (R[_PELVIS] - rest_mid)  # the rest pelvis in its own frame
+    scale = np.median(np.linalg.norm(P[:, _SPINE1] - mid, axis=-1)) / np.linalg.norm(R[_SPINE1] - rest_mid)
+    out = P.copy()
+    out[:, _PELVIS] = mid + scale * np.einsum("tij,j->ti", F, local)
+    return out
 
 
 def sequence_from_joints(joints: np.ndarray, fps: float, target_fps: float | None = None,

@@ -50,8 +50,14 @@ def setup(device: str | None = None) -> DistInfo:
     return DistInfo(rank, world, local, dev)
 
 
-def cleanup(info: DistInfo) -> None:
+def cleanup(info: DistInfo, finished: bool = False) -> None:
+    """Leave the process group. ``finished``: every rank got here normally, so they meet at a barrier
+    first (gloo aborted now and then with "terminate called without an active exception" when one
+    rank tore its connections down while the other was still in its last collective); after an
+    error no barrier (the other ranks may never come)."""
     if info.enabled and dist.is_initialized():
+        if finished:
+            dist.barrier()
         dist.destroy_process_group()
 
 

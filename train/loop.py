@@ -147,6 +147,7 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
         raise ValueError(f"steps must be >= 0, got {total}")
     info = ddp.setup(device)
     lock = None
+    finished = False  # every rank reached the end: cleanup may meet at a barrier
     try:
         out = Path(out_dir)
         if info.is_main:  # one writer per run folder; a killed run's temp files (.checkpoint.pt.*.tmp) go
@@ -277,6 +278,7 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
             in_sync = all(d == digest for d in digests)
         else:
             in_sync = True
+        finished = True
         tail = history["train"][-100:]
         v = history["val"][-1] if history["val"] else float("nan")
         z = history["zero"][-1] if history["zero"] else float("nan")
@@ -292,7 +294,7 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
     finally:
         if lock is not None:
             lock.release()
-        ddp.cleanup(info)
+        ddp.cleanup(info, finished)
 
 
 def _loss_label(cfg) -> str:

@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 import torch
 
-from trumans.hoi.filter import SKIP_SIGMA_FRAMES, FilterModel, category_indices, prepare_windows, sample_x0
+from trumans.hoi.filter import FilterModel, category_indices, configure_skip, prepare_windows, sample_x0
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips
@@ -60,8 +60,7 @@ class HOIFilter:
 
     def __init__(self, ckpt: Checkpoint) -> None:
         self.ckpt = ckpt
-        self.model: FilterModel = ckpt.build_model()
-        self.model.skip_sigma = float(ckpt.extra.get("skip_sigma", SKIP_SIGMA_FRAMES))
+        self.model: FilterModel = configure_skip(ckpt.build_model(), ckpt)
         self.diffusion = ckpt.build_diffusion()
         self.normalizer = ckpt.normalizer
         self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]

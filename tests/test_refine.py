@@ -17,7 +17,7 @@ from trumans.model.nets.denoiser import Denoiser
 from trumans.sequence import ObjectTrack, Sequence, load_sequence, save_sequence
 from test_hoi_frame import _clip  # pytest puts tests/ on sys.path
 
-NET = FilterNetConfig(d_model=32, layers=1, heads=2, ff=32, window=16, overlap=4, fps=30.0)
+NET = FilterNetConfig(d_model=32, layers=1, heads=2, ff=32, window=16, overlap=4, fps=30.0, wiener_radius=2)
 CATS = ["box", "cup"]
 DIFF = DiffusionConfig(steps=50, loss="l1", prediction="x0")
 
@@ -157,6 +157,9 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     assert res.steps == 3 and np.isfinite(res.val_loss) and res.val_loss_zero_baseline > 0
     filt = HOIFilter.load(tmp_path / "run" / "checkpoint.pt")
     assert filt.categories == ["box"] and filt.window == 16
+    assert filt.model.wiener is not None and filt.model.wiener.radius == 2  # fitted in setup, shipped in extra
+    torch.testing.assert_close(filt.model.wiener.weight, task.wiener.weight)
+    assert make_task("filter", ablate=["wiener"]).config.net.wiener_radius == 0
     b = task.batch(0, 0, 1)
     assert b.x0.shape == (2, 16, FRAME_DIM) and b.cond.shape == (2, 16, 261) and torch.isfinite(b.cond).all()
     loss = task.loss(task.build_model(), b, torch.Generator().manual_seed(0), "cpu")

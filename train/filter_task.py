@@ -32,6 +32,7 @@ from trumans.hoi.filter import (FilterModel, FilterNetConfig, build_filter_model
                                 prepare_windows, sample_x0)
 from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, to_frame
 from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_vel
+from trumans.hoi.wiener import JointWiener, fit_joint_wiener
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
 from trumans.model.episodes import Normalizer
@@ -49,6 +50,7 @@ VAL_SEED = 20240601
 ABLATIONS = {  # --ablate NAME -> overrides
     "regularisers": {"filter": {"w_off": 0.0, "w_vel": 0.0, "w_consist": 0.0, "w_imu": 0.0}},
     "imu": {"corruption": {"p_no_imu": 1.0}},
+    "wiener": {"net": {"wiener_radius": 0}},
 }
 
 
@@ -57,7 +59,8 @@ class FilterSection:
     """Windows, validation and the loss schedule. Paper weights: λ_off = λ_vel = λ_consist = 1,
     λ_imu = 100 on unnormalised SMPL-H vectors; ours act on metres beside an L1 loss on
     standardised features, so they are rescaled (at the start each weighted term is a fraction of
-    the simple loss). simple_only / consist_imu_from: fractions of ``train.steps``."""
+    the simple loss). simple_only / consist_imu_from: fractions of ``train.steps``; wiener_windows:
+    corrupted train windows the joints' linear skip is fitted on (``trumans.hoi.wiener``)."""
 
     stride: int = 16
     val_windows: int = 128
@@ -68,10 +71,11 @@ class FilterSection:
     w_vel: float = 0.1
     w_consist: float = 0.02
     w_imu: float = 0.1
+    wiener_windows: int = 1500
 
     def __post_init__(self) -> None:
-        if self.stride < 1 or self.val_windows < 1 or self.val_sampling_steps < 1:
-            raise ValueError("stride, val_windows and val_sampling_steps must be >= 1")
+        if self.stride < 1 or self.val_windows < 1 or self.val_sampling_steps < 1 or self.wiener_windows < 1:
+            raise ValueError("stride, val_windows, val_sampling_steps and wiener_windows must be >= 1")
         if not 0 <= self.simple_only <= self.consist_imu_from <= 1:
             raise ValueError(f"need 0 <= simple_only <= consist_imu_from <= 1, got {self.simple_only}, {self.consist_imu_from}")
         if min(self.w_off, self.w_vel, self.w_consist, self.w_imu) < 0:
@@ -156,6 +160,7 @@ class FilterTask:
         self.normalizer: Normalizer | None = None
         self.train_data: FilterWindows | None = None
         self.val_batch: FilterBatch | None = None
+        self.wiener: JointWiener | None = None
         self.seed = 0
         self.data_record: dict = {}
 
@@ -163,7 +168,8 @@ class FilterTask:
     def from_config(cls, config: str | Path | None = None, *, overrides: dict[str, dict] | None = None,
                     ablate: Sequence[str] = ()) -> "FilterTask":
         """The task factory (``train.tasks.TASKS``): a config name or TOML path (default cpu);
-        ablations: regularisers (all λ = 0), imu (no window has an IMU)."""
+        ablations: regularisers (all λ = 0), imu (no window has an IMU), wiener (the Gaussian skip
+        for the joints too)."""
         cfg = load_filter_config(config or DEFAULT_CONFIG)
         over = {k: dict(v) for k, v in (overrides or {}).items()}
         for a in ablate:
@@ -183,7 +189,8 @@ class FilterTask:
               prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
               progress: bool = True) -> None:
         """Windows of the train and val splits; normalisation fitted on clean canonical train
-        windows (or the resumed run's); a fixed corrupted validation batch."""
+        windows and the joints' linear skip on corrupted ones (or the resumed run's); a fixed
+        corrupted validation batch."""
         if extra_dirs:
             raise ValueError("the filter trains on one dataset; --augmented is not supported for --task filter")
         net, fc = self.config.net, self.config.filter
@@ -205,15 +212,32 @@ class FilterTask:
             idx = rng.choice(len(self.train_data), size=min(2048, len(self.train_data)), replace=False)
             ident = Normalizer(np.zeros(FRAME_DIM), np.ones(FRAME_DIM))
             self.normalizer = fit_normalizer(make_batch(self.train_data, idx, ident, self.config.corruption, rng).clean.numpy())
+        self.wiener = self._fit_wiener(prev, seed)
         vrng = np.random.default_rng(VAL_SEED)
         vidx = vrng.choice(len(val), size=min(fc.val_windows, len(val)), replace=False)
         self.val_batch = make_batch(val, vidx, self.normalizer, self.config.corruption, vrng)
 
+    def _fit_wiener(self, prev: Checkpoint | None, seed: int) -> JointWiener | None:
+        """The joints' linear skip: the resumed run's, else fitted on ``wiener_windows`` corrupted
+        train windows drawn by ``seed`` (None when ``net.wiener_radius`` is 0)."""
+        R = self.config.net.wiener_radius
+        if R == 0:
+            return None
+        if prev is not None and prev.extra.get("wiener") is not None:
+            return JointWiener.from_extra(prev.extra["wiener"])
+        rng = np.random.default_rng([seed, 1])
+        n = min(self.config.filter.wiener_windows, len(self.train_data))
+        ident = Normalizer(np.zeros(FRAME_DIM), np.ones(FRAME_DIM))
+        b = make_batch(self.train_data, rng.choice(len(self.train_data), size=n, replace=False), ident,
+                       self.config.corruption, rng)
+        return fit_joint_wiener(fill_missing(b.tracked.numpy())[..., JOINTS], b.clean.numpy()[..., JOINTS], R)
+
     def build_model(self) -> FilterModel:
         """The filter-mode denoiser behind the tracked-input skip; its output layer starts at zero,
-        so training starts from x̂0 = the tracked input (gaps interpolated)."""
+        so training starts from x̂0 = the skip of the tracked input (gaps interpolated)."""
         model = build_filter_model(self.model_config)
         model.skip_sigma = self.config.net.skip_sigma
+        model.set_wiener(self.wiener, self.normalizer)
         nn.init.zeros_(model.denoiser.out_proj.weight)
         nn.init.zeros_(model.denoiser.out_proj.bias)
         return model
@@ -270,9 +294,12 @@ class FilterTask:
 
     def checkpoint(self, *, model_state: dict, ema_state: dict, meta: dict, train_state: dict) -> Checkpoint:
         net = self.config.net
+        extra = {"categories": list(self.categories), "skip_sigma": net.skip_sigma}
+        if self.wiener is not None:
+            extra["wiener"] = self.wiener.to_extra()
         return Checkpoint(kind="filter", model_config=self.model_config, model_state=model_state,
                           diffusion_config=self.config.diffusion, normalizer=self.normalizer, fps=net.fps,
-                          L_epi=net.window, k=net.overlap, extra={"categories": list(self.categories), "skip_sigma": net.skip_sigma},
+                          L_epi=net.window, k=net.overlap, extra=extra,
                           data=dict(self.data_record), ema_state=ema_state,
                           meta={**meta, "net": net.to_dict(), "corruption": self.config.corruption.to_dict()},
                           train_state=train_state, code_version=__version__)

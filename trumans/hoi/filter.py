@@ -20,10 +20,11 @@ from trumans.model.checkpoint import Checkpoint, KindSpec, register_kind
 from trumans.model.episodes import FeatureLayout, Normalizer
 from trumans.model.nets.denoiser import Denoiser, DenoiserConfig
 
-from .frame import COND_DIM, FRAME_DIM, IMU_FLAG, IMU_R, condition_features, to_frame, window_frame
+from .frame import COND_DIM, FRAME_DIM, IMU_FLAG, IMU_R, JOINTS, condition_features, to_frame, window_frame
+from .wiener import WIENER_RADIUS, JointWiener
 
 __all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices", "sample_x0", "FilterModel", "fit_normalizer",
-           "build_filter_model"]
+           "build_filter_model", "configure_skip"]
 
 
 SKIP_SIGMA_FRAMES = 2.0  # the default Gaussian low-pass of FilterModel's skip, in frames at the filter's fps
@@ -33,7 +34,9 @@ SKIP_SIGMA_FRAMES = 2.0  # the default Gaussian low-pass of FilterModel's skip, 
 class FilterNetConfig:
     """Network and window sizes. Paper: 4 layers, 4 heads, d = 1024, T = 64 frames; ours is
     narrower for a 2-core CPU. overlap: frames shared by neighbouring windows at inference; fps: the
-    rate the filter works at (input is resampled); skip_sigma: the low-pass of ``FilterModel``'s skip."""
+    rate the filter works at (input is resampled); skip_sigma: the low-pass of ``FilterModel``'s skip;
+    wiener_radius: frames each side of the fitted linear estimate that is the joints' skip
+    (``trumans.hoi.wiener``; 0 = the low-pass for the joints too)."""
 
     d_model: int = 128
     layers: int = 4
@@ -44,12 +47,16 @@ class FilterNetConfig:
     overlap: int = 16
     fps: float = 30.0
     skip_sigma: float = SKIP_SIGMA_FRAMES
+    wiener_radius: int = WIENER_RADIUS
 
     def __post_init__(self) -> None:
         if self.window < 8 or not 0 <= self.overlap < self.window // 2 + 1:
             raise ValueError(f"need window >= 8 and 0 <= overlap <= window / 2, got {self.window}, {self.overlap}")
         if not self.fps > 0 or self.skip_sigma < 0:
             raise ValueError(f"fps must be positive and skip_sigma >= 0, got {self.fps}, {self.skip_sigma}")
+        if not 0 <= 2 * self.wiener_radius < self.window:
+            raise ValueError(f"need 0 <= 2 wiener_radius < window (a window must hold a full neighbourhood), "
+                             f"got {self.wiener_radius}, {self.window}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -176,27 +183,56 @@ class FilterModel(torch.nn.Module):
     """The filter-mode denoiser with a skip from the tracked input: x̂0 = S(c) + D(x_n, n, c, category)
     on the human and object features (the IMU part is D's alone: an absent IMU has no value to
     pass on), where c is the normalised tracked frame vector part of the condition (missing values
-    interpolated in time) and S a fixed Gaussian low-pass in time (σ = ``skip_sigma`` frames, kept in
-    the checkpoint's ``extra``; 0 = no smoothing). The
-    network learns the correction of a smoothed tracked input instead of re-deriving the sequence
-    (our addition for a CPU training budget; the paper's network outputs x̂0 directly). Holds no
-    weights of its own beside ``denoiser``."""
+    interpolated in time) and S a fixed filter of it: a Gaussian low-pass in time (σ = ``skip_sigma``
+    frames, kept in the checkpoint's ``extra``; 0 = no smoothing) and, once ``set_wiener`` gave it
+    one, the fitted linear estimate of the joints (``trumans.hoi.wiener``, ``extra['wiener']``) in
+    place of the low-pass on the joint positions. The network learns the correction of that estimate
+    instead of re-deriving the sequence (our addition for a CPU training budget; the paper's network
+    outputs x̂0 directly). Its learned weights are ``denoiser``'s; the skip is set from the checkpoint."""
 
     def __init__(self, denoiser: torch.nn.Module, skip_sigma: float = SKIP_SIGMA_FRAMES) -> None:
         super().__init__()
         self.denoiser = denoiser
         self.skip_sigma = float(skip_sigma)
+        self.wiener: JointWiener | None = None
+        self._joint_mean = self._joint_std = None
+
+    def set_wiener(self, wiener: JointWiener | None, normalizer: Normalizer | None = None) -> None:
+        """Use ``wiener`` for the joints' skip (None: the Gaussian low-pass); ``normalizer``: the
+        checkpoint's, to take the condition's joints to metres and back."""
+        if wiener is not None and normalizer is None:
+            raise ValueError("set_wiener needs the filter's normalizer to work in metres")
+        self.wiener = wiener
+        if wiener is not None:
+            self._joint_mean = torch.as_tensor(normalizer.mean[JOINTS], dtype=torch.float32)
+            self._joint_std = torch.as_tensor(normalizer.std[JOINTS], dtype=torch.float32)
+
+    def skip(self, frame_cond: torch.Tensor) -> torch.Tensor:
+        """S(c): (B, L, 261) condition -> (B, L, IMU_R.start) normalised human and object features."""
+        skip = smooth_time(frame_cond[..., :IMU_R.start], self.skip_sigma)  # human and object only
+        if self.wiener is None:
+            return skip
+        mean, std = self._joint_mean.to(frame_cond), self._joint_std.to(frame_cond)
+        joints = self.wiener(frame_cond[..., JOINTS] * std + mean)
+        return torch.cat([(joints - mean) / std, skip[..., JOINTS.stop:]], dim=-1)
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, *, frame_cond: torch.Tensor, category: torch.Tensor,
                 mask: torch.Tensor | None = None) -> torch.Tensor:
-        skip = smooth_time(frame_cond[..., :IMU_R.start], self.skip_sigma)  # human and object only
         out = self.denoiser(x, t, mask=mask, frame_cond=frame_cond, category=category)
-        return torch.cat([out[..., :IMU_R.start] + skip, out[..., IMU_R.start:]], dim=-1)
+        return torch.cat([out[..., :IMU_R.start] + self.skip(frame_cond), out[..., IMU_R.start:]], dim=-1)
 
 
 def build_filter_model(config: DenoiserConfig) -> FilterModel:
     """The checkpoint kind's builder: the filter-mode denoiser behind the tracked-input skip."""
     return FilterModel(Denoiser(config))
+
+
+def configure_skip(model: FilterModel, ck: Checkpoint) -> FilterModel:
+    """Set ``model``'s skip from the checkpoint's ``extra``: ``skip_sigma`` and, if present, ``wiener``."""
+    model.skip_sigma = float(ck.extra.get("skip_sigma", SKIP_SIGMA_FRAMES))
+    w = ck.extra.get("wiener")
+    model.set_wiener(None if w is None else JointWiener.from_extra(w), ck.normalizer)
+    return model
 
 
 def _check_filter(ck: Checkpoint) -> None:
@@ -212,6 +248,8 @@ def _check_filter(ck: Checkpoint) -> None:
         raise ValueError(f"window {ck.L_epi} / overlap {ck.k} do not fit the model's {cfg.frames} frames")
     if ck.diffusion_config.prediction != "x0":
         raise ValueError(f"the filter predicts x0, this checkpoint {ck.diffusion_config.prediction!r}")
+    if ck.extra.get("wiener") is not None:
+        JointWiener.from_extra(ck.extra["wiener"])  # shapes and finite values
 
 
 # I'm-HOI filter checkpoints: window = L_epi, overlap = k, fps, categories in extra

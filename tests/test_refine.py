@@ -151,7 +151,8 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     data = _dataset(tmp_path / "data")
     task = make_task("filter", overrides={"net": NET.to_dict(), "diffusion": DIFF.to_dict(),
                                           "train": {"batch_size": 2, "checkpoint_every": 10, "val_every": 10},
-                                          "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 8}})
+                                          "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 8,
+                                                     "wiener_windows": 8, "wiener_real_windows": 8}})
     assert isinstance(task, FilterTask)
     res = train(task, data, tmp_path / "run", steps=3, progress=False)
     assert res.steps == 3 and np.isfinite(res.val_loss) and res.val_loss_zero_baseline > 0
@@ -160,6 +161,9 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     assert filt.model.wiener is not None and filt.model.wiener.radius == 2  # fitted in setup, shipped in extra
     torch.testing.assert_close(filt.model.wiener.weight, task.wiener.weight)
     assert make_task("filter", ablate=["wiener"]).config.net.wiener_radius == 0
+    from train.filter_task import real_motion_windows
+    real = real_motion_windows(16, 30.0, stride=200)  # the corpus's train split, joints only
+    assert real.shape[1:] == (16, FRAME_DIM) and np.isfinite(real[..., JOINTS]).all() and np.isnan(real[..., OBJ_T]).all()
     b = task.batch(0, 0, 1)
     assert b.x0.shape == (2, 16, FRAME_DIM) and b.cond.shape == (2, 16, 261) and torch.isfinite(b.cond).all()
     loss = task.loss(task.build_model(), b, torch.Generator().manual_seed(0), "cpu")

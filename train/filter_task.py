@@ -30,7 +30,8 @@ from trumans.hoi.corrupt import CorruptionConfig, corrupt
 from trumans.hoi.data import FilterWindows, load_filter_windows
 from trumans.hoi.filter import (FilterModel, FilterNetConfig, build_filter_model, filter_denoiser_config, fit_normalizer,
                                 prepare_windows, sample_x0)
-from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, to_frame
+from trumans.hoi.frame import (FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, pack_frames, resample_frames, to_frame,
+                               window_frame)
 from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_vel
 from trumans.hoi.wiener import JointWiener, fit_joint_wiener
 from trumans.model.checkpoint import Checkpoint
@@ -42,7 +43,7 @@ from .config import TrainSection, build_config, load_toml, override_sections
 from .tasks import TaskLoss
 
 __all__ = ["FilterSection", "FilterConfig", "load_filter_config", "FilterTask", "FilterBatch", "make_batch",
-           "filter_metrics", "export_checkpoint", "ABLATIONS", "DEFAULT_CONFIG", "CONFIG_DIR"]
+           "filter_metrics", "export_checkpoint", "real_motion_windows", "ABLATIONS", "DEFAULT_CONFIG", "CONFIG_DIR"]
 
 CONFIG_DIR = Path(__file__).parent / "configs" / "filter"
 DEFAULT_CONFIG = "cpu"
@@ -60,7 +61,9 @@ class FilterSection:
     λ_imu = 100 on unnormalised SMPL-H vectors; ours act on metres beside an L1 loss on
     standardised features, so they are rescaled (at the start each weighted term is a fraction of
     the simple loss). simple_only / consist_imu_from: fractions of ``train.steps``; wiener_windows:
-    corrupted train windows the joints' linear skip is fitted on (``trumans.hoi.wiener``)."""
+    corrupted train windows the joints' linear skip is fitted on (``trumans.hoi.wiener``), and as
+    many of the real-motion corpus's train split (other skeletons: the fit then relies less on the
+    dataset's body proportions) with wiener_real_windows."""
 
     stride: int = 16
     val_windows: int = 128
@@ -72,10 +75,13 @@ class FilterSection:
     w_consist: float = 0.02
     w_imu: float = 0.1
     wiener_windows: int = 1500
+    wiener_real_windows: int = 1500
 
     def __post_init__(self) -> None:
         if self.stride < 1 or self.val_windows < 1 or self.val_sampling_steps < 1 or self.wiener_windows < 1:
             raise ValueError("stride, val_windows, val_sampling_steps and wiener_windows must be >= 1")
+        if self.wiener_real_windows < 0:
+            raise ValueError(f"wiener_real_windows must be >= 0, got {self.wiener_real_windows}")
         if not 0 <= self.simple_only <= self.consist_imu_from <= 1:
             raise ValueError(f"need 0 <= simple_only <= consist_imu_from <= 1, got {self.simple_only}, {self.consist_imu_from}")
         if min(self.w_off, self.w_vel, self.w_consist, self.w_imu) < 0:
@@ -219,18 +225,24 @@ class FilterTask:
 
     def _fit_wiener(self, prev: Checkpoint | None, seed: int) -> JointWiener | None:
         """The joints' linear skip: the resumed run's, else fitted on ``wiener_windows`` corrupted
-        train windows drawn by ``seed`` (None when ``net.wiener_radius`` is 0)."""
-        R = self.config.net.wiener_radius
-        if R == 0:
+        train windows and ``wiener_real_windows`` corrupted windows of the mocap corpus's train split
+        (``real_motion_windows``), drawn by ``seed`` (None when ``net.wiener_radius`` is 0)."""
+        net, fc = self.config.net, self.config.filter
+        if net.wiener_radius == 0:
             return None
         if prev is not None and prev.extra.get("wiener") is not None:
             return JointWiener.from_extra(prev.extra["wiener"])
         rng = np.random.default_rng([seed, 1])
-        n = min(self.config.filter.wiener_windows, len(self.train_data))
-        ident = Normalizer(np.zeros(FRAME_DIM), np.ones(FRAME_DIM))
-        b = make_batch(self.train_data, rng.choice(len(self.train_data), size=n, replace=False), ident,
-                       self.config.corruption, rng)
-        return fit_joint_wiener(fill_missing(b.tracked.numpy())[..., JOINTS], b.clean.numpy()[..., JOINTS], R)
+        n = min(fc.wiener_windows, len(self.train_data))
+        clean, _, _ = self.train_data.batch(rng.choice(len(self.train_data), size=n, replace=False))
+        if fc.wiener_real_windows:
+            real = real_motion_windows(net.window, net.fps)
+            pick = rng.choice(len(real), size=min(fc.wiener_real_windows, len(real)), replace=False)
+            clean = np.concatenate([clean, real[pick]])
+        tracked = corrupt(clean, net.fps, rng, self.config.corruption)
+        origin, yaw = window_frame(tracked)
+        return fit_joint_wiener(fill_missing(to_frame(tracked, origin, yaw))[..., JOINTS],
+                                to_frame(clean, origin, yaw)[..., JOINTS], net.wiener_radius)
 
     def build_model(self) -> FilterModel:
         """The filter-mode denoiser behind the tracked-input skip; its output layer starts at zero,
@@ -303,6 +315,23 @@ class FilterTask:
                           data=dict(self.data_record), ema_state=ema_state,
                           meta={**meta, "net": net.to_dict(), "corruption": self.config.corruption.to_dict()},
                           train_state=train_state, code_version=__version__)
+
+
+def real_motion_windows(window: int, fps: float, stride: int = 16) -> np.ndarray:
+    """Clean world frame vectors (N, window, 235) of the mocap corpus's train split
+    (``trumans.mocap_corpus``), joints only: rotations and object missing (NaN), no IMU."""
+    from trumans.mocap_corpus import load_corpus
+
+    out = []
+    for c in load_corpus(split="train"):
+        f = pack_frames(c.joints, None, np.full((len(c.joints), 4, 4), np.nan))
+        if abs(c.fps - fps) > 1e-6:
+            f = resample_frames(f, c.fps, fps)
+        out.extend(f[s:s + window] for s in range(0, len(f) - window + 1, stride))
+    if not out:
+        raise ValueError(f"the mocap corpus's train split has no clip of {window} frames; set "
+                         f"filter.wiener_real_windows = 0")
+    return np.stack(out)
 
 
 def export_checkpoint(src: Checkpoint, half: bool = True) -> Checkpoint:

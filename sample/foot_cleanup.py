@@ -9,7 +9,10 @@ context frames (fixed, already cleaned) followed by the new frames:
    planted (the network's feet both slide, which would give each its own swing: a flight phase,
    which walking does not have), the foot that is lower and slower is planted (``support_foot``);
 2. over each contact run the foot is locked on the floor at its mean position over the run (at the
-   last context frame when the run began before the episode, so locks carry across seams); outside contacts
+   last context frame when the run began before the episode, so locks carry across seams); a run
+   whose lock leaves the leg's reach (hip to lock farther than thigh + shin + ``reach_slack``) ends
+   at that frame (the person lifts that foot; the clamped IK would drag it off the lock and up) and
+   the shortened runs are re-locked (``reach_passes``); outside contacts
    a foot under the floor is lifted onto it; the correction fades out over ``blend`` frames after
    a run and in over ``blend`` frames before it (new frames only);
 3. a swing (the frames between two locks, or between the last context frame and a lock) goes from
@@ -60,7 +63,12 @@ class FootCleanupConfig:
     support: plant one foot on upright frames where neither is (``support_foot``; walking has no
     flight phase), the one whose height + ``support_speed_weight`` x horizontal speed (m per m/s) is
     lower; lock_at_mean: a contact run begun in this episode is locked at its mean position, not at
-    its first (a sliding foot is moved half as far, so a locked leg overstretches less)."""
+    its first (a sliding foot is moved half as far, so a locked leg overstretches less);
+    reach_passes: times a contact run is ended at its first frame whose lock is out of the leg's
+    reach and the shortened runs re-locked (0 = off; a run re-locked at its new mean can leave
+    reach earlier, hence more than one pass); reach_slack: m beyond the reach that a lock may be and
+    still hold (the IK's clamp lifts the foot off it by about as much; releasing every lock a few mm
+    out would leave both feet in the air more often)."""
 
     enter_height: float = 0.06
     exit_height: float = 0.10
@@ -73,12 +81,16 @@ class FootCleanupConfig:
     support: bool = True
     support_speed_weight: float = 0.1
     lock_at_mean: bool = True
+    reach_passes: int = 2
+    reach_slack: float = 0.02
 
     def __post_init__(self) -> None:
         if not 0 <= self.enter_height <= self.exit_height:
             raise ValueError(f"need 0 <= enter_height <= exit_height, got {self.enter_height}, {self.exit_height}")
         if not 0 <= self.enter_speed <= self.exit_speed:
             raise ValueError(f"need 0 <= enter_speed <= exit_speed, got {self.enter_speed}, {self.exit_speed}")
+        if self.reach_passes < 0 or not self.reach_slack >= 0:
+            raise ValueError(f"need reach_passes >= 0 and reach_slack >= 0 m, got {self.reach_passes}, {self.reach_slack}")
         if self.blend < 0:
             raise ValueError(f"blend must be >= 0 frames, got {self.blend}")
         if not (self.swing_height >= 0 and self.swing_ratio >= 0 and self.tail_rise >= 1):
@@ -269,6 +281,49 @@ def out_of_scene(ankle: np.ndarray, toe_off: np.ndarray, sdf, radii: tuple[float
     return out
 
 
+def _run_start(c: np.ndarray, fixed: int) -> np.ndarray:
+    """(B, T) contacts -> (B, T) first frame of the run each contact frame belongs to (the last
+    context frame ``fixed - 1`` for runs begun before it); meaningless on free frames."""
+    B, T = c.shape
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    begins = c & ~np.concatenate([np.zeros((B, 1), bool), c[:, :-1]], 1)
+    start = np.maximum.accumulate(np.where(begins, t, 0), axis=1)
+    return np.maximum(start, min(fixed, T) - 1) if fixed > 0 else start
+
+
+def _locked_ankle(ankle: np.ndarray, h: np.ndarray, c: np.ndarray, fixed: int, at_mean: bool) -> np.ndarray:
+    """ankle (B, T, 3) world m, h (B, T) lowest foot joint above rest, c (B, T) contacts -> the
+    ankle target (B, T, 3): on contact frames at rest height and locked at its run's xy (the last
+    context frame for runs begun before, else the run's first frame or, ``at_mean``, its mean);
+    elsewhere the network's, lifted onto the floor where under it (module doc, step 2)."""
+    B, T = c.shape
+    A = ankle.copy()
+    A[..., 2] += np.where(c, -h, np.maximum(-h, 0.0))
+    start = _run_start(c, fixed)
+    lock_xy = np.take_along_axis(A[..., :2], start[..., None], axis=1)
+    if at_mean:  # a run begun in this episode is locked at its mean, not its first, position
+        key = (np.arange(B)[:, None] * T + start)[c]
+        n = np.bincount(key, minlength=B * T)
+        mean = np.stack([np.bincount(key, A[..., i][c], minlength=B * T) / np.maximum(n, 1) for i in range(2)], -1)
+        own = (start >= fixed) if fixed > 0 else np.ones_like(c)
+        lock_xy = np.where((c & own)[..., None], mean.reshape(B, T, 2)[np.arange(B)[:, None], start], lock_xy)
+    A[..., :2] = np.where(c[..., None], lock_xy, A[..., :2])
+    return A
+
+
+def _release_out_of_reach(c: np.ndarray, hip: np.ndarray, target: np.ndarray, reach: float, fixed: int) -> np.ndarray:
+    """(B, T) contacts with every run ended at its first new frame (>= ``fixed``) whose locked ankle
+    ``target`` (B, T, 3) is farther than ``reach`` (thigh + shin + slack, m) from the ``hip`` (B, T, 3): the
+    leg cannot hold the lock there (the IK would drag the foot off it, up into the air), so the
+    person has lifted that foot; from there it swings to its next contact."""
+    B, T = c.shape
+    far = c & (np.linalg.norm(target - hip, axis=-1) > reach)
+    far[:, :fixed] = False
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    last_far = np.maximum.accumulate(np.where(far, t, -1), axis=1)
+    return c & ~(last_far >= _run_start(c, fixed))
+
+
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
                config: FootCleanupConfig = FootCleanupConfig(), sdf=None) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
@@ -289,23 +344,14 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
     for s, (hip, knee, ankle, toe) in enumerate(LEGS.values()):
         c = contact[..., s]
         h = _foot_height(J, ankle, toe)  # (B, T)
-        # floor-corrected ankle: lowest foot joint at rest height when planted, never under the floor
-        lift = np.where(c, -h, np.maximum(-h, 0.0))
-        A = J[:, :, ankle].copy()
-        A[..., 2] += lift
-        # lock xy: the ankle where the run began (or at the last fixed frame for runs begun before)
-        t = np.broadcast_to(np.arange(T)[None], (B, T))
-        start = np.maximum.accumulate(np.where(c & ~np.concatenate([np.zeros((B, 1), bool), c[:, :-1]], 1),
-                                               t, 0), axis=1)
-        start = np.maximum(start, min(fixed, T) - 1) if fixed > 0 else start
-        lock_xy = np.take_along_axis(A[..., :2], start[..., None], axis=1)
-        if config.lock_at_mean:  # a run begun in this episode is locked at its mean, not its first, position
-            key = (np.arange(B)[:, None] * T + start)[c]
-            n = np.bincount(key, minlength=B * T)
-            mean = np.stack([np.bincount(key, A[..., i][c], minlength=B * T) / np.maximum(n, 1) for i in range(2)], -1)
-            own = (start >= fixed) if fixed > 0 else np.ones_like(c)
-            lock_xy = np.where((c & own)[..., None], mean.reshape(B, T, 2)[np.arange(B)[:, None], start], lock_xy)
-        A[..., :2] = np.where(c[..., None], lock_xy, A[..., :2])
+        A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
+        reach = float(lengths[knee] + lengths[ankle]) + config.reach_slack
+        for _ in range(config.reach_passes):  # a lock the leg cannot reach ends its run; the rest re-locks
+            cut = _release_out_of_reach(c, J[:, :, hip], A, reach, fixed)
+            if (cut == c).all():
+                break
+            c = cut
+            A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
         delta = A - J[:, :, ankle]  # (B, T, 3) correction; outside runs only the floor lift
         idx, w = _fade(c, fixed, config.blend)
         run_delta = np.take_along_axis(delta, idx[..., None], axis=1) * w[..., None]

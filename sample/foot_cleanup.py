@@ -31,7 +31,9 @@ context frames (fixed, already cleaned) followed by the new frames:
    field's gradient, horizontally while planted (the lock moves as one), in 3D while swinging;
 5. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
    stays, the ankle goes to its target (clamped to the leg's reach), the knee stays in the plane
-   of its current bend, the toe keeps its offset from the ankle, so every bone length is exact.
+   of its current bend, the toe keeps its offset from the ankle, so every bone length is exact;
+   with the field, a knee that ends inside furniture (a foot lifted onto the floor bends the knee
+   forward, into a wall or a table) turns outward about the hip-ankle axis (``knee_out_of_scene``).
 
 The generator outputs joint positions, not rotations, so the positional form of the two-bone
 solve (``trumans.ik.limb`` solves the same chain on rotations) is used; no rotation fit per episode.
@@ -45,7 +47,8 @@ import numpy as np
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "clean_feet", "two_bone_positions", "FOOT_REST"]
+__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene", "clean_feet",
+           "two_bone_positions", "FOOT_REST"]
 
 # (hip, knee, ankle, toe) per leg
 LEGS = {side: tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle", "foot")) for side in ("left", "right")}
@@ -324,6 +327,34 @@ def _release_out_of_reach(c: np.ndarray, hip: np.ndarray, target: np.ndarray, re
     return c & ~(last_far >= _run_start(c, fixed))
 
 
+def knee_out_of_scene(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, outward: np.ndarray, sdf, radius: float,
+                      max_angle: float = np.pi / 3, steps: int = 12) -> np.ndarray:
+    """Knees (B, T, 3) world m turned outward (towards ``outward`` (B, T, 3): from the other hip to
+    this one) about their hip-ankle axis, bone lengths kept, by the least angle that puts them
+    ``radius`` m clear of the scene: the depth is sampled at ``steps`` angles up to ``max_angle``
+    rad and its first zero crossing interpolated linearly (so the angle follows the depth smoothly
+    over frames); where no angle clears, the clearest one. A knee that a foot lifted onto the floor
+    bent forward into a wall or a table splays outward, as a person's does. sdf: ``SceneSDF``."""
+    import torch
+
+    f = ankle - hip
+    f = f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), 1e-9)
+    centre = hip + ((knee - hip) * f).sum(-1, keepdims=True) * f
+    u = knee - centre  # (B, T, 3) from the circle's centre to the knee
+    e2 = np.cross(f, u)  # the circle's tangent at the knee, |e2| = |u|
+    e2 *= np.where((e2 * outward).sum(-1) < 0, -1.0, 1.0)[..., None]  # turning outward
+    angle = max_angle * np.arange(steps + 1) / steps  # (K,)
+    cand = centre[..., None, :] + np.cos(angle)[:, None] * u[..., None, :] + np.sin(angle)[:, None] * e2[..., None, :]
+    depth = radius - sdf(torch.as_tensor(cand, dtype=torch.float32)).double().numpy()  # (B, T, K)
+    clear = depth <= 0
+    k = np.where(clear.any(-1), np.argmax(clear, -1), np.argmin(depth, -1))  # first clear, else the clearest
+    d1 = np.take_along_axis(depth, k[..., None], -1)[..., 0]
+    d0 = np.take_along_axis(depth, np.maximum(k - 1, 0)[..., None], -1)[..., 0]
+    frac = np.where((k > 0) & (d1 <= 0), d0 / np.maximum(d0 - d1, 1e-9), 1.0)  # the crossing between k - 1 and k
+    turn = np.where(k > 0, angle[np.maximum(k - 1, 0)] + frac * (max_angle / steps), 0.0)
+    return centre + np.cos(turn)[..., None] * u + np.sin(turn)[..., None] * e2
+
+
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
                config: FootCleanupConfig = FootCleanupConfig(), sdf=None) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
@@ -366,6 +397,10 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
                                              (float(JOINT_CORE_RADIUS[ankle]), float(JOINT_CORE_RADIUS[toe])), ~c[:, fixed:])
         new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
                                                  float(lengths[knee]), float(lengths[ankle]))
+        if sdf is not None:  # a knee the re-solve bent into furniture turns outward
+            other = LEGS["right" if s == 0 else "left"][0]
+            new_knee[:, fixed:] = knee_out_of_scene(J[:, fixed:, hip], new_knee[:, fixed:], new_ankle[:, fixed:],
+                                                    J[:, fixed:, hip] - J[:, fixed:, other], sdf, float(JOINT_CORE_RADIUS[knee]))
         solve = (np.abs(target - J[:, :, ankle]).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg
         J[:, :, knee] = np.where(solve, new_knee, J[:, :, knee])
         J[:, :, ankle] = np.where(solve, new_ankle, J[:, :, ankle])

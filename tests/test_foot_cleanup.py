@@ -281,3 +281,26 @@ def test_a_lock_out_of_the_legs_reach_ends_its_contact_run():
     np.testing.assert_allclose(bone_lengths_of(out[0, k:])[:, legs], np.broadcast_to(lengths[legs], (T - k, 4)), atol=1e-6)
     with pytest.raises(ValueError, match="reach_passes"):
         FootCleanupConfig(reach_passes=-1)
+
+
+def test_knee_bent_into_a_wall_turns_outward_with_bone_lengths_kept():
+    """A knee 3 cm inside a wall in front of the body turns about the hip-ankle axis until it is its
+    core radius clear; hip and ankle stay, both bones keep their lengths; a knee in the open stays."""
+    from sample.foot_cleanup import knee_out_of_scene
+    from sample.penetration_guidance import SceneSDF
+    from test_penetration_guidance import _box_room
+
+    sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4], z < 1
+    hip = np.array([[[0.80, 1.0, 0.85], [0.30, 1.0, 0.85]]])  # (1, 2, 3): 20 cm from the box, then in the open
+    ankle = hip - [0.0, 0.0, 0.70]
+    knee = hip + [0.25, 0.0, -0.35]  # bent 25 cm forward: 5 cm into the box's face
+    r = 0.045
+    outward = np.broadcast_to([0.0, 1.0, 0.0], hip.shape)  # a left knee: outward is +y
+    out = knee_out_of_scene(hip, knee, ankle, outward, sdf, r)
+    d = sdf(torch.as_tensor(out, dtype=torch.float32)).numpy()
+    assert sdf(torch.as_tensor(knee[0, 0], dtype=torch.float32)).item() < 0 and d[0, 0] > r - 0.005
+    for a, b in ((hip, out), (out, ankle)):
+        np.testing.assert_allclose(np.linalg.norm(a - b, axis=-1), np.linalg.norm(hip - knee, axis=-1) if a is hip
+                                   else np.linalg.norm(knee - ankle, axis=-1), atol=1e-9)
+    assert out[0, 0, 1] > 1.05 and out[0, 0, 2] == pytest.approx(knee[0, 0, 2])  # turned outward
+    np.testing.assert_array_equal(out[0, 1], knee[0, 1])

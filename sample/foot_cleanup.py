@@ -9,7 +9,10 @@ context frames (fixed, already cleaned) followed by the new frames:
    planted (the network's feet both slide, which would give each its own swing: a flight phase,
    which walking does not have), the foot that is lower and slower is planted (``support_foot``);
 2. over each contact run the foot is locked on the floor at its mean position over the run (at the
-   last context frame when the run began before the episode, so locks carry across seams); outside contacts
+   last context frame when the run began before the episode, so locks carry across seams); a run
+   whose lock leaves the leg's reach (hip to lock farther than thigh + shin + ``reach_slack``) ends
+   at that frame (the person lifts that foot; the clamped IK would drag it off the lock and up) and
+   the shortened runs are re-locked (``reach_passes``); outside contacts
    a foot under the floor is lifted onto it; the correction fades out over ``blend`` frames after
    a run and in over ``blend`` frames before it (new frames only);
 3. a swing (the frames between two locks, or between the last context frame and a lock) goes from
@@ -28,7 +31,9 @@ context frames (fixed, already cleaned) followed by the new frames:
    field's gradient, horizontally while planted (the lock moves as one), in 3D while swinging;
 5. the leg is re-solved with an analytic two-bone IK on joint positions (law of cosines): the hip
    stays, the ankle goes to its target (clamped to the leg's reach), the knee stays in the plane
-   of its current bend, the toe keeps its offset from the ankle, so every bone length is exact.
+   of its current bend, the toe keeps its offset from the ankle, so every bone length is exact;
+   with the field, a knee that ends inside furniture (a foot lifted onto the floor bends the knee
+   forward, into a wall or a table) turns outward about the hip-ankle axis (``knee_out_of_scene``).
 
 The generator outputs joint positions, not rotations, so the positional form of the two-bone
 solve (``trumans.ik.limb`` solves the same chain on rotations) is used; no rotation fit per episode.
@@ -42,7 +47,8 @@ import numpy as np
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "clean_feet", "two_bone_positions", "FOOT_REST"]
+__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene", "clean_feet",
+           "two_bone_positions", "FOOT_REST"]
 
 # (hip, knee, ankle, toe) per leg
 LEGS = {side: tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle", "foot")) for side in ("left", "right")}
@@ -60,7 +66,12 @@ class FootCleanupConfig:
     support: plant one foot on upright frames where neither is (``support_foot``; walking has no
     flight phase), the one whose height + ``support_speed_weight`` x horizontal speed (m per m/s) is
     lower; lock_at_mean: a contact run begun in this episode is locked at its mean position, not at
-    its first (a sliding foot is moved half as far, so a locked leg overstretches less)."""
+    its first (a sliding foot is moved half as far, so a locked leg overstretches less);
+    reach_passes: times a contact run is ended at its first frame whose lock is out of the leg's
+    reach and the shortened runs re-locked (0 = off; a run re-locked at its new mean can leave
+    reach earlier, hence more than one pass); reach_slack: m beyond the reach that a lock may be and
+    still hold (the IK's clamp lifts the foot off it by about as much; releasing every lock a few mm
+    out would leave both feet in the air more often)."""
 
     enter_height: float = 0.06
     exit_height: float = 0.10
@@ -73,12 +84,16 @@ class FootCleanupConfig:
     support: bool = True
     support_speed_weight: float = 0.1
     lock_at_mean: bool = True
+    reach_passes: int = 2
+    reach_slack: float = 0.02
 
     def __post_init__(self) -> None:
         if not 0 <= self.enter_height <= self.exit_height:
             raise ValueError(f"need 0 <= enter_height <= exit_height, got {self.enter_height}, {self.exit_height}")
         if not 0 <= self.enter_speed <= self.exit_speed:
             raise ValueError(f"need 0 <= enter_speed <= exit_speed, got {self.enter_speed}, {self.exit_speed}")
+        if self.reach_passes < 0 or not self.reach_slack >= 0:
+            raise ValueError(f"need reach_passes >= 0 and reach_slack >= 0 m, got {self.reach_passes}, {self.reach_slack}")
         if self.blend < 0:
             raise ValueError(f"blend must be >= 0 frames, got {self.blend}")
         if not (self.swing_height >= 0 and self.swing_ratio >= 0 and self.tail_rise >= 1):
@@ -269,6 +284,77 @@ def out_of_scene(ankle: np.ndarray, toe_off: np.ndarray, sdf, radii: tuple[float
     return out
 
 
+def _run_start(c: np.ndarray, fixed: int) -> np.ndarray:
+    """(B, T) contacts -> (B, T) first frame of the run each contact frame belongs to (the last
+    context frame ``fixed - 1`` for runs begun before it); meaningless on free frames."""
+    B, T = c.shape
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    begins = c & ~np.concatenate([np.zeros((B, 1), bool), c[:, :-1]], 1)
+    start = np.maximum.accumulate(np.where(begins, t, 0), axis=1)
+    return np.maximum(start, min(fixed, T) - 1) if fixed > 0 else start
+
+
+def _locked_ankle(ankle: np.ndarray, h: np.ndarray, c: np.ndarray, fixed: int, at_mean: bool) -> np.ndarray:
+    """ankle (B, T, 3) world m, h (B, T) lowest foot joint above rest, c (B, T) contacts -> the
+    ankle target (B, T, 3): on contact frames at rest height and locked at its run's xy (the last
+    context frame for runs begun before, else the run's first frame or, ``at_mean``, its mean);
+    elsewhere the network's, lifted onto the floor where under it (module doc, step 2)."""
+    B, T = c.shape
+    A = ankle.copy()
+    A[..., 2] += np.where(c, -h, np.maximum(-h, 0.0))
+    start = _run_start(c, fixed)
+    lock_xy = np.take_along_axis(A[..., :2], start[..., None], axis=1)
+    if at_mean:  # a run begun in this episode is locked at its mean, not its first, position
+        key = (np.arange(B)[:, None] * T + start)[c]
+        n = np.bincount(key, minlength=B * T)
+        mean = np.stack([np.bincount(key, A[..., i][c], minlength=B * T) / np.maximum(n, 1) for i in range(2)], -1)
+        own = (start >= fixed) if fixed > 0 else np.ones_like(c)
+        lock_xy = np.where((c & own)[..., None], mean.reshape(B, T, 2)[np.arange(B)[:, None], start], lock_xy)
+    A[..., :2] = np.where(c[..., None], lock_xy, A[..., :2])
+    return A
+
+
+def _release_out_of_reach(c: np.ndarray, hip: np.ndarray, target: np.ndarray, reach: float, fixed: int) -> np.ndarray:
+    """(B, T) contacts with every run ended at its first new frame (>= ``fixed``) whose locked ankle
+    ``target`` (B, T, 3) is farther than ``reach`` (thigh + shin + slack, m) from the ``hip`` (B, T, 3): the
+    leg cannot hold the lock there (the IK would drag the foot off it, up into the air), so the
+    person has lifted that foot; from there it swings to its next contact."""
+    B, T = c.shape
+    far = c & (np.linalg.norm(target - hip, axis=-1) > reach)
+    far[:, :fixed] = False
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    last_far = np.maximum.accumulate(np.where(far, t, -1), axis=1)
+    return c & ~(last_far >= _run_start(c, fixed))
+
+
+def knee_out_of_scene(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, outward: np.ndarray, sdf, radius: float,
+                      max_angle: float = np.pi / 3, steps: int = 12) -> np.ndarray:
+    """Knees (B, T, 3) world m turned outward (towards ``outward`` (B, T, 3): from the other hip to
+    this one) about their hip-ankle axis, bone lengths kept, by the least angle that puts them
+    ``radius`` m clear of the scene: the depth is sampled at ``steps`` angles up to ``max_angle``
+    rad and its first zero crossing interpolated linearly (so the angle follows the depth smoothly
+    over frames); where no angle clears, the clearest one. A knee that a foot lifted onto the floor
+    bent forward into a wall or a table splays outward, as a person's does. sdf: ``SceneSDF``."""
+    import torch
+
+    f = ankle - hip
+    f = f / np.maximum(np.linalg.norm(f, axis=-1, keepdims=True), 1e-9)
+    centre = hip + ((knee - hip) * f).sum(-1, keepdims=True) * f
+    u = knee - centre  # (B, T, 3) from the circle's centre to the knee
+    e2 = np.cross(f, u)  # the circle's tangent at the knee, |e2| = |u|
+    e2 *= np.where((e2 * outward).sum(-1) < 0, -1.0, 1.0)[..., None]  # turning outward
+    angle = max_angle * np.arange(steps + 1) / steps  # (K,)
+    cand = centre[..., None, :] + np.cos(angle)[:, None] * u[..., None, :] + np.sin(angle)[:, None] * e2[..., None, :]
+    depth = radius - sdf(torch.as_tensor(cand, dtype=torch.float32)).double().numpy()  # (B, T, K)
+    clear = depth <= 0
+    k = np.where(clear.any(-1), np.argmax(clear, -1), np.argmin(depth, -1))  # first clear, else the clearest
+    d1 = np.take_along_axis(depth, k[..., None], -1)[..., 0]
+    d0 = np.take_along_axis(depth, np.maximum(k - 1, 0)[..., None], -1)[..., 0]
+    frac = np.where((k > 0) & (d1 <= 0), d0 / np.maximum(d0 - d1, 1e-9), 1.0)  # the crossing between k - 1 and k
+    turn = np.where(k > 0, angle[np.maximum(k - 1, 0)] + frac * (max_angle / steps), 0.0)
+    return centre + np.cos(turn)[..., None] * u + np.sin(turn)[..., None] * e2
+
+
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
                config: FootCleanupConfig = FootCleanupConfig(), sdf=None) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
@@ -289,23 +375,14 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
     for s, (hip, knee, ankle, toe) in enumerate(LEGS.values()):
         c = contact[..., s]
         h = _foot_height(J, ankle, toe)  # (B, T)
-        # floor-corrected ankle: lowest foot joint at rest height when planted, never under the floor
-        lift = np.where(c, -h, np.maximum(-h, 0.0))
-        A = J[:, :, ankle].copy()
-        A[..., 2] += lift
-        # lock xy: the ankle where the run began (or at the last fixed frame for runs begun before)
-        t = np.broadcast_to(np.arange(T)[None], (B, T))
-        start = np.maximum.accumulate(np.where(c & ~np.concatenate([np.zeros((B, 1), bool), c[:, :-1]], 1),
-                                               t, 0), axis=1)
-        start = np.maximum(start, min(fixed, T) - 1) if fixed > 0 else start
-        lock_xy = np.take_along_axis(A[..., :2], start[..., None], axis=1)
-        if config.lock_at_mean:  # a run begun in this episode is locked at its mean, not its first, position
-            key = (np.arange(B)[:, None] * T + start)[c]
-            n = np.bincount(key, minlength=B * T)
-            mean = np.stack([np.bincount(key, A[..., i][c], minlength=B * T) / np.maximum(n, 1) for i in range(2)], -1)
-            own = (start >= fixed) if fixed > 0 else np.ones_like(c)
-            lock_xy = np.where((c & own)[..., None], mean.reshape(B, T, 2)[np.arange(B)[:, None], start], lock_xy)
-        A[..., :2] = np.where(c[..., None], lock_xy, A[..., :2])
+        A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
+        reach = float(lengths[knee] + lengths[ankle]) + config.reach_slack
+        for _ in range(config.reach_passes):  # a lock the leg cannot reach ends its run; the rest re-locks
+            cut = _release_out_of_reach(c, J[:, :, hip], A, reach, fixed)
+            if (cut == c).all():
+                break
+            c = cut
+            A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
         delta = A - J[:, :, ankle]  # (B, T, 3) correction; outside runs only the floor lift
         idx, w = _fade(c, fixed, config.blend)
         run_delta = np.take_along_axis(delta, idx[..., None], axis=1) * w[..., None]
@@ -320,6 +397,10 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
                                              (float(JOINT_CORE_RADIUS[ankle]), float(JOINT_CORE_RADIUS[toe])), ~c[:, fixed:])
         new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
                                                  float(lengths[knee]), float(lengths[ankle]))
+        if sdf is not None:  # a knee the re-solve bent into furniture turns outward
+            other = LEGS["right" if s == 0 else "left"][0]
+            new_knee[:, fixed:] = knee_out_of_scene(J[:, fixed:, hip], new_knee[:, fixed:], new_ankle[:, fixed:],
+                                                    J[:, fixed:, hip] - J[:, fixed:, other], sdf, float(JOINT_CORE_RADIUS[knee]))
         solve = (np.abs(target - J[:, :, ankle]).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg
         J[:, :, knee] = np.where(solve, new_knee, J[:, :, knee])
         J[:, :, ankle] = np.where(solve, new_ankle, J[:, :, ankle])

@@ -17,8 +17,8 @@ training data rests their skin on seats) and its core radius elsewhere; sdf: a s
 guidance's, floor excluded (feet are the foot cleanup's, which runs after this and keeps planted
 feet where they landed); the rollout gives it the dynamic objects (chairs, stools: most of the
 walk-past penetration) at their scene poses until the plan moves one. Solved by Gauss-Newton on the
-spline coefficients: each depth linearised along the field's gradient (a few milliseconds an
-episode; 40 Adam steps with autograd took ~20 ms).
+spline coefficients: each depth linearised along the field's gradient, each step halved until the
+objective does not rise (a few milliseconds an episode; 40 Adam steps with autograd took ~20 ms).
 """
 from __future__ import annotations
 
@@ -112,34 +112,63 @@ def _smoothness_hessian(basis: np.ndarray, config: PushOutConfig) -> np.ndarray:
     return 2.0 * (config.weight * basis.T @ basis + config.velocity * D1.T @ D1 + config.acceleration * D2.T @ D2)
 
 
+def _depths(x: torch.Tensor, sdf: SceneSDF, r: np.ndarray, basis: np.ndarray, coef: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For joints x (B, n, 24, 3) moved by the spline ``coef`` (B, m, 3): (offset (B, n, 3) m,
+    depth r - sdf (B, n, 24) m, the field's gradient (B, n, 24, 3))."""
+    delta = np.einsum("nm,bmc->bnc", basis, coef)
+    d, g = sdf.value_and_gradient(x + torch.as_tensor(delta[:, :, None], dtype=torch.float32))
+    return delta, r - d.numpy().astype(np.float64), g.numpy().astype(np.float64)
+
+
+def _objective(depth: np.ndarray, coef: np.ndarray, H_reg: np.ndarray) -> np.ndarray:
+    """(B,) the module doc's objective: squared positive depths (B, n, 24) plus the quadratic
+    smoothness terms 0.5 c^T H_reg c of the coefficients (B, m, 3)."""
+    c = coef.reshape(len(coef), -1)
+    return (np.maximum(depth, 0.0) ** 2).sum((1, 2)) + 0.5 * np.einsum("bi,ij,bj->b", c, H_reg, c)
+
+
 def _gauss_newton(x: torch.Tensor, sdf: SceneSDF, r: np.ndarray, basis: np.ndarray,
-                  config: PushOutConfig) -> np.ndarray:
+                  config: PushOutConfig, halvings: int = 6) -> np.ndarray:
     """Spline coefficients (B, m, 3) minimising the module doc's objective for joints x (B, n, 24, 3):
     Gauss-Newton on the depths (each linearised along the field's gradient, active where positive;
-    the smoothness terms are quadratic), ``config.iters`` iterations at most."""
+    the smoothness terms are quadratic), ``config.iters`` iterations at most, each step halved up to
+    ``halvings`` times until the objective does not rise. Without that check the active set can
+    ping-pong: a step that pushes every joint out leaves none active, the next step (smoothness
+    only) pulls the body back in, and the iterations alternate between the two."""
     B, n = x.shape[:2]
     m = basis.shape[1]
     H_reg = np.kron(_smoothness_hessian(basis, config), np.eye(3))  # (3m, 3m), index (spline, axis)
     Bt = np.repeat(basis, 24, axis=0)  # (n * 24, m): the basis row of each point's frame
     coef = np.zeros((B, m, 3))
+    delta, depth, g = _depths(x, sdf, r, basis, coef)
+    cost = _objective(depth, coef, H_reg)
     for _ in range(config.iters):
-        delta = np.einsum("nm,bmc->bnc", basis, coef)  # (B, n, 3)
-        p = x + torch.as_tensor(delta[:, :, None], dtype=torch.float32)
-        d, g = sdf.value_and_gradient(p)
-        depth = r - d.numpy().astype(np.float64)  # (B, n, 24)
         active = (depth > 0).reshape(B, -1).astype(np.float64)  # (B, N)
         if not active.any():
             break
-        g = g.numpy().astype(np.float64).reshape(B, -1, 3)  # (B, N, 3)
+        gf = g.reshape(B, -1, 3)  # (B, N, 3)
         # residual of point i: depth_i - g_i . (delta_t - delta0_t), linear in coef through Bt
-        a = np.einsum("nm,bnc->bnmc", Bt, g).reshape(B, -1, 3 * m)  # (B, N, 3m)
-        target = depth.reshape(B, -1) + np.einsum("bnc,bnc->bn", g, np.repeat(delta, 24, axis=1))
+        a = np.einsum("nm,bnc->bnmc", Bt, gf).reshape(B, -1, 3 * m)  # (B, N, 3m)
+        target = depth.reshape(B, -1) + np.einsum("bnc,bnc->bn", gf, np.repeat(delta, 24, axis=1))
         H = 2.0 * np.einsum("bn,bni,bnj->bij", active, a, a) + H_reg
         rhs = 2.0 * np.einsum("bn,bni,bn->bi", active, a, target)
-        new = np.linalg.solve(H, rhs[..., None])[..., 0].reshape(B, m, 3)
-        step = np.abs(new - coef).max()
-        coef = new
-        if step < 1e-4:  # m: converged
+        step = np.linalg.solve(H, rhs[..., None])[..., 0].reshape(B, m, 3) - coef
+        scale = np.ones(B)
+        for _ in range(halvings + 1):  # backtracking: the largest step 2^-i that does not raise the objective
+            trial = coef + scale[:, None, None] * step
+            t_delta, t_depth, t_g = _depths(x, sdf, r, basis, trial)
+            t_cost = _objective(t_depth, trial, H_reg)
+            ok = t_cost <= cost + 1e-12
+            if ok.all():
+                break
+            scale = np.where(ok, scale, 0.5 * scale)
+        ok = t_cost <= cost + 1e-12  # rows still rising after the halvings keep their coefficients
+        coef = np.where(ok[:, None, None], trial, coef)
+        delta = np.where(ok[:, None, None], t_delta, delta)
+        depth = np.where(ok[:, None, None], t_depth, depth)
+        g = np.where(ok[:, None, None, None], t_g, g)
+        cost = np.where(ok, t_cost, cost)
+        if (np.abs(step) * (scale * ok)[:, None, None]).max() < 1e-4:  # m: converged (or stalled)
             break
     return coef
-

@@ -208,8 +208,11 @@ def test_support_removes_flight_phases():
     def lowest(P):  # (T,) the lower foot's lowest joint above its rest height
         return np.stack([np.minimum(P[0, :, a, 2] - 0.08, P[0, :, b, 2] - 0.04) for a, b in ((la, lt), (ra, rt))], -1).min(-1)
 
-    assert (lowest(clean_feet(J, lengths, FPS, config=FootCleanupConfig(support=False))) > 0.01).any()
-    assert (lowest(clean_feet(J, lengths, FPS, config=FootCleanupConfig(support=True))) < 0.005).all()
+    # the feet end 42 cm ahead of the still, straight-legged hips, 8 cm beyond the leg's reach: the
+    # support alone is tested here (with reach_passes the out-of-reach locks are released at the end,
+    # test_a_lock_out_of_the_legs_reach_ends_its_contact_run)
+    assert (lowest(clean_feet(J, lengths, FPS, config=FootCleanupConfig(support=False, reach_passes=0))) > 0.01).any()
+    assert (lowest(clean_feet(J, lengths, FPS, config=FootCleanupConfig(support=True, reach_passes=0))) < 0.005).all()
 
 
 def test_out_of_scene_moves_feet_out_of_furniture_and_keeps_locks():
@@ -234,3 +237,70 @@ def test_out_of_scene_moves_feet_out_of_furniture_and_keeps_locks():
     under_top = np.array([[[1.2, 1.0, 0.97]]])  # a swinging foot 3 cm under the box's top goes up over it
     up = out_of_scene(under_top, np.zeros_like(under_top), sdf, r, free=np.ones((1, 1), bool), iters=4)
     assert up[0, 0, 2] > 1.0 + r[0] - 0.01 and np.allclose(up[0, 0, :2], under_top[0, 0, :2], atol=0.01)
+
+
+def _shuffling_crouch(T: int = 80, k: int = 2, speed: float = 0.005) -> np.ndarray:
+    """A body 5 cm lower than standing (knees bent) sliding forward ``speed`` m/frame over the new
+    frames with both feet on the floor (a shuffle: slow enough to count as planted at ``FPS``)."""
+    J = _standing(T)
+    feet = [j for leg in LEGS.values() for j in leg[2:]]
+    J[0, :, [j for j in range(24) if j not in feet], 2] -= 0.05
+    J[0, :, :, 0] += speed * np.clip(np.arange(T) - (k - 1), 0, None)[:, None]
+    return J
+
+
+def test_a_lock_out_of_the_legs_reach_ends_its_contact_run():
+    """Both feet locked at the last context frame while the hips shuffle on: from the first frame
+    where the lock is farther from the hip than thigh + shin, the leg cannot hold it (the IK would
+    drag the foot off the lock and up, as in the demo's last second). The run ends there, the foot
+    swings on, and no frame holds a foot at its lock out of reach or off the floor."""
+    k, T = 2, 80
+    J = _shuffling_crouch(T, k)
+    lengths = bone_lengths_of(_standing(1)[0, 0])
+    assert foot_contacts(J, FPS)[0, k:].all()  # the network's feet count as planted all along
+    out = clean_feet(J, lengths, FPS, fixed=k)
+    stuck = clean_feet(J, lengths, FPS, fixed=k, config=FootCleanupConfig(reach_passes=0))
+    slack = FootCleanupConfig().reach_slack  # a lock this far beyond the reach still holds, the clamp lifting it as much
+    for hip, knee, ankle, toe in LEGS.values():
+        reach = lengths[knee] + lengths[ankle]
+        lock = J[0, k - 1, ankle] - [0.0, 0.0, min(J[0, k - 1, ankle, 2] - 0.08, J[0, k - 1, toe, 2] - 0.04)]
+        dist = np.linalg.norm(J[0, :, hip] - lock, axis=-1)
+        first = int(np.argmax(dist > reach + slack))
+        assert k < first < T - 10  # the lock leaves the leg's reach inside the window
+        held = np.flatnonzero(dist[:first] <= reach - 1e-3)[k:]
+        np.testing.assert_allclose(out[0, held, ankle], np.broadcast_to(lock, (len(held), 3)), atol=1e-6)
+        np.testing.assert_allclose(out[0, k:first, ankle], np.broadcast_to(lock, (first - k, 3)), atol=slack + 1e-3)
+        at_lock = np.linalg.norm(out[0, :, ankle, :2] - lock[:2], axis=-1) < 1e-3
+        assert not at_lock[first:].any()  # released where it went out of reach
+        low = np.minimum(out[0, :, ankle, 2] - 0.08, out[0, :, toe, 2] - 0.04)
+        assert low.max() < 0.08  # a swing's clearance at most
+        stretch = lambda P: np.linalg.norm(P[0, first:, ankle] - P[0, first:, hip], axis=-1)  # noqa: E731
+        assert stretch(out).min() < reach - 0.05  # the released leg bends again under the body
+        assert stretch(stuck).min() > reach - 2e-3  # without the release it is dragged at full stretch
+    legs = [j for leg in LEGS.values() for j in leg[1:3]]  # the knee and ankle bones, re-solved on every new frame
+    np.testing.assert_allclose(bone_lengths_of(out[0, k:])[:, legs], np.broadcast_to(lengths[legs], (T - k, 4)), atol=1e-6)
+    with pytest.raises(ValueError, match="reach_passes"):
+        FootCleanupConfig(reach_passes=-1)
+
+
+def test_knee_bent_into_a_wall_turns_outward_with_bone_lengths_kept():
+    """A knee 3 cm inside a wall in front of the body turns about the hip-ankle axis until it is its
+    core radius clear; hip and ankle stay, both bones keep their lengths; a knee in the open stays."""
+    from sample.foot_cleanup import knee_out_of_scene
+    from sample.penetration_guidance import SceneSDF
+    from test_penetration_guidance import _box_room
+
+    sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4], z < 1
+    hip = np.array([[[0.80, 1.0, 0.85], [0.30, 1.0, 0.85]]])  # (1, 2, 3): 20 cm from the box, then in the open
+    ankle = hip - [0.0, 0.0, 0.70]
+    knee = hip + [0.25, 0.0, -0.35]  # bent 25 cm forward: 5 cm into the box's face
+    r = 0.045
+    outward = np.broadcast_to([0.0, 1.0, 0.0], hip.shape)  # a left knee: outward is +y
+    out = knee_out_of_scene(hip, knee, ankle, outward, sdf, r)
+    d = sdf(torch.as_tensor(out, dtype=torch.float32)).numpy()
+    assert sdf(torch.as_tensor(knee[0, 0], dtype=torch.float32)).item() < 0 and d[0, 0] > r - 0.005
+    for a, b in ((hip, out), (out, ankle)):
+        np.testing.assert_allclose(np.linalg.norm(a - b, axis=-1), np.linalg.norm(hip - knee, axis=-1) if a is hip
+                                   else np.linalg.norm(knee - ankle, axis=-1), atol=1e-9)
+    assert out[0, 0, 1] > 1.05 and out[0, 0, 2] == pytest.approx(knee[0, 0, 2])  # turned outward
+    np.testing.assert_array_equal(out[0, 1], knee[0, 1])

@@ -5,10 +5,13 @@ import numpy as np
 import pytest
 import torch
 
+from scenes.occupancy import OccupancyGrid
 from sample.foot_cleanup import LEGS, clean_feet
 from sample.penetration_guidance import SceneSDF
 from sample.sampler import bone_lengths_of
 from sample.scene_pushout import PushOutConfig, push_out, push_radii, seam_spline_basis
+
+from trumans.skeleton import JOINT_INDEX
 
 from test_foot_cleanup import FPS, _standing
 from test_penetration_guidance import _box_room
@@ -88,6 +91,34 @@ def test_planted_feet_stay_where_they_stood_after_push_out_and_foot_cleanup():
     assert _depth(sdf, out)[..., upper].max() < 0.015
     for hip, knee, ankle, toe in LEGS.values():  # locked where the context stood them
         np.testing.assert_allclose(out[0, k:, ankle, :2], np.broadcast_to(J[0, k - 1, ankle, :2], (36, 2)), atol=5e-3)
+
+
+def _thin_wall() -> OccupancyGrid:
+    """Floor (z < 0) plus a 10 cm wall x in [1.0, 1.1] across the grid, 2 cm voxels."""
+    origin = np.array([0.01, 0.01, -0.09])
+    c = origin[:, None] + 0.02 * np.arange(120)[None]
+    x, y, z = np.meshgrid(*c, indexing="ij")
+    return OccupancyGrid((z < 0) | ((x > 1.0) & (x < 1.1)), origin, 0.02)
+
+
+def test_hand_reaching_into_a_thin_wall_is_pushed_out_while_the_seam_knee_cannot_be():
+    """The demo's drink stop: a knee inside the wall at the seam (the offset is 0 there) and a hand
+    going 5 cm into it at the episode's end. A full Gauss-Newton step pushes the hand out and leaves
+    only the knee active; the next step, held by nothing else, pulled the body back in (the
+    iterations ping-ponged and ended on the pulled-back one). The damped steps keep the hand out."""
+    sdf, k, T = SceneSDF(_thin_wall()), 2, 16
+    J = _standing(T)
+    J[..., 1] += 1.0
+    J[..., 0] += 0.75
+    hand, knee = JOINT_INDEX["left_index1"], JOINT_INDEX["left_knee"]
+    r = push_radii()
+    J[0, :, hand] = np.c_[1.0 - r[hand] + np.r_[-0.05, -0.05, np.linspace(-0.05, 0.05, T - 2)], np.full(T, 1.0),
+                          np.full(T, 0.8)]
+    J[0, :, knee, 0] = 1.0 - r[knee] + np.r_[0.04, 0.04, 0.04, 0.02, np.full(T - 4, -0.05)]
+    assert _depth(sdf, J)[0, -4:, hand].min() > 0.035
+    out = push_out(J, sdf, fixed=k)
+    assert _depth(sdf, out)[0, -4:].max() < 0.005  # the hand is out by the episode's end
+    assert _objective(J, out, sdf, k) < 0.5 * _objective(J, J, sdf, k)
 
 
 def test_bad_input_raises():

@@ -9,7 +9,7 @@ from trumans.hoi import (COND_DIM, FRAME_DIM, CorruptionConfig, add_clean_imu, b
                          sequence_from_frames, simulate_imu_acc, to_frame, unpack_frames, window_frame,
                          window_starts, window_weights)
 from trumans.hoi.frame import IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS
-from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_vel
+from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_vel
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence, load_sequence, save_sequence
 from trumans.skeleton import forward_kinematics, rest_offsets
@@ -174,6 +174,12 @@ def test_regularisers_analytic():
     j = x.clone()
     j[..., 3 * 15 + 2] += 0.05  # head z
     assert abs(loss_consist(j, off).item() - 0.05) < 1e-5
+    # the pose term: a body shift costs nothing; one joint 5 cm off costs 0.05; the pelvis 5 cm off
+    # moves every other joint's offset from it: 23 x 0.05
+    assert loss_pose(shift, x) < 1e-9 and abs(loss_pose(j, x).item() - 0.05) < 1e-9
+    pel = x.clone()
+    pel[..., 2] += 0.05
+    assert abs(loss_pose(pel, x).item() - 23 * 0.05) < 1e-9
     # L_rot: object rotation vs IMU rotation, only where the IMU flag is set
     tr = q.clone()
     tr[..., IMU_R] += 0.1

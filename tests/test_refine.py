@@ -167,10 +167,10 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     b = task.batch(0, 0, 1)
     assert b.x0.shape == (2, 16, FRAME_DIM) and b.cond.shape == (2, 16, 261) and torch.isfinite(b.cond).all()
     loss = task.loss(task.build_model(), b, torch.Generator().manual_seed(0), "cpu")
-    assert set(loss.terms) == {"simple", "off", "vel", "consist", "imu"}
+    assert set(loss.terms) == {"simple", "off", "vel", "consist", "imu", "pose"}
     assert all(torch.isfinite(v) for v in loss.terms.values())
     w0, w1, w2 = (_phase_weights(task.config.filter, k) for k in (0.0, 0.4, 0.9))
-    assert sum(w0.values()) == 0 and w1["off"] > 0 and w1["imu"] == 0 and w2["imu"] > 0
+    assert sum(w0.values()) == w0["pose"] > 0 and w1["off"] > 0 and w1["imu"] == 0 and w2["imu"] > 0
     abl = make_task("filter", ablate=["regularisers"])
     assert abl.config.filter.w_off == 0 and abl.config.filter.w_imu == 0
     with pytest.raises(ValueError, match="unknown ablation 'scene'"):

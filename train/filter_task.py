@@ -32,7 +32,7 @@ from trumans.hoi.filter import (FilterModel, FilterNetConfig, build_filter_model
                                 prepare_windows, sample_x0)
 from trumans.hoi.frame import (FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, pack_frames, resample_frames, to_frame,
                                window_frame)
-from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_vel
+from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_vel
 from trumans.hoi.wiener import JointWiener, fit_joint_wiener
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
@@ -49,7 +49,7 @@ CONFIG_DIR = Path(__file__).parent / "configs" / "filter"
 DEFAULT_CONFIG = "cpu"
 VAL_SEED = 20240601
 ABLATIONS = {  # --ablate NAME -> overrides
-    "regularisers": {"filter": {"w_off": 0.0, "w_vel": 0.0, "w_consist": 0.0, "w_imu": 0.0}},
+    "regularisers": {"filter": {"w_off": 0.0, "w_vel": 0.0, "w_consist": 0.0, "w_imu": 0.0, "w_pose": 0.0}},
     "imu": {"corruption": {"p_no_imu": 1.0}},
     "wiener": {"net": {"wiener_radius": 0}},
 }
@@ -63,7 +63,8 @@ class FilterSection:
     the simple loss). simple_only / consist_imu_from: fractions of ``train.steps``; wiener_windows:
     corrupted train windows the joints' linear skip is fitted on (``trumans.hoi.wiener``), and as
     many of the real-motion corpus's train split (other skeletons: the fit then relies less on the
-    dataset's body proportions) with wiener_real_windows."""
+    dataset's body proportions) with wiener_real_windows. w_pose: the joints relative to the pelvis
+    (``loss_pose``, ours, on from the first step)."""
 
     stride: int = 16
     val_windows: int = 128
@@ -74,6 +75,7 @@ class FilterSection:
     w_vel: float = 0.1
     w_consist: float = 0.02
     w_imu: float = 0.1
+    w_pose: float = 0.1
     wiener_windows: int = 1500
     wiener_real_windows: int = 1500
 
@@ -84,7 +86,7 @@ class FilterSection:
             raise ValueError(f"wiener_real_windows must be >= 0, got {self.wiener_real_windows}")
         if not 0 <= self.simple_only <= self.consist_imu_from <= 1:
             raise ValueError(f"need 0 <= simple_only <= consist_imu_from <= 1, got {self.simple_only}, {self.consist_imu_from}")
-        if min(self.w_off, self.w_vel, self.w_consist, self.w_imu) < 0:
+        if min(self.w_off, self.w_vel, self.w_consist, self.w_imu, self.w_pose) < 0:
             raise ValueError("regulariser weights must be >= 0")
 
 
@@ -118,10 +120,12 @@ def load_filter_config(name_or_path: str | Path) -> FilterConfig:
 
 
 def _phase_weights(cfg: FilterSection, frac: float) -> dict[str, float]:
-    """Regulariser weights at training progress ``frac`` in [0, 1] (appendix A.2 schedule)."""
+    """Regulariser weights at training progress ``frac`` in [0, 1] (appendix A.2 schedule; the pose
+    term, not the paper's, throughout)."""
     on1 = frac >= cfg.simple_only
     on2 = frac >= cfg.consist_imu_from
-    return {"off": cfg.w_off * on1, "vel": cfg.w_vel * on1, "consist": cfg.w_consist * on2, "imu": cfg.w_imu * on2}
+    return {"off": cfg.w_off * on1, "vel": cfg.w_vel * on1, "consist": cfg.w_consist * on2, "imu": cfg.w_imu * on2,
+            "pose": cfg.w_pose}
 
 
 @dataclass
@@ -275,7 +279,7 @@ class FilterTask:
         w = _phase_weights(self.config.filter, b.progress)
         terms = {"simple": out.terms["simple"], "off": loss_off(x_hat, clean), "vel": loss_vel(x_hat, clean),
                  "consist": loss_consist(x_hat, to(b.offsets)),
-                 "imu": loss_imu(x_hat, clean, to(b.tracked), self.config.net.fps)}
+                 "imu": loss_imu(x_hat, clean, to(b.tracked), self.config.net.fps), "pose": loss_pose(x_hat, clean)}
         total = terms["simple"] + sum(w[k] * terms[k] for k in w if w[k] > 0)
         return TaskLoss(total, terms)
 

@@ -13,7 +13,7 @@ from trumans.skeleton import NUM_JOINTS, forward_kinematics
 
 from .frame import IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS
 
-__all__ = ["loss_off", "loss_vel", "loss_consist", "loss_imu", "ACC_FACTOR"]
+__all__ = ["loss_off", "loss_vel", "loss_consist", "loss_imu", "loss_pose", "ACC_FACTOR"]
 
 # Eq. 13 writes the acceleration increment as a_t τ²/2. With a_t defined as a second difference over
 # τ² (eq. 16), the exact trajectory satisfies (j_{t+1} - j_t) - (j_t - j_{t-1}) = a_t τ², so the
@@ -31,6 +31,14 @@ def loss_off(x_hat: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     rel_hat = x_hat[..., None, OBJ_T] - _joints(x_hat)  # (B, L, 24, 3)
     rel = x[..., None, OBJ_T] - _joints(x)
     return (rel_hat - rel).abs().sum((-1, -2)).mean()
+
+
+def loss_pose(x_hat: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """(1/T) Σ_t Σ_i ‖(ĵ_h,t^i − ĵ_h,t^0) − (j_h,t^i − j_h,t^0)‖₁: every joint relative to the pelvis
+    (joint 0). Not in I'm-HOI: the simple loss on absolute joints is dominated by the tracker's
+    whole-body drift, which no filter can see, so it hardly constrains the body's pose itself."""
+    J_hat, J = _joints(x_hat), _joints(x)
+    return ((J_hat - J_hat[..., :1, :]) - (J - J[..., :1, :])).abs().sum((-1, -2)).mean()
 
 
 def loss_vel(x_hat: torch.Tensor, x: torch.Tensor) -> torch.Tensor:

@@ -7,7 +7,11 @@ subgoal at its last frame (``M_goal``) or a hand goal, and the action labels of 
 with the progress indicator. Walking subgoals lie on the path ``speed * (L - k) / fps`` metres
 ahead of the body's projection onto the path (the training data's episode displacement), and
 walking progress is the covered fraction of the path, so a body that lags still gets a reachable
-goal. Timed phases (sit down, stand up, ...) last their typical training-data duration.
+goal. With the walk map, a subgoal whose straight line from the body's pelvis strays more than 5 cm
+off the walkable floor is pulled back along the path until it does not (``line_of_sight_arc``): the
+network walks roughly straight at its subgoal, so a subgoal past a corner made it cut the corner, into
+the furniture the path turned around (the demo's right hip 6 cm into a table's corner). Timed
+phases (sit down, stand up, ...) last their typical training-data duration.
 """
 from __future__ import annotations
 
@@ -21,7 +25,8 @@ from .carry_plan import ObjectState, object_step_goals
 from .plan import Plan
 from .reach_cleanup import ReachCleanupConfig, reach_schedule, release_weights
 
-__all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "seat_target"]
+__all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "seat_target",
+           "line_of_sight_arc", "off_walkable"]
 
 # typical durations (s) when the checkpoint carries none (meta "action_seconds")
 DEFAULT_SECONDS: dict[str, float] = {
@@ -213,14 +218,43 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
     return phases
 
 
+def off_walkable(wm: WalkMap) -> np.ndarray:
+    """(Nx, Ny) m: how far each walk-map cell centre is from the nearest walkable one (0 on walkable floor)."""
+    from scipy import ndimage
+
+    if not wm.walkable.any():
+        return np.full(wm.walkable.shape, np.inf)
+    return ndimage.distance_transform_edt(~wm.walkable) * wm.cell
+
+
+def line_of_sight_arc(wm: WalkMap, off: np.ndarray, path: np.ndarray, cum: np.ndarray, s0: float, s1: float,
+                      start: np.ndarray, slack: float = 0.05, step: float = 0.05) -> float:
+    """The largest arc length s in (s0, s1] (m along ``path`` (P, 2) world xy, ``cum`` (P,) its
+    cumulative arc length) whose path point is seen from ``start`` (2,) world xy (the body's pelvis):
+    the straight line between them (sampled every half walk-map cell) stays within ``slack`` m of
+    walkable floor (``off``: ``off_walkable(wm)``); candidates every ``step`` m back from ``s1``.
+    None seen (the body stands off the floor's margin): ``s1``."""
+    cand = np.concatenate([[s1], np.arange(s1 - step, s0, -step)])  # (C,) from the farthest back
+    pts = lambda s: np.stack([np.interp(s, cum, path[:, 0]), np.interp(s, cum, path[:, 1])], -1)  # noqa: E731
+    a, b = np.asarray(start, np.float64), pts(cand)  # (2,), (C, 2)
+    n = max(2, int(np.ceil(np.linalg.norm(b - a, axis=-1).max() / (0.5 * wm.cell))) + 1)
+    idx = wm.index(a + np.linspace(0.0, 1.0, n)[None, :, None] * (b[:, None] - a))  # (C, n, 2)
+    inside = np.all((idx >= 0) & (idx < np.asarray(off.shape)), axis=-1)
+    c = np.clip(idx, 0, np.asarray(off.shape) - 1)
+    seen = (inside & (off[c[..., 0], c[..., 1]] <= slack + 1e-9)).all(-1)  # (C,)
+    return float(cand[np.argmax(seen)]) if seen.any() else float(s1)
+
+
 class Controller:
     """Closed-loop episode controls for compiled ``phases``; see the module doc.
 
     vocabulary: the model's action names; L, k: episode and transition frames; speed: walking
-    speed, m/s; fps: the model's frame rate."""
+    speed, m/s; fps: the model's frame rate; walkmap: the plan's walk map (None: subgoals are not
+    kept in line of sight)."""
 
     def __init__(self, phases: list[Phase], vocabulary: list[str], L: int, k: int, fps: float,
-                 speed: float = 1.0, arrive_m: float = 0.25, reach: ReachCleanupConfig = ReachCleanupConfig()) -> None:
+                 speed: float = 1.0, arrive_m: float = 0.25, reach: ReachCleanupConfig = ReachCleanupConfig(),
+                 walkmap: WalkMap | None = None) -> None:
         if not phases:
             raise ValueError("the plan compiled to no phases (every goal is where the person already stands)")
         self.phases, self.vocab = phases, list(vocabulary)
@@ -234,6 +268,8 @@ class Controller:
         self.approach_tries = 0  # extra episodes spent walking onto the stand point of a hand phase
         self.max_approach = 4
         self.reach = reach
+        self.walkmap = walkmap
+        self._off = off_walkable(walkmap) if walkmap is not None else None
         # contacts whose release still fades out: (last contact frame relative to the next episode's
         # frames, wrist target (3,), side 0 left / 1 right)
         self.releases: list[tuple[int, np.ndarray, int]] = []
@@ -319,6 +355,10 @@ class Controller:
                 remaining = cum[-1] - self.walk_s
                 n = max(1, min(L - f, int(np.ceil(remaining / step_m))))
                 s = self.walk_s + step_m * np.arange(1, n + 1)
+                if self.walkmap is not None and f + n >= L and s[-1] < cum[-1]:  # the walk goes on: no corner cut
+                    seen = line_of_sight_arc(self.walkmap, self._off, p.path, cum, self.walk_s, s[-1],
+                                             np.asarray(pelvis_xy, np.float64))
+                    s = np.minimum(s, seen)
                 prog = np.clip(s / max(cum[-1], 1e-6), 0, 1)
                 labels[f:f + n, self.col["walk"]] = 1.0 + prog
                 phase_of[f:f + n] = self.index

@@ -167,7 +167,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     xy = np.asarray(plan.start if plan.start is not None else start_xy, dtype=np.float64)
     heading = float(plan.heading) if plan.heading is not None else 0.0
     phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps)
-    controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt))
+    controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
                    for _ in range(num_samples)]
     context = start_context(ckpt, xy, heading, num_samples)
     lengths = bone_lengths_of(context[0, 0].astype(np.float64))
@@ -226,7 +226,7 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
 
     def controller_for(p: Plan, at: np.ndarray) -> Controller:
         return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps), ckpt.vocabulary, L, k,
-                          ckpt.fps, _speed(ckpt))
+                          ckpt.fps, _speed(ckpt), walkmap=walkmap)
 
     ctrl = controller_for(plan, xy)
     todo = list(schedule)

@@ -133,3 +133,59 @@ def test_controller_timed_phase_spans_episodes():
     np.testing.assert_allclose(seq, 1.0 + np.arange(1, 21) / 20, atol=1e-6)
     assert ctrl.done and np.allclose(b.goal, [1.0, 1.0])
     assert b.labels[-1, VOCAB.index("sit")] == 1.5  # held posture after sitting down
+
+
+def _corner_map() -> tuple:
+    """A 4 x 4 m walk map (5 cm cells) with a blocked 2 x 2 m block in its corner x, y > 1 m
+    (a table the path turns around), and an L-shaped path along its two sides, 0.2 m off it."""
+    from scenes.walkability import WalkMap
+
+    xy = np.stack(np.meshgrid(np.arange(-1.0, 3.0, 0.05), np.arange(-1.0, 3.0, 0.05), indexing="ij"), -1)
+    walkable = ~((xy[..., 0] > 1.0) & (xy[..., 1] > 1.0))
+    path = np.array([[0.8, 2.9], [0.8, 0.8], [2.9, 0.8]])  # down the left side, then right along the bottom
+    return WalkMap(walkable, np.array([-1.0, -1.0]), 0.05), path
+
+
+def test_line_of_sight_arc_pulls_a_subgoal_past_a_corner_back_into_view():
+    from sample.controller import line_of_sight_arc, off_walkable
+
+    wm, path = _corner_map()
+    off, cum = off_walkable(wm), np.array([0.0, 2.1, 4.2])
+    # far from the corner: the straight line to the subgoal stays on the floor, the subgoal stays
+    assert line_of_sight_arc(wm, off, path, cum, 0.0, 1.4, path[0]) == 1.4
+    # from (0.8, 1.6) a subgoal 1.4 m on, at (1.4, 0.8), is seen only across the block's corner
+    # (1.0, 1.0); pulled back, the line to it (sampled densely) keeps off the block
+    body = np.array([0.8, 1.6])
+    s = line_of_sight_arc(wm, off, path, cum, 1.3, 2.7, body, slack=0.0)
+    assert 1.3 < s < 2.7
+    end = np.array([np.interp(s, cum, path[:, 0]), np.interp(s, cum, path[:, 1])])
+    assert wm.query(body + np.linspace(0, 1, 200)[:, None] * (end - body)).all()
+    # the slack lets the line cut into the blocked cells by that much, no more
+    s10 = line_of_sight_arc(wm, off, path, cum, 1.3, 2.7, body, slack=0.1)
+    assert s <= s10 < 2.7
+
+
+def test_controller_with_walkmap_does_not_aim_across_a_corner():
+    wm, path = _corner_map()
+    ph = [Phase("walk", ("walk",), path=path, goal=path[-1])]
+    prev = np.zeros((2, len(VOCAB)), np.float32)
+    free = Controller(ph, VOCAB, L=16, k=2, fps=10, speed=1.0)
+    seen = Controller(ph, VOCAB, L=16, k=2, fps=10, speed=1.0, walkmap=wm)
+    body = np.array([0.8, 1.6])
+    g_free, g_seen = free.next(body, prev).goal, seen.next(body, prev).goal
+    assert np.allclose(g_free, [1.4, 0.8])  # 1.4 m on along the path: past the corner
+    u = np.linspace(0, 1, 200)[:, None]
+    assert not off_line_within(wm, body + u * (g_free - body), 0.05)
+    assert off_line_within(wm, body + u * (g_seen - body), 0.05)  # within the default slack of the floor
+    assert seen.walk_s < free.walk_s  # the walk's progress follows the nearer subgoal
+    # a straight stretch is unchanged
+    a, b = Controller(ph, VOCAB, 16, 2, 10, 1.0), Controller(ph, VOCAB, 16, 2, 10, 1.0, walkmap=wm)
+    assert np.allclose(a.next(path[0], prev).goal, b.next(path[0], prev).goal)
+
+
+def off_line_within(wm, line: np.ndarray, slack: float) -> bool:
+    """Every point of ``line`` (N, 2) lies within ``slack`` m of walkable floor."""
+    from sample.controller import off_walkable
+
+    idx = np.clip(wm.index(line), 0, np.asarray(wm.walkable.shape) - 1)
+    return bool((off_walkable(wm)[idx[:, 0], idx[:, 1]] <= slack + 1e-9).all())

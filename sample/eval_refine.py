@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from trumans.hoi.filter import category_indices
+
 __all__ = ["add_arguments", "run", "evaluate", "tune_savgol"]
 
 _HANDS = [20, 21, 22, 23]  # wrists and index1
@@ -48,6 +50,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise", help="sampling start (default noise)")
     p.add_argument("--ablation", default=None, metavar="CHECKPOINT", help="a second checkpoint to report as 'ablation'")
     p.add_argument("--seed", type=int, default=0, help="corruption and sampling seed")
+    p.add_argument("--category", action="append", default=[], metavar="NAME",
+                   help="only test clips of this object category (repeatable; default: every category)")
     p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
                                                        "test split, body only): blocks real.default and real.drift")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
@@ -231,8 +235,16 @@ def run(args: argparse.Namespace) -> int:
     val_clean, _ = _clips(args.data, "val", args.clip, filt.fps, filt.categories, args.max_clips, args.seed)
     val_tr = corrupt(val_clean, filt.fps, np.random.default_rng(args.seed + 1), CorruptionConfig())
     sg = tune_savgol(list(zip(val_tr, val_clean)))
-    test_clean, cats = _clips(args.data, "test", args.clip, filt.fps, filt.categories, args.max_clips, args.seed)
+    test_clean, cats = _clips(args.data, "test", args.clip, filt.fps, filt.categories,
+                              args.max_clips if not args.category else 10 ** 9, args.seed)
+    if args.category:
+        category_indices(args.category, filt.categories)  # unknown names: a clear error
+        keep = np.array([c in args.category for c in cats])
+        if not keep.any():
+            raise ValueError(f"the test split has no {args.clip}-frame clip of {args.category}")
+        test_clean, cats = test_clean[keep][:args.max_clips], [c for c, k in zip(cats, keep) if k][:args.max_clips]
     res = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "data": str(Path(args.data)), "seed": args.seed,
+           "categories": sorted(set(cats)),
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)

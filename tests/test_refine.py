@@ -161,6 +161,21 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     assert filt.model.wiener is not None and filt.model.wiener.radius == 2  # fitted in setup, shipped in extra
     torch.testing.assert_close(filt.model.wiener.weight, task.wiener.weight)
     assert make_task("filter", ablate=["wiener"]).config.net.wiener_radius == 0
+    # fine-tuning from the run (--init), on one category: starts from its EMA weights and its skip
+    ft = make_task("filter", overrides={"net": NET.to_dict(), "diffusion": DIFF.to_dict(),
+                                        "train": {"batch_size": 2, "checkpoint_every": 10, "val_every": 10},
+                                        "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 8,
+                                                   "wiener_windows": 8, "wiener_real_windows": 8,
+                                                   "categories": ["box"]}})
+    res0 = train(ft, data, tmp_path / "ft0", steps=0, progress=False, init=tmp_path / "run" / "checkpoint.pt")
+    f0 = HOIFilter.load(res0.checkpoint)
+    for k, v in filt.model.state_dict().items():
+        torch.testing.assert_close(f0.model.state_dict()[k], v)
+    torch.testing.assert_close(f0.model.wiener.weight, filt.model.wiener.weight)
+    assert f0.ckpt.meta["init"] == str(tmp_path / "run" / "checkpoint.pt")
+    assert train(ft, data, tmp_path / "ft2", steps=2, progress=False, init=tmp_path / "run" / "checkpoint.pt").steps == 2
+    with pytest.raises(ValueError, match="not in this data's vocabulary"):
+        ft.train_data.only(["chair"])
     from train.filter_task import real_motion_windows
     real = real_motion_windows(16, 30.0, stride=200)  # the corpus's train split, joints only
     assert real.shape[1:] == (16, FRAME_DIM) and np.isfinite(real[..., JOINTS]).all() and np.isnan(real[..., OBJ_T]).all()

@@ -26,6 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="augmented dataset folder (`trumans augment` output) added to the train split; repeatable")
     p.add_argument("--steps", type=int, default=None, help="total optimisation steps (default: the config's)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.add_argument("--init", default=None, metavar="CHECKPOINT",
+                   help="fine-tune: start from this checkpoint's weights (same task, config and data), fresh optimiser")
     p.add_argument("--seed", type=int, default=0, help="random seed (data order, noise, init)")
     p.add_argument("--ablate", action="append", default=[], metavar="NAME",
                    help="switch off a part (generator: progress (indicator), scene / action (condition), "
@@ -58,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         over["train"] = {"time_limit_s": float(args.time_limit)}
     task = make_task(args.task, args.config, overrides=over, ablate=args.ablate)
     res = train(task, args.data, args.out, steps=args.steps, resume=args.resume, seed=args.seed,
-                progress=not args.no_progress, device=args.device, augmented_dirs=args.augmented)
+                progress=not args.no_progress, device=args.device, augmented_dirs=args.augmented, init=args.init)
     if int(os.environ.get("RANK", "0")) != 0:
         return 0
     print(f"{res.steps} steps, {res.samples_per_s:.1f} samples/s, train loss {res.train_loss:.4f}, "

@@ -224,6 +224,9 @@ def build_config(cls, d: Any, where: str = "config", derived: dict[str, dict[str
         default = defaults[k]
         if is_dataclass(default):
             kwargs[k] = build_config(type(default), v, f"{where}.{k}", refuse=(derived or {}).get(k), base=default)
+        elif isinstance(default, tuple) and all(isinstance(x, str) for x in default) and isinstance(v, (list, tuple)) \
+                and v and all(isinstance(x, str) for x in v):  # a list of names
+            kwargs[k] = tuple(v)
         elif isinstance(default, tuple):
             if not isinstance(v, (list, tuple)) or not all(_is_number(x) for x in v):
                 raise ValueError(f"{where}.{k} must be a list of numbers, got {v!r}")

@@ -64,7 +64,9 @@ class FilterSection:
     corrupted train windows the joints' linear skip is fitted on (``trumans.hoi.wiener``), and as
     many of the real-motion corpus's train split (other skeletons: the fit then relies less on the
     dataset's body proportions) with wiener_real_windows. w_pose: the joints relative to the pelvis
-    (``loss_pose``, ours, on from the first step)."""
+    (``loss_pose``, ours, on from the first step). categories: train and validate on windows of
+    these object categories only (empty: all), e.g. to fine-tune a shared model for one category
+    (``trumans train --task filter --init SHARED.pt --config chair.toml``); the vocabulary stays the data's."""
 
     stride: int = 16
     val_windows: int = 128
@@ -78,6 +80,7 @@ class FilterSection:
     w_pose: float = 0.1
     wiener_windows: int = 1500
     wiener_real_windows: int = 1500
+    categories: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.stride < 1 or self.val_windows < 1 or self.val_sampling_steps < 1 or self.wiener_windows < 1:
@@ -214,6 +217,8 @@ class FilterTask:
         self.train_data = load_filter_windows(data_dir, "train", net.window, fc.stride, net.fps, cats)
         self.categories = self.train_data.category_names
         val = load_filter_windows(data_dir, "val", net.window, net.window, net.fps, self.categories)
+        if fc.categories:
+            self.train_data, val = self.train_data.only(fc.categories), val.only(fc.categories)
         self.seed = seed
         if prev is not None:
             self.normalizer = prev.normalizer

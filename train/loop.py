@@ -127,14 +127,16 @@ def initial_model(task: Task, seed: int) -> nn.Module:
 
 def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Path, *, steps: int | None = None,
           resume: bool = False, seed: int = 0, progress: bool = True, device: str | None = None,
-          augmented_dirs: Sequence[str | Path] = ()) -> TrainResult:
+          augmented_dirs: Sequence[str | Path] = (), init: str | Path | None = None) -> TrainResult:
     """Train ``task`` (a generator config means ``GeneratorTask(config)``) on ``data_dir`` into
     ``out_dir`` (``checkpoint.pt``, ``loss.png``, ``cache/``).
 
     steps: total optimisation steps (default ``config.train.steps``); resume: continue from
     ``out_dir/checkpoint.pt``; augmented_dirs: extra data folders handed to the task (the
     generator: augmented datasets whose train split joins training unless ``data.augmented`` is
-    False). Under torchrun every process calls this; rank 0 writes the files.
+    False); init: a checkpoint of the same kind, trained on the same data, to fine-tune: its weights
+    (EMA if present), normalisation and task state start the run, with a fresh optimiser and step 0
+    (ignored when resuming). Under torchrun every process calls this; rank 0 writes the files.
     """
     from tqdm import tqdm
 
@@ -169,9 +171,13 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
                 raise ValueError(f"{ckpt_path} was trained with a different config; resume with the same --config")
             if int(prev.train_state["seed"]) != seed:
                 raise ValueError(f"{ckpt_path} was trained with --seed {prev.train_state['seed']}, not {seed}")
+        start = None
+        if init is not None and prev is None:
+            start = load_checkpoint(init, kind=task.kind)
+        init_name = str(init) if start is not None else (prev.meta.get("init") if prev is not None else None)
         t0 = time.perf_counter()
-        task.setup(data_dir, out, is_main=info.is_main, barrier=lambda: ddp.barrier(info), prev=prev, seed=seed,
-                   extra_dirs=augmented_dirs, progress=progress)
+        task.setup(data_dir, out, is_main=info.is_main, barrier=lambda: ddp.barrier(info), prev=prev or start,
+                   seed=seed, extra_dirs=augmented_dirs, progress=progress)
         data_seconds = time.perf_counter() - t0
 
         model = initial_model(task, seed).to(info.device)
@@ -180,6 +186,14 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
         sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(tc.warmup_steps))
         history: dict = {"train": [], "val_step": [], "val": [], "zero": [], "terms": {}}
         step, elapsed_before = 0, 0.0
+        if start is not None:  # fine-tuning: the init's weights in the model and its EMA
+            weights = start.ema_state if start.ema_state is not None else start.model_state
+            try:
+                model.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in weights.items()})
+            except RuntimeError as e:
+                raise ValueError(f"--init {init} does not fit this config's model ({str(e).splitlines()[0]}); "
+                                 f"fine-tune with the config it was trained with") from e
+            ema.load_state_dict(model.state_dict())
         if prev is not None:
             model.load_state_dict(prev.model_state)
             ema.load_state_dict(prev.ema_state)
@@ -199,7 +213,8 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
             ck = task.checkpoint(
                 model_state={k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
                 ema_state={k: v.detach().cpu().clone() for k, v in ema.state_dict().items()},
-                meta={"config_name": cfg.name, "val_loss": val_last, "step": step},
+                meta={"config_name": cfg.name, "val_loss": val_last, "step": step,
+                      **({"init": init_name} if init_name else {})},
                 train_state={"step": step, "seed": seed, "config": cfg.to_dict(), "optimizer": opt.state_dict(),
                              "scheduler": sched.state_dict(), "history": history,
                              "seconds": elapsed_before + (time.perf_counter() - t_start)})

@@ -11,7 +11,8 @@ windows (B, L, 235) and the subjects' rest offsets (B, 24, 3) (for L_consist).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Sequence
 
 import numpy as np
 
@@ -49,6 +50,16 @@ class FilterWindows:
 
     def __len__(self) -> int:
         return len(self.windows)
+
+    def only(self, names: Sequence[str]) -> "FilterWindows":
+        """The windows whose object category is one of ``names`` (the vocabulary is kept)."""
+        bad = sorted(set(names) - set(self.category_names))
+        if bad:
+            raise ValueError(f"object category {bad[0]!r} is not in this data's vocabulary {self.category_names}")
+        keep = np.isin(self.categories, [self.category_names.index(n) for n in names])
+        if not keep.any():
+            raise ValueError(f"no window of category {sorted(names)} in this split; choose categories it has")
+        return replace(self, windows=self.windows[keep], categories=self.categories[keep])
 
     def batch(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(clean world windows (B, L, 235) float32, offsets (B, 24, 3), categories (B,))."""

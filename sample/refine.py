@@ -19,6 +19,7 @@ import torch
 from trumans.hoi.filter import FilterModel, category_indices, configure_skip, prepare_windows, sample_x0
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
+from trumans.hoi.object_rest import pool_rest
 from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips
 from trumans.hoi.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
@@ -36,7 +37,8 @@ class RefineOptions:
     in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
     network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames and
     object rotations that flip and back within a second as missing before filtering
-    (``trumans.hoi.outliers``)."""
+    (``trumans.hoi.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
+    after filtering (``trumans.hoi.object_rest``)."""
 
     num_steps: int = 2
     mode: Mode = "noise"
@@ -45,6 +47,7 @@ class RefineOptions:
     batch: int = 256
     seed: int = 0
     drop_failures: bool = True
+    rest_pooling: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
@@ -110,13 +113,15 @@ class HOIFilter:
             i += n
             blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
+            if options.rest_pooling:
+                blended = pool_rest(blended, p["tracked"], self.fps)
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 
     def _windows(self, frames: np.ndarray, fps: float, drop_failures: bool = True) -> dict:
-        """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T
-        and the network inputs (``prepare_windows``); ``drop_failures``: frozen frames and flipped
-        object rotations -> missing."""
+        """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T,
+        the network inputs (``prepare_windows``) and the tracked frames at that rate (``tracked``);
+        ``drop_failures``: frozen frames and flipped object rotations -> missing."""
         f = np.asarray(frames, dtype=np.float32)
         if f.ndim != 2 or f.shape[1] != FRAME_DIM:
             raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
@@ -137,7 +142,7 @@ class HOIFilter:
         padded[Tm:, IMU_R] = padded[Tm:, IMU_A] = padded[Tm:, IMU_FLAG] = 0.0  # padding: no IMU either
         idx = starts[:, None] + np.arange(L)[None]
         inp = prepare_windows(padded[idx], self.normalizer, filled_world=fill_missing(padded)[idx])
-        return {"starts": starts, "Tm": Tm, "T": T, "inp": inp}
+        return {"starts": starts, "Tm": Tm, "T": T, "inp": inp, "tracked": g}
 
     def refine_sequence(self, seq: Sequence, category: str | None = None, object_name: str | None = None,
                         options: RefineOptions = RefineOptions()) -> tuple[Sequence, str]:

@@ -38,6 +38,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
     p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
     p.add_argument("--seed", type=int, default=0, help="sampling seed")
+    p.add_argument("--no-rest-pooling", action="store_true",
+                   help="keep the filter's object pose in every frame (default: one pose per rest of the object, "
+                        "pooled over the whole rest; trumans.hoi.object_rest)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.add_argument("--interactions", action="store_true",
                    help="contact-driven interaction tracking (iReplica) instead of the filter")
@@ -57,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
 
     from .refine import HOIFilter, RefineOptions
 
-    opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed)
+    opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
+                         rest_pooling=not args.no_rest_pooling)
     seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()

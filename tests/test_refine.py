@@ -114,6 +114,12 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     a, _ = filt.refine_sequence(s, options=RefineOptions(num_steps=2, eta=1.0, seed=3))
     b, _ = filt.refine_sequence(s, options=RefineOptions(num_steps=2, eta=1.0, seed=3))
     np.testing.assert_array_equal(a.joints, b.joints)
+    # rest pooling touches the object only
+    rc = console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / "np.npz"),
+                       "--checkpoint", str(ck), "--steps", "2", "--no-rest-pooling"])
+    assert rc == 0
+    r2 = load_sequence(tmp_path / "np.npz")
+    np.testing.assert_allclose(r2.joints, r.joints, atol=1e-6)
     rc = console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / "x.npz"),
                        "--checkpoint", str(ck), "--category", "chair"])
     err = capsys.readouterr().err
@@ -238,8 +244,9 @@ def test_eval_refine_command(tmp_path, capsys):
     for k in ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "accel_err_in", "accel_err_out", "accel_gt",
               "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg",
               "hand_obj_dist_cm", "frames_per_s", "frames_per_s_per_clip", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm",
-              "mpjpe_savgol_ra_mm"):
+              "mpjpe_savgol_ra_mm", "obj_t_err_out_no_rest_cm", "obj_rot_err_out_no_rest_deg"):
         assert np.isfinite(res[k]), k
+    assert res["rest_pooling"] is True and "obj_t_err_out_no_rest_cm" not in res["no_imu"]
     assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
     assert res["savgol_window"] % 2 == 1
     rc = console_main(["eval", "refine", str(ck), "--data", str(data), "--clip", "8"])

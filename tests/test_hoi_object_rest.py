@@ -1,0 +1,112 @@
+"""Object rests pooled over the whole rest (trumans.hoi.object_rest)."""
+import numpy as np
+import pytest
+
+from trumans.hoi.frame import FRAME_DIM, OBJ_R, OBJ_T
+from trumans.hoi.object_rest import RestConfig, pool_rest, rest_mask
+from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
+
+FPS = 30.0
+
+
+def _frames(obj_t: np.ndarray, obj_r: np.ndarray | None = None) -> np.ndarray:
+    f = np.zeros((len(obj_t), FRAME_DIM), np.float32)
+    f[:, OBJ_T] = obj_t
+    f[:, OBJ_R] = matrix_to_6d(np.broadcast_to(np.eye(3), (len(obj_t), 3, 3))) if obj_r is None else obj_r
+    return f
+
+
+def _move_between_rests(T: int = 240, a: int = 90, b: int = 150, dist: float = 0.6) -> np.ndarray:
+    """(T, 3): at rest at the origin, a 2 s move of ``dist`` m along x (smooth-step), at rest again."""
+    s = np.clip((np.arange(T) - a) / (b - a), 0, 1)
+    p = np.zeros((T, 3))
+    p[:, 0] = dist * (3 * s ** 2 - 2 * s ** 3)
+    return p
+
+
+def test_rest_mask_finds_the_move():
+    p = _move_between_rests()
+    rest = rest_mask(p, FPS)
+    assert rest[:80].all() and rest[-80:].all()
+    assert not rest[105:135].any()  # peak speed 0.45 m/s
+
+
+def test_rest_mask_static_object_with_slow_drift_is_all_rest():
+    t = np.arange(300) / FPS
+    p = 0.03 * np.stack([np.sin(2 * np.pi * 0.3 * t), np.cos(2 * np.pi * 0.2 * t), 0 * t], -1)  # <= 6 cm/s
+    assert rest_mask(p, FPS).all()
+
+
+def test_rest_mask_drops_short_rests():
+    p = _move_between_rests(T=200, a=0, b=199, dist=2.0)  # slow (< 0.2 m/s) only in its first and last 0.85 s
+    assert not rest_mask(p, FPS, RestConfig(min_rest_s=1.0)).any()
+
+
+def test_pool_rest_averages_drift_out_of_a_static_object():
+    rng = np.random.default_rng(0)
+    T = 300
+    t = np.arange(T) / FPS
+    truth = np.array([1.0, 2.0, 0.8])
+    drift = 0.03 * np.stack([np.sin(2 * np.pi * t / 2.5), np.cos(2 * np.pi * t / 5.0), np.sin(2 * np.pi * t / 10.0)], -1)
+    tracked = _frames(truth + drift + rng.normal(0, 0.02, (T, 3)))
+    filtered = _frames(truth + drift)  # a filter that removed the jitter but, window by window, kept the drift
+    rot = axis_angle_to_matrix(np.array([0.0, 0.0, 0.7]) + rng.normal(0, 0.05, (T, 3)))
+    filtered[:, OBJ_R] = matrix_to_6d(rot)
+    out = pool_rest(filtered, tracked, FPS)
+    err_in = np.linalg.norm(filtered[:, OBJ_T] - truth, axis=-1).mean()
+    err_out = np.linalg.norm(out[:, OBJ_T] - truth, axis=-1).mean()
+    assert np.ptp(out[:, OBJ_T], axis=0).max() < 1e-5  # one pose for the whole rest
+    assert err_out < 0.3 * err_in
+    R = sixd_to_matrix(out[:, OBJ_R].astype(np.float64))
+    assert np.allclose(R, R[0], atol=1e-5)
+    ang = np.degrees(np.arccos(np.clip((np.trace(R[0] @ axis_angle_to_matrix(np.array([0.0, 0.0, 0.7])).T) - 1) / 2, -1, 1)))
+    assert ang < 1.0
+    assert out.dtype == filtered.dtype and np.array_equal(out[:, :OBJ_T.start], filtered[:, :OBJ_T.start])
+
+
+def test_pool_rest_keeps_the_move_continuous():
+    p = _move_between_rests()
+    offset = np.array([0.05, -0.03, 0.0])  # the filter's output sits 5 cm off; tracked is centred
+    filtered = _frames(p + offset)
+    tracked = _frames(p)
+    out = pool_rest(filtered, tracked, FPS)
+    # the rests land on the tracked mean (the slowest ends of the move count as rest: < 2 mm), the
+    # move keeps its shape, nothing jumps, and the 5 cm offset is gone everywhere
+    assert np.ptp(out[:60, OBJ_T], axis=0).max() < 1e-6 and np.ptp(out[-60:, OBJ_T], axis=0).max() < 1e-6
+    assert np.abs(out[:60, OBJ_T]).max() < 2e-3 and np.abs(out[-60:, OBJ_T] - p[-1]).max() < 2e-3
+    assert np.abs(np.diff(out[:, OBJ_T], axis=0)).max() <= np.abs(np.diff(p, axis=0)).max() + 1e-3
+    err = np.abs(out[:, OBJ_T] - p).max(-1)
+    assert err.mean() < 5e-3 and err.max() < 0.03  # the move starts late by its slowest (rest-counted) part
+
+
+def test_pool_rest_without_an_observed_object_is_identity():
+    p = _move_between_rests()
+    filtered = _frames(p)
+    tracked = _frames(p)
+    tracked[:, OBJ_T] = np.nan
+    assert np.array_equal(pool_rest(filtered, tracked, FPS), filtered)
+
+
+def test_pool_rest_ignores_missing_tracked_frames():
+    T = 201
+    truth = np.array([0.5, 0.5, 0.5])
+    tracked = _frames(np.tile(truth, (T, 1)))
+    tracked[::3, OBJ_T] = np.nan
+    tracked[1::3, OBJ_T] += 0.02
+    tracked[2::3, OBJ_T] -= 0.02
+    out = pool_rest(_frames(np.tile(truth + 0.04, (T, 1))), tracked, FPS)
+    assert np.allclose(out[:, OBJ_T], truth, atol=1e-5)
+
+
+def test_bad_inputs_raise():
+    p = _move_between_rests()
+    with pytest.raises(ValueError, match="must both be"):
+        pool_rest(_frames(p), _frames(p)[:, :10], FPS)
+    with pytest.raises(ValueError, match="finite"):
+        rest_mask(np.full((10, 3), np.nan), FPS)
+    with pytest.raises(ValueError, match=r"\(T, 3\)"):
+        rest_mask(np.zeros((10, 2)), FPS)
+    with pytest.raises(ValueError, match="fps"):
+        rest_mask(p, 0.0)
+    with pytest.raises(ValueError, match="lo_m_s"):
+        RestConfig(lo_m_s=0.5, hi_m_s=0.2)

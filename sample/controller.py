@@ -31,7 +31,7 @@ __all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SEC
 # typical durations (s) when the checkpoint carries none (meta "action_seconds")
 DEFAULT_SECONDS: dict[str, float] = {
     "sit_down": 2.0, "stand_up": 1.8, "lie_down": 3.0, "get_up": 3.0, "reach": 1.5, "sit": 4.0, "lie": 4.0,
-    "stand": 2.0, "pick_up": 2.0, "put_down": 2.0, "open_door": 3.0, "close_door": 3.0, "open_drawer": 2.5,
+    "stand": 2.0, "turn": 1.1, "pick_up": 2.0, "put_down": 2.0, "open_door": 3.0, "close_door": 3.0, "open_drawer": 2.5,
     "close_drawer": 2.5, "drink": 3.0, "phone_call": 4.0, "type": 4.0, "use_mouse": 4.0,
 }
 
@@ -116,9 +116,11 @@ def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray
 
 
 def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
-                 fps: float, spacing: float = 0.3) -> list[Phase]:
+                 fps: float, spacing: float = 0.3, vocabulary: tuple[str, ...] | list[str] = ()) -> list[Phase]:
     """Phases of ``plan`` in ``scene`` from ``start_xy`` (2,). Raises ValueError (naming the step)
-    when a goal is not reachable on the walkable floor."""
+    when a goal is not reachable on the walkable floor. When ``vocabulary`` (the model's) has
+    ``turn``, sitting down starts with a turn on the spot to the seat's sitting direction, as in
+    the training data (the procedural takes turn ~150 degrees, then sit down without turning)."""
     def frames(name: str, s: float | None = None) -> int:
         return max(2, int(round((s if s is not None else seconds.get(name, DEFAULT_SECONDS.get(name, 2.0))) * fps)))
 
@@ -165,6 +167,9 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             if s.kind == "sit_on":
                 seat, h = seat_target(obj)
                 yaw = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]) + obj.meta.get("sit_yaw", 0.0))
+                if "turn" in vocabulary:
+                    phases.append(Phase("turn", ("turn",), frames("turn"), goal=pos.copy(),
+                                        step=i, heading=yaw, info={"object": obj.name}))
                 phases.append(Phase("sit_down", ("sit_down",), frames("sit_down"), goal=seat[:2], step=i,
                                     info={"seat_height": h, "object": obj.name}, heading=yaw))
                 phases.append(Phase("sit", ("sit",), frames("sit", s.seconds), goal=seat[:2], step=i,

@@ -166,7 +166,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         raise ValueError(f"num_samples must be >= 1, got {num_samples}")
     xy = np.asarray(plan.start if plan.start is not None else start_xy, dtype=np.float64)
     heading = float(plan.heading) if plan.heading is not None else 0.0
-    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps)
+    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary)
     controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
                    for _ in range(num_samples)]
     context = start_context(ckpt, xy, heading, num_samples)
@@ -225,8 +225,8 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
     seat = sit_offset(start_pose(ckpt))
 
     def controller_for(p: Plan, at: np.ndarray) -> Controller:
-        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps), ckpt.vocabulary, L, k,
-                          ckpt.fps, _speed(ckpt), walkmap=walkmap)
+        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary),
+                          ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
 
     ctrl = controller_for(plan, xy)
     todo = list(schedule)

@@ -94,6 +94,21 @@ def test_compile_walk_sit_stand_act(room):
     assert np.allclose(phases[-1].path[-1], [1.0, 1.0])
 
 
+def test_sitting_down_starts_with_a_turn_when_the_model_knows_turn(room):
+    scene, wm = room
+    plan = plan_from_dict({"steps": [{"do": "sit_on", "object": "chair_0", "seconds": 2}]})
+    phases = compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {"turn": 0.8}, fps=10,
+                          vocabulary=("walk", "turn", "sit_down", "sit"))
+    assert [p.kind for p in phases] == ["walk", "turn", "sit_down", "sit"]
+    turn, sit_down = phases[1], phases[2]
+    assert turn.frames == 8 and turn.actions == ("turn",)
+    assert np.allclose(turn.goal, phases[0].path[-1])  # on the spot where the walk ends
+    assert turn.heading is not None and turn.heading == sit_down.heading  # to the seat's sitting direction
+    # a model without 'turn' sits down straight from the walk
+    plain = compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {}, fps=10, vocabulary=("walk", "sit_down", "sit"))
+    assert [p.kind for p in plain] == ["walk", "sit_down", "sit"]
+
+
 def test_unreachable_goal_fails_before_sampling(room):
     scene, wm = room
     plan = plan_from_dict({"steps": [{"do": "goto", "to": [3.0, 2.0]}]})  # inside the chair

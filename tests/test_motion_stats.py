@@ -1,0 +1,40 @@
+"""The sampling statistics' standing start pose (trumans.model.motion_stats.standing_pose)."""
+import numpy as np
+import pytest
+
+from trumans.model.motion_stats import standing_pose
+from trumans.skeleton import ELBOWS, REST_JOINTS, SUBTREE, WRISTS, bone_lengths, heading
+
+
+def _arms_turned(angle: float, yaw: float, shift: np.ndarray) -> np.ndarray:
+    """The rest pose with both forearms (elbow down) turned by ``angle`` about the elbow's x axis,
+    then the whole body turned by ``yaw`` and moved by ``shift``."""
+    J = REST_JOINTS.astype(np.float64).copy()
+    c, s = np.cos(angle), np.sin(angle)
+    Rx = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    for e, w in zip(ELBOWS, WRISTS):
+        sub = SUBTREE[w]
+        J[sub] = (J[sub] - J[e]) @ Rx.T + J[e]
+    c, s = np.cos(yaw), np.sin(yaw)
+    Rz = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    return J @ Rz.T + shift
+
+
+def test_standing_pose_is_a_real_frame_in_the_canonical_frame():
+    rng = np.random.default_rng(0)
+    frames = np.stack([_arms_turned(a, y, np.r_[rng.uniform(-3, 3, 2), 0.0])
+                       for a, y in zip(rng.uniform(-1.2, 1.2, 41), rng.uniform(-np.pi, np.pi, 41))])
+    pose = standing_pose(frames)
+    # bones of one body: not shortened like the coordinate-wise median's forearms
+    np.testing.assert_allclose(bone_lengths(pose), bone_lengths(REST_JOINTS), atol=1e-9)
+    upright = np.stack([_arms_turned(a, 0.0, np.zeros(3)) for a in rng.uniform(-1.2, 1.2, 41)])
+    median = np.median(upright, axis=0)  # what the start pose used to be
+    forearm = lambda J: np.linalg.norm(J[list(WRISTS)] - J[list(ELBOWS)], axis=-1)  # noqa: E731
+    assert (forearm(median) < 0.97 * forearm(REST_JOINTS)).all()
+    np.testing.assert_allclose(forearm(pose), forearm(REST_JOINTS), atol=1e-9)
+    # canonical: pelvis over the origin, facing +x; the chosen frame's forearms are the least turned
+    np.testing.assert_allclose(pose[0, :2], 0.0, atol=1e-9)
+    assert abs(heading(pose)) < 1e-9
+    assert np.linalg.norm(pose - REST_JOINTS * [1, 1, 1] + REST_JOINTS[0] * [1, 1, 0], axis=-1).max() < 0.1
+    with pytest.raises(ValueError, match=r"\(N, 24, 3\)"):
+        standing_pose(np.zeros((0, 24, 3)))

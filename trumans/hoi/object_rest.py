@@ -9,7 +9,7 @@ filter's rate:
   hysteresis: a frame moves when it lies in a run above ``lo_m_s`` that reaches ``hi_m_s``; moving
   runs are padded by ``pad_s``; rests shorter than ``min_rest_s`` count as moving;
 - pooling (``pool_rest``): each rest's translation becomes the mean of the tracked translations
-  observed in it and its rotation the chordal mean (SVD projection of the mean matrix) of the
+  observed in it and its rotation the chordal mean of the
   filtered rotations; the moving frames keep their filtered motion, shifted by the translation
   change interpolated linearly between the neighbouring rests (held at the ends), so the path stays
   continuous.
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import binary_dilation, label, uniform_filter1d
+from scipy.spatial.transform import Rotation
 
 from trumans.contacts.intervals import runs
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
@@ -76,9 +77,8 @@ def rest_mask(obj_t: np.ndarray, fps: float, config: RestConfig = RestConfig()) 
 
 
 def _chordal_mean(r6: np.ndarray) -> np.ndarray:
-    """(N, 6) rotations -> (6,) their chordal L2 mean."""
-    U, _, Vt = np.linalg.svd(sixd_to_matrix(r6).mean(0))
-    return matrix_to_6d(U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt)
+    """(N, 6) rotations -> (6,) their chordal L2 mean (scipy's ``Rotation.mean``)."""
+    return matrix_to_6d(Rotation.from_matrix(sixd_to_matrix(r6)).mean().as_matrix())
 
 
 def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,

@@ -96,15 +96,23 @@ def _world(obj, local_xy) -> np.ndarray:
     return w[: len(local_xy)]
 
 
-def seat_target(obj) -> tuple[np.ndarray, float]:
-    """(seat centre (3,) world m, seat height m) of a seat object (meta 'seat_center')."""
-    c = _world(obj, np.asarray(obj.meta["seat_center"], dtype=np.float64))
+def seat_target(obj, near: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """(seat centre (3,) world m, seat height m) of a seat object (meta 'seat_center'); with
+    ``near`` (world point), the place of meta 'seat_centers' (if any) nearest it in xy."""
+    places = obj.meta.get("seat_centers") if near is not None else None
+    local = [np.asarray(c, dtype=np.float64) for c in (places or [obj.meta["seat_center"]])]
+    world = [_world(obj, c) for c in local]
+    c = world[0] if near is None else min(world, key=lambda p: float(np.linalg.norm(p[:2] - np.asarray(near)[:2])))
     return c, float(c[2])
 
 
-def _approach(obj, wm: WalkMap) -> np.ndarray:
+def _approach(obj, wm: WalkMap, seat: np.ndarray | None = None) -> np.ndarray:
+    """Where to stand before sitting: meta 'approach', shifted with ``seat`` (world) from the seat
+    centre to another seat place (as the procedural takes do)."""
     meta = obj.meta
     p = _world(obj, np.asarray(meta.get("approach", [0.0, 0.0]), dtype=np.float64))
+    if seat is not None and "seat_center" in meta:
+        p = p + (seat - _world(obj, np.asarray(meta["seat_center"], dtype=np.float64)))[: len(p)]
     return nearest_walkable(wm, p) if not wm.query(p[None])[0] else p
 
 
@@ -132,12 +140,18 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
     posture_exit: np.ndarray | None = None
     objects = ObjectState()  # where moved objects are, what the hands hold
 
+    edge_seat: np.ndarray | None = None  # where a lying body sat down on the edge (and gets up to)
+
     def leave(i: int) -> None:
         nonlocal posture, pos
         if posture == "sit":
             phases.append(Phase("stand_up", ("stand_up",), frames("stand_up"), goal=posture_exit, step=i, guide=False))
         elif posture == "lie":
-            phases.append(Phase("get_up", ("get_up",), frames("get_up"), goal=posture_exit, step=i, guide=False))
+            phases.append(Phase("get_up", ("get_up",), frames("get_up"), step=i, guide=False,
+                                goal=posture_exit if edge_seat is None else edge_seat))
+            if edge_seat is not None:  # the data's get_up ends seated on the edge: then stand up
+                phases.append(Phase("stand_up", ("stand_up",), frames("stand_up"), goal=posture_exit, step=i,
+                                    guide=False))
         if posture is not None:
             pos = posture_exit
         posture = None
@@ -163,25 +177,32 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
         if s.kind == "goto":
             walk(i, np.asarray(s.to, dtype=np.float64))
         elif s.kind in ("sit_on", "lie_on"):
-            walk(i, _approach(obj, wm))
-            if s.kind == "sit_on":
-                seat, h = seat_target(obj)
+            lie = _world(obj, np.asarray(obj.meta["lie_center"], dtype=np.float64)) if s.kind == "lie_on" else None
+            # lying as in the data: sit on the edge first (the seat place nearest the lying pelvis)
+            via_edge = lie is not None and "seat_center" in obj.meta and "sit_down" in vocabulary
+            if s.kind == "sit_on" or via_edge:
+                seat, h = seat_target(obj, near=lie)
+                walk(i, _approach(obj, wm, seat=seat))
                 yaw = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]) + obj.meta.get("sit_yaw", 0.0))
                 if "turn" in vocabulary:
                     phases.append(Phase("turn", ("turn",), frames("turn"), goal=pos.copy(),
                                         step=i, heading=yaw, info={"object": obj.name}))
                 phases.append(Phase("sit_down", ("sit_down",), frames("sit_down"), goal=seat[:2], step=i,
                                     info={"seat_height": h, "object": obj.name}, heading=yaw))
+            else:
+                walk(i, _approach(obj, wm))
+            if s.kind == "sit_on":
                 phases.append(Phase("sit", ("sit",), frames("sit", s.seconds), goal=seat[:2], step=i,
                                     info={"seat_height": h, "object": obj.name}, heading=yaw))
                 posture = "sit"
+                edge_seat = None
             else:
-                lie = _world(obj, np.asarray(obj.meta["lie_center"], dtype=np.float64))
                 phases.append(Phase("lie_down", ("lie_down",), frames("lie_down"), goal=lie[:2], step=i,
                                     info={"surface_height": float(lie[2]), "object": obj.name}))
                 phases.append(Phase("lie", ("lie",), frames("lie", s.seconds), goal=lie[:2], step=i,
                                     info={"surface_height": float(lie[2]), "object": obj.name}))
                 posture = "lie"
+                edge_seat = seat[:2].copy() if via_edge else None
             posture_exit = pos.copy()
         elif s.kind in ("stand_up", "get_up"):
             if posture is None:

@@ -109,6 +109,31 @@ def test_sitting_down_starts_with_a_turn_when_the_model_knows_turn(room):
     assert [p.kind for p in plain] == ["walk", "sit_down", "sit"]
 
 
+def test_lying_down_sits_on_the_edge_first_and_gets_up_through_sitting():
+    import trimesh
+
+    rng = np.random.default_rng(1)
+    sofa = furniture.sofa(rng, "sofa_0")
+    sofa.pose[:3, 3] = [3.0, 3.0, 0.0]
+    floor = trimesh.creation.box((6.0, 6.0, 0.1))
+    floor.apply_translation([3.0, 3.0, -0.05])
+    scene = Scene("lie_room", static={"floor": floor}, objects={"sofa_0": sofa})
+    wm = walkable_map(scene_occupancy(scene, None, voxel=0.05))
+    plan = plan_from_dict({"steps": [{"do": "lie_on", "object": "sofa_0", "seconds": 3}, {"do": "get_up"}]})
+    vocab = ("walk", "turn", "sit_down", "sit", "stand_up", "lie_down", "lie", "get_up")
+    phases = compile_plan(plan, scene, wm, np.array([1.0, 1.0]), {}, fps=10, vocabulary=vocab)
+    assert [p.kind for p in phases] == ["walk", "turn", "sit_down", "lie_down", "lie", "get_up", "stand_up"]
+    sit_down, lie_down, get_up, stand_up = phases[2], phases[3], phases[5], phases[6]
+    # the seat place nearest the lying pelvis, the body stands up where it came from
+    places = [sofa.pose[:3, :3] @ np.asarray(c) + sofa.pose[:3, 3] for c in sofa.meta["seat_centers"]]
+    nearest = min(places, key=lambda c: np.linalg.norm(c[:2] - lie_down.goal))
+    assert np.allclose(sit_down.goal, nearest[:2]) and sit_down.info["seat_height"] == pytest.approx(nearest[2])
+    assert np.allclose(get_up.goal, sit_down.goal) and np.allclose(stand_up.goal, phases[0].path[-1])
+    # a model without sit_down lies down straight from the walk, as before
+    plain = compile_plan(plan, scene, wm, np.array([1.0, 1.0]), {}, fps=10, vocabulary=("walk", "lie_down", "lie", "get_up"))
+    assert [p.kind for p in plain] == ["walk", "lie_down", "lie", "get_up"]
+
+
 def test_unreachable_goal_fails_before_sampling(room):
     scene, wm = room
     plan = plan_from_dict({"steps": [{"do": "goto", "to": [3.0, 2.0]}]})  # inside the chair

@@ -50,8 +50,14 @@ def test_pool_rest_averages_drift_out_of_a_static_object():
     drift = 0.03 * np.stack([np.sin(2 * np.pi * t / 2.5), np.cos(2 * np.pi * t / 5.0), np.sin(2 * np.pi * t / 10.0)], -1)
     tracked = _frames(truth + drift + rng.normal(0, 0.02, (T, 3)))
     filtered = _frames(truth + drift)  # a filter that removed the jitter but, window by window, kept the drift
-    rot = axis_angle_to_matrix(np.array([0.0, 0.0, 0.7]) + rng.normal(0, 0.05, (T, 3)))
-    filtered[:, OBJ_R] = matrix_to_6d(rot)
+    # rotations: the filter's carry a constant 3 deg bias (an IMU's), the tracked ones noise and a flip
+    true_R = axis_angle_to_matrix(np.array([0.0, 0.0, 0.7]))
+    bias = axis_angle_to_matrix(np.array([np.radians(3.0), 0.0, 0.0]))
+    filtered[:, OBJ_R] = matrix_to_6d(bias @ axis_angle_to_matrix(rng.normal(0, 0.01, (T, 3))) @ true_R)
+    noisy = axis_angle_to_matrix(rng.normal(0, 0.08, (T, 3))) @ true_R
+    noisy[100:110] = noisy[100:110] @ axis_angle_to_matrix(np.array([np.pi, 0.0, 0.0]))  # a flip
+    tracked[:, OBJ_R] = matrix_to_6d(noisy)
+    tracked[200:220, OBJ_R] = np.nan
     out = pool_rest(filtered, tracked, FPS)
     err_in = np.linalg.norm(filtered[:, OBJ_T] - truth, axis=-1).mean()
     err_out = np.linalg.norm(out[:, OBJ_T] - truth, axis=-1).mean()
@@ -59,8 +65,12 @@ def test_pool_rest_averages_drift_out_of_a_static_object():
     assert err_out < 0.3 * err_in
     R = sixd_to_matrix(out[:, OBJ_R].astype(np.float64))
     assert np.allclose(R, R[0], atol=1e-5)
-    ang = np.degrees(np.arccos(np.clip((np.trace(R[0] @ axis_angle_to_matrix(np.array([0.0, 0.0, 0.7])).T) - 1) / 2, -1, 1)))
-    assert ang < 1.0
+    ang = lambda A: np.degrees(np.arccos(np.clip((np.trace(A @ true_R.T) - 1) / 2, -1, 1)))  # noqa: E731
+    assert ang(R[0]) < 1.0  # the tracked mean: no bias, the flip left out
+    # without usable tracked rotations the filtered ones' mean is kept (bias and all)
+    tracked[:, OBJ_R] = np.nan
+    R2 = sixd_to_matrix(pool_rest(filtered, tracked, FPS)[:, OBJ_R].astype(np.float64))
+    assert 2.5 < ang(R2[0]) < 3.5
     assert out.dtype == filtered.dtype and np.array_equal(out[:, :OBJ_T.start], filtered[:, :OBJ_T.start])
 
 
@@ -110,3 +120,5 @@ def test_bad_inputs_raise():
         rest_mask(p, 0.0)
     with pytest.raises(ValueError, match="lo_m_s"):
         RestConfig(lo_m_s=0.5, hi_m_s=0.2)
+    with pytest.raises(ValueError, match="max_rot_deg"):
+        RestConfig(max_rot_deg=0.0)

@@ -9,8 +9,10 @@ filter's rate:
   hysteresis: a frame moves when it lies in a run above ``lo_m_s`` that reaches ``hi_m_s``; moving
   runs are padded by ``pad_s``; rests shorter than ``min_rest_s`` count as moving;
 - pooling (``pool_rest``): each rest's translation becomes the mean of the tracked translations
-  observed in it and its rotation the chordal mean of the
-  filtered rotations; the moving frames keep their filtered motion, shifted by the translation
+  observed in it, and its rotation the chordal mean of the tracked rotations observed in it that lie
+  within ``max_rot_deg`` of the filtered rotations' mean (flips left out; that mean itself where
+  fewer than 3 remain). Tracked rather than filtered rotations: the filter leans on the object IMU,
+  whose constant bias (~3°) no pooling removes. The moving frames keep their filtered motion, shifted by the translation
   change interpolated linearly between the neighbouring rests (held at the ends), so the path stays
   continuous.
 
@@ -42,10 +44,13 @@ class RestConfig:
     smooth_s: float = 0.3
     pad_s: float = 0.0
     min_rest_s: float = 0.33
+    max_rot_deg: float = 45.0
 
     def __post_init__(self) -> None:
         if not 0 < self.lo_m_s <= self.hi_m_s:
             raise ValueError(f"need 0 < lo_m_s <= hi_m_s, got {self.lo_m_s}, {self.hi_m_s}")
+        if not 0 < self.max_rot_deg <= 180:
+            raise ValueError(f"max_rot_deg must be in (0, 180], got {self.max_rot_deg}")
         if min(self.smooth_s, self.pad_s, self.min_rest_s) < 0:
             raise ValueError(f"smooth_s, pad_s and min_rest_s must be >= 0, got {self.smooth_s}, {self.pad_s}, "
                              f"{self.min_rest_s}")
@@ -76,9 +81,18 @@ def rest_mask(obj_t: np.ndarray, fps: float, config: RestConfig = RestConfig()) 
     return rest
 
 
-def _chordal_mean(r6: np.ndarray) -> np.ndarray:
-    """(N, 6) rotations -> (6,) their chordal L2 mean (scipy's ``Rotation.mean``)."""
-    return matrix_to_6d(Rotation.from_matrix(sixd_to_matrix(r6)).mean().as_matrix())
+def _rest_rotation(filtered6: np.ndarray, tracked6: np.ndarray, max_deg: float) -> np.ndarray:
+    """One rest's rotation (6,) from its filtered (N, 6) and tracked (N, 6, NaN = missing)
+    rotations: the chordal mean (scipy's ``Rotation.mean``) of the tracked ones within ``max_deg``
+    of the filtered ones' mean, else that mean."""
+    ref = Rotation.from_matrix(sixd_to_matrix(filtered6)).mean()
+    seen = tracked6[np.isfinite(tracked6).all(-1)]
+    if len(seen) >= 3:
+        rots = Rotation.from_matrix(sixd_to_matrix(seen))
+        near = (rots * ref.inv()).magnitude() <= np.radians(max_deg)
+        if near.sum() >= 3:
+            ref = rots[near].mean()
+    return matrix_to_6d(ref.as_matrix())
 
 
 def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,
@@ -99,7 +113,7 @@ def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,
         if ok.sum() < 3:
             continue
         offset[a:b] = tr[a:b, OBJ_T][ok].mean(0) - out[a:b, OBJ_T]
-        out[a:b, OBJ_R] = _chordal_mean(out[a:b, OBJ_R])[None]
+        out[a:b, OBJ_R] = _rest_rotation(out[a:b, OBJ_R], tr[a:b, OBJ_R], config.max_rot_deg)[None]
     have = np.isfinite(offset[:, 0])
     if have.any():
         t = np.arange(len(out))

@@ -126,9 +126,11 @@ def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray
 def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
                  fps: float, spacing: float = 0.3, vocabulary: tuple[str, ...] | list[str] = ()) -> list[Phase]:
     """Phases of ``plan`` in ``scene`` from ``start_xy`` (2,). Raises ValueError (naming the step)
-    when a goal is not reachable on the walkable floor. When ``vocabulary`` (the model's) has
-    ``turn``, sitting down starts with a turn on the spot to the seat's sitting direction, as in
-    the training data (the procedural takes turn ~150 degrees, then sit down without turning)."""
+    when a goal is not reachable on the walkable floor. The phases follow the training data's
+    order, as far as the model's ``vocabulary`` has the actions: sitting down starts with a turn on
+    the spot to the seat's sitting direction (the procedural takes turn ~150 degrees, then sit down
+    without turning); lying down first sits on the edge at the seat place nearest the lying pelvis,
+    and getting up ends seated there, then stands up."""
     def frames(name: str, s: float | None = None) -> int:
         return max(2, int(round((s if s is not None else seconds.get(name, DEFAULT_SECONDS.get(name, 2.0))) * fps)))
 

@@ -110,6 +110,15 @@ def test_config_loading_and_errors(tmp_path: Path) -> None:
         load_config(bad)
     with pytest.raises(FileNotFoundError, match="built-in"):
         load_config("no-such-config")
+    good = tmp_path / "share.toml"
+    good.write_text("[data]\naugmented_share = 0.25\n")
+    assert load_config(good).data.augmented_share == 0.25 and paper.data.augmented_share is None
+    bad.write_text("[data]\naugmented_share = 1.5\n")
+    with pytest.raises(ValueError, match="augmented_share must be a fraction"):
+        load_config(bad)
+    bad.write_text("[data]\naugmented_share = 'half'\n")
+    with pytest.raises(ValueError, match="data.augmented_share must be a number"):
+        load_config(bad)
 
 
 def test_episodes_from_dataset(tiny) -> None:
@@ -158,6 +167,35 @@ def test_episodes_from_dataset(tiny) -> None:
     assert sorted(epoch.tolist()) == list(range(48))
     b = s.batch(0)
     assert b.x.shape == (8, 16, 72) and b.scene.shape == (8, 32, 32, 32) and b.scene.dtype == torch.bool
+
+
+def test_pooled_batches_hold_each_pool_share_and_walk_each_pool_once_per_epoch(tiny) -> None:
+    from train.config import load_config
+    from train.data import BatchStream, build_episodes
+    from trumans.dataset import Dataset
+    from trumans.model.episodes import Normalizer
+
+    root, cfg_path = tiny
+    eps = build_episodes(Dataset(root), "train", load_config(cfg_path).data, VOCAB)  # 48 episodes
+    groups = (np.arange(48) >= 12).astype(np.int64)  # 12 "original", 36 "augmented"
+    s = BatchStream(eps, Normalizer.fit(eps.features), 8, seed=3, groups=groups, shares=[0.75, 0.25])
+    steps = [s.indices(i) for i in range(40)]
+    drawn = np.concatenate(steps)
+    assert all(len(b) == 8 for b in steps)
+    assert np.mean(groups[drawn] == 1) == 0.25  # exact over whole steps: 8 x 0.25 = 2 per step
+    first = drawn[groups[drawn] == 0][:12]  # pool 0's first epoch: each of its episodes once
+    assert sorted(first.tolist()) == list(range(12))
+    r0, r1 = s.indices(5, 0, 2), s.indices(5, 1, 2)
+    assert np.array_equal(np.sort(np.concatenate([r0, r1])), np.sort(s.indices(5)))
+    assert np.array_equal(s.indices(7), BatchStream(eps, s.norm, 8, seed=3, groups=groups, shares=[0.75, 0.25]).indices(7))
+    odd = BatchStream(eps, s.norm, 8, seed=3, groups=groups, shares=[0.9, 0.1])  # 0.8 per step on average
+    assert np.mean(groups[np.concatenate([odd.indices(i) for i in range(50)])] == 1) == 0.1
+    with pytest.raises(ValueError, match="sum to 1"):
+        BatchStream(eps, s.norm, 8, seed=3, groups=groups, shares=[0.5, 0.6])
+    with pytest.raises(ValueError, match="no episodes"):
+        BatchStream(eps, s.norm, 8, seed=3, groups=np.zeros(48, np.int64), shares=[0.5, 0.5])
+    with pytest.raises(ValueError, match="both groups and shares"):
+        BatchStream(eps, s.norm, 8, seed=3, groups=groups)
 
 
 def test_resume_equals_uninterrupted_run(tiny, tmp_path: Path) -> None:
@@ -258,6 +296,11 @@ def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: 
     no_aug = train(cfg.with_overrides(data={"augmented": False}), root, tmp_path / "b", steps=1, progress=False,
                    augmented_dirs=[aug])
     assert no_aug.train_episodes == 48
+    shared = train(cfg.with_overrides(data={"augmented_share": 0.5}), root, tmp_path / "c", steps=1, progress=False,
+                   augmented_dirs=[aug])
+    assert shared.train_episodes == 72
+    with pytest.raises(ValueError, match="another config|config"):  # the share is part of the run's config
+        train(cfg, root, tmp_path / "c", steps=2, resume=True, progress=False, augmented_dirs=[aug])
     with pytest.raises(ValueError, match="other data"):
         train(cfg, root, tmp_path / "a", steps=2, resume=True, progress=False)  # resumed without --augmented
 

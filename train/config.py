@@ -89,6 +89,7 @@ class DataSection:
     rotations: bool = False
     progress_indicator: bool = True
     augmented: bool = True
+    augmented_share: float | None = None
     dynamic_objects: bool = True
     max_val_episodes: int = 2048
 
@@ -100,6 +101,8 @@ class DataSection:
         _need(self.stride >= 1 and self.grid >= 1 and self.max_val_episodes >= 1,
               f"stride, grid and max_val_episodes must be >= 1, got {self.stride}, {self.grid}, {self.max_val_episodes}")
         _need(len(self.extent) == 3 and all(e > 0 for e in self.extent), f"extent must be 3 sizes > 0 m, got {self.extent}")
+        _need(self.augmented_share is None or 0 <= self.augmented_share <= 1,
+              f"augmented_share must be a fraction in [0, 1] (or left out), got {self.augmented_share}")
 
 
 @dataclass(frozen=True)
@@ -241,8 +244,10 @@ def build_config(cls, d: Any, where: str = "config", derived: dict[str, dict[str
             kwargs[k] = v
         elif isinstance(default, str) and isinstance(v, str):
             kwargs[k] = v
+        elif default is None and (v is None or _is_number(v)):  # an optional number (None: not set)
+            kwargs[k] = None if v is None else _finite(float(v), f"{where}.{k}")
         else:
-            raise ValueError(f"{where}.{k} must be a {type(default).__name__}, got {v!r}")
+            raise ValueError(f"{where}.{k} must be a {'number' if default is None else type(default).__name__}, got {v!r}")
     try:
         return replace(base, **kwargs) if base is not None else cls(**kwargs)
     except (TypeError, ValueError) as e:

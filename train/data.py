@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -114,7 +115,8 @@ def _scene_grids(ds: Dataset, scene_id: str, dynamic: bool, memo: dict) -> Scene
 
 def _cache_key(ds: Dataset, split: str, cfg: DataSection, layout: FeatureLayout, vocab: list[str], files: list[str]) -> str:
     h = hashlib.sha256(_CACHE_VERSION.encode())
-    h.update(json.dumps([ds.hash or ds.name, split, asdict(cfg), asdict(layout), vocab, files], sort_keys=True).encode())
+    episode_fields = {k: v for k, v in asdict(cfg).items() if k != "augmented_share"}  # batch mixing, not episodes
+    h.update(json.dumps([ds.hash or ds.name, split, episode_fields, asdict(layout), vocab, files], sort_keys=True).encode())
     if not ds.hash:  # no content hash: key on the sequence files' sizes and times
         for f in files:
             st = (ds.root / f).stat()
@@ -197,32 +199,73 @@ class Batch:
 
 
 class BatchStream:
-    """Deterministic batches: ``batch(step, rank, world)`` is a pure function of the seed and its args."""
+    """Deterministic batches: ``batch(step, rank, world)`` is a pure function of the seed and its args.
 
-    def __init__(self, episodes: EpisodeSet, normalizer: Normalizer, global_batch: int, seed: int) -> None:
+    groups: (N,) pool of each episode (0 .. P-1) and shares: (P,) the fraction of every global batch
+    drawn from each pool (e.g. original vs augmented episodes); each pool is walked through its own
+    per-epoch permutations, so over many steps pool p gives exactly ``shares[p]`` of the samples.
+    Without groups all episodes are drawn alike."""
+
+    def __init__(self, episodes: EpisodeSet, normalizer: Normalizer, global_batch: int, seed: int,
+                 groups: np.ndarray | None = None, shares: Sequence[float] | None = None) -> None:
         if global_batch < 1:
             raise ValueError(f"batch size must be >= 1, got {global_batch}")
         self.eps, self.norm, self.global_batch, self.seed = episodes, normalizer, global_batch, seed
         self.x = torch.from_numpy(normalizer.normalize(episodes.features).astype(np.float32))
         self.actions = torch.from_numpy(episodes.actions)
-        self._perms: dict[int, np.ndarray] = {}
+        self._perms: dict[tuple[int, int], np.ndarray] = {}
+        if (groups is None) != (shares is None):
+            raise ValueError("give both groups and shares, or neither")
+        if groups is None:
+            self.pools, self.cum_shares = [np.arange(len(episodes))], np.array([0.0, 1.0])
+        else:
+            groups, shares = np.asarray(groups), np.asarray(shares, np.float64)
+            if groups.shape != (len(episodes),) or shares.ndim != 1 or len(shares) == 0:
+                raise ValueError(f"groups must be ({len(episodes)},) and shares (P,), got {groups.shape} and {shares.shape}")
+            if not np.all(np.isfinite(shares)) or np.any(shares < 0) or abs(shares.sum() - 1) > 1e-6:
+                raise ValueError(f"shares must be fractions >= 0 that sum to 1, got {shares.tolist()}")
+            self.pools = [np.flatnonzero(groups == p) for p in range(len(shares))]
+            empty = [p for p, idx in enumerate(self.pools) if len(idx) == 0 and shares[p] > 0]
+            if empty:
+                raise ValueError(f"pool(s) {empty} have a share of the batch but no episodes")
+            self.cum_shares = np.concatenate([[0.0], np.cumsum(shares)])
+            self.cum_shares[-1] = 1.0
 
-    def _perm(self, epoch: int) -> np.ndarray:
-        if epoch not in self._perms:
-            if len(self._perms) > 4:
+    def _perm(self, pool: int, epoch: int) -> np.ndarray:
+        key = (pool, epoch)
+        if key not in self._perms:
+            if len(self._perms) > 4 * len(self.pools):
                 self._perms.pop(min(self._perms))
-            g = torch.Generator().manual_seed(self.seed * 1_000_003 + epoch)
-            self._perms[epoch] = torch.randperm(len(self.eps), generator=g).numpy()
-        return self._perms[epoch]
+            g = torch.Generator().manual_seed(self.seed * 1_000_003 + epoch + 7_919 * pool)
+            self._perms[key] = self.pools[pool][torch.randperm(len(self.pools[pool]), generator=g).numpy()]
+        return self._perms[key]
+
+    def _pool_start(self, step: int) -> np.ndarray:
+        """(P,) samples each pool has given before ``step``: floor(step · B · cumulative share) differences."""
+        edge = np.floor(step * self.global_batch * self.cum_shares + 1e-9).astype(np.int64)
+        return np.diff(edge)
+
+    def global_indices(self, step: int) -> np.ndarray:
+        """(B,) episode indices of the global batch at ``step``."""
+        if len(self.pools) == 1:
+            pos = step * self.global_batch + np.arange(self.global_batch)
+            epochs, within = pos // len(self.eps), pos % len(self.eps)
+            return np.array([self._perm(0, int(e))[i] for e, i in zip(epochs, within)], dtype=np.int64)
+        start, end = self._pool_start(step), self._pool_start(step + 1)
+        out = []
+        for p, (a, b) in enumerate(zip(start, end)):
+            pos = np.arange(a, b)
+            n = len(self.pools[p])
+            out += [self._perm(p, int(e))[i] for e, i in zip(pos // max(n, 1), pos % max(n, 1))]
+        idx = np.array(out, dtype=np.int64)
+        g = torch.Generator().manual_seed(self.seed * 1_000_003 + 104_729 * (step + 1))  # mix pools across ranks
+        return idx[torch.randperm(len(idx), generator=g).numpy()]
 
     def indices(self, step: int, rank: int = 0, world: int = 1) -> np.ndarray:
         if self.global_batch % world:
             raise ValueError(f"batch size {self.global_batch} must be divisible by the number of processes {world}")
         b = self.global_batch // world
-        pos = step * self.global_batch + rank * b + np.arange(b)
-        N = len(self.eps)
-        epochs, within = pos // N, pos % N
-        return np.array([self._perm(int(e))[i] for e, i in zip(epochs, within)], dtype=np.int64)
+        return self.global_indices(step)[rank * b:(rank + 1) * b]
 
     def get(self, idx: np.ndarray) -> Batch:
         t = torch.from_numpy

@@ -162,7 +162,11 @@ class GeneratorTask:
             barrier()
         train_eps = EpisodeSet.concat([loaded[0]] + loaded[2:]) if aug else loaded[0]
         self.normalizer = prev.normalizer if prev is not None else Normalizer.fit(train_eps.features)
-        self.stream = BatchStream(train_eps, self.normalizer, cfg.train.batch_size, seed)
+        groups = shares = None
+        if aug and cfg.data.augmented_share is not None:  # original vs augmented episodes, fixed batch shares
+            groups = np.concatenate([np.zeros(len(loaded[0]), np.int64)] + [np.ones(len(e), np.int64) for e in loaded[2:]])
+            shares = [1.0 - cfg.data.augmented_share, cfg.data.augmented_share]
+        self.stream = BatchStream(train_eps, self.normalizer, cfg.train.batch_size, seed, groups, shares)
         self.val_stream = BatchStream(loaded[1], self.normalizer, cfg.train.val_batch_size, seed)
 
     def build_model(self) -> Denoiser:

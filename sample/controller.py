@@ -11,7 +11,11 @@ goal. With the walk map, a subgoal whose straight line from the body's pelvis st
 off the walkable floor is pulled back along the path until it does not (``line_of_sight_arc``): the
 network walks roughly straight at its subgoal, so a subgoal past a corner made it cut the corner, into
 the furniture the path turned around (the demo's right hip 6 cm into a table's corner). Timed
-phases (sit down, stand up, ...) last their typical training-data duration.
+phases (sit down, stand up, ...) last their typical training-data duration. A phase done in place
+(a turn, a timed action, a hand phase) starts with an episode, after the walk before it has run out
+its episode (and up to ``max_approach`` more while the body is farther than ``arrive_m`` from the
+walk's end): the data's walks end at rest, and a body still walking when a turn or a drink began
+carried 0.3-0.7 m/s into it (the data: 0.0-0.15).
 """
 from __future__ import annotations
 
@@ -293,7 +297,7 @@ class Controller:
         self.walk_s = 0.0  # arc length planned on the current walk path, m
         self.body_s = 0.0  # arc length the body has covered (its projection on the path), m
         self._cum: np.ndarray | None = None
-        self.approach_tries = 0  # extra episodes spent walking onto the stand point of a hand phase
+        self.approach_tries = 0  # extra episodes spent walking onto the end of a walk before an in-place phase
         self.max_approach = 4
         self.reach = reach
         self.walkmap = walkmap
@@ -339,10 +343,15 @@ class Controller:
         i = int(np.argmin(np.linalg.norm(q - p, axis=1)))
         return float(cum[i] + t[i] * np.linalg.norm(ab[i]))
 
+    @staticmethod
+    def _in_place(p: Phase | None) -> bool:
+        """A phase done where the walk before it ends: a hand phase, a turn, a timed action."""
+        return p is not None and (p.hand_goal is not None or p.kind in ("turn", "act"))
+
     def _approach_goal(self, p: Phase | None, pelvis_xy: np.ndarray) -> np.ndarray | None:
-        """The stand point (2,) of a hand phase that is about to start while the pelvis is farther
-        than ``arrive_m`` from it (at most ``max_approach`` extra walking episodes), else None."""
-        if p is None or p.hand_goal is None or self.elapsed > 0 or self.index == 0:
+        """The walk's end (2,) before an in-place phase that is about to start while the pelvis is
+        farther than ``arrive_m`` from it (at most ``max_approach`` extra walking episodes), else None."""
+        if p is None or not self._in_place(p) or self.elapsed > 0 or self.index == 0:
             self.approach_tries = 0 if p is None or self.elapsed > 0 else self.approach_tries
             return None
         prev = self.phases[self.index - 1]
@@ -367,7 +376,7 @@ class Controller:
         f = k
         p = self.phases[self.index] if not self.done else None
         approach = self._approach_goal(p, pelvis_xy)
-        if approach is not None:  # the body lags behind its path: finish walking before the hand phase
+        if approach is not None:  # the body lags behind its path: finish walking before the in-place phase
             labels[k:, self.col["walk"]] = 2.0
             phase_of[k:] = self.index - 1
             self._release(reach_w, reach_t, [])
@@ -394,8 +403,8 @@ class Controller:
                 self.walk_s = float(min(s[-1], cum[-1]))
                 f += n
                 if self.walk_s >= cum[-1] - 1e-6:
-                    if self.index + 1 < len(self.phases) and self.phases[self.index + 1].hand_goal is not None:
-                        labels[f:, self.col["walk"]] = 2.0  # a hand phase starts with an episode (_approach_goal)
+                    if self.index + 1 < len(self.phases) and self._in_place(self.phases[self.index + 1]):
+                        labels[f:, self.col["walk"]] = 2.0  # an in-place phase starts with an episode (_approach_goal)
                         phase_of[f:] = self.index
                         f = L
                     self.index, self.elapsed, self.walk_s, self.body_s = self.index + 1, 0, 0.0, 0.0

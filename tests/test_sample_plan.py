@@ -175,6 +175,25 @@ def test_controller_timed_phase_spans_episodes():
     assert b.labels[-1, VOCAB.index("sit")] == 1.5  # held posture after sitting down
 
 
+@pytest.mark.parametrize("kind, actions", [("act", ("drink",)), ("turn", ("turn",))])
+def test_a_phase_done_in_place_waits_for_the_walk_before_it_to_end(kind, actions):
+    """A drink or a turn after a walk starts with an episode (the rest of the walk's last episode
+    stays walking); a body still far from the walk's end walks one more episode onto it."""
+    vocab = VOCAB + ["turn"]
+    path = np.array([[0.0, 0.0], [2.0, 0.0]])
+    ph = [Phase("walk", ("walk",), path=path, goal=path[-1]), Phase(kind, actions, frames=20, goal=None)]
+    ctrl = Controller(ph, vocab, L=16, k=2, fps=10, speed=1.0)
+    prev = np.zeros((2, len(vocab)), np.float32)
+    a = ctrl.next(np.zeros(2), prev)  # walks 1.4 m
+    b = ctrl.next(np.array([1.4, 0.0]), a.labels[-2:])  # 0.6 m left: 6 frames, then still walking
+    col, walk = vocab.index(actions[0]), vocab.index("walk")
+    assert not b.labels[2:, col].any() and np.all(b.labels[8:, walk] == 2.0) and np.allclose(b.goal, [2.0, 0.0])
+    c = ctrl.next(np.array([1.5, 0.0]), b.labels[-2:])  # lagging 0.5 m > arrive_m: one more walking episode
+    assert not c.labels[2:, col].any() and np.all(c.labels[2:, walk] == 2.0) and np.allclose(c.goal, [2.0, 0.0])
+    d = ctrl.next(np.array([1.95, 0.0]), c.labels[-2:])  # arrived: the phase starts at the episode's first new frame
+    assert np.all(d.labels[2:, col] > 1.0) and not d.labels[2:, walk].any()
+
+
 def _corner_map() -> tuple:
     """A 4 x 4 m walk map (5 cm cells) with a blocked 2 x 2 m block in its corner x, y > 1 m
     (a table the path turns around), and an L-shaped path along its two sides, 0.2 m off it."""

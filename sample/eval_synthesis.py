@@ -38,6 +38,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta", type=float, default=0.0, help="DDIM eta of the fast sampler (0 deterministic, 1 "
                    "ancestral: with --steps 100 --goal-guidance 0 it samples what the naive sampler samples)")
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
+    p.add_argument("--guidance", type=float, nargs=2, default=(1.0, 1.0), metavar=("SCENE", "ACTION"),
+                   help="classifier-free guidance scales of the fast sampler, as `trumans sample --guidance` (default 1 1)")
     add_guidance_arguments(p)
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
@@ -65,8 +67,9 @@ def _plans(sc, seed: int):
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
              guidance: tuple[float, int] = (GOAL_GUIDANCE, GOAL_ITERS), post: dict | None = None, encoder: str | None = None,
-             eta: float = 0.0) -> dict:
+             eta: float = 0.0, cfg_scales: tuple[float, float] = (1.0, 1.0)) -> dict:
     """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
+    ``cfg_scales``: its classifier-free guidance scales (scene, action);
     ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one)."""
     import torch
 
@@ -85,7 +88,8 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
         sc = load_sample_scene(f"room:{room_seed}")
         plan = _plans(sc, seed * 1000 + r)
         sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, eta=eta, goal_guidance=guidance[0],
-                                                               goal_iters=guidance[1], **(post or {})))
+                                                               goal_iters=guidance[1], scene_scale=cfg_scales[0],
+                                                               action_scale=cfg_scales[1], **(post or {})))
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
         results.append(res)
@@ -106,7 +110,8 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
         sc, plan, res = first
         naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True))
         fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
-                                                            goal_iters=guidance[1], **(post or {})))
+                                                            goal_iters=guidance[1], scene_scale=cfg_scales[0],
+                                                            action_scale=cfg_scales[1], **(post or {})))
         t = {"fast": [], "naive": []}
         for rep in range(3):  # interleaved, the median of each: the machine's speed drifts
             for name, s in (("fast", fast), ("naive", naive)):
@@ -198,17 +203,19 @@ def run(args: argparse.Namespace) -> int:
     if args.steps < 1 or args.naive_episodes < 0 or not 0.0 <= args.eta <= 1.0:
         raise ValueError(f"--steps must be >= 1, --naive-episodes >= 0 and --eta in [0, 1], got {args.steps}, "
                          f"{args.naive_episodes}, {args.eta}")
+    if not all(np.isfinite(g) and g >= 0 for g in args.guidance):
+        raise ValueError(f"--guidance scales must be finite and >= 0 (1 = plain conditional), got {list(args.guidance)}")
     if args.motion_encoder is not None and args.data is None:
         raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
                          "give --data DATASET (its test split is the reference)")
     guidance = (args.goal_guidance, args.goal_iters)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder, args.eta)
+                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder, args.eta, tuple(args.guidance))
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
         figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance,
-                                           postprocess_kwargs(args), args.motion_encoder, args.eta)
+                                           postprocess_kwargs(args), args.motion_encoder, args.eta, tuple(args.guidance))
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

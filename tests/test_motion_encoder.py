@@ -227,3 +227,5 @@ def test_eval_synthesis_refuses_bad_sampler_settings():
         main(["eval", "synthesis", "--rooms", "1", "--eta", "1.5", "--naive-episodes", "0"])
     with pytest.raises(ValueError, match="--steps must be >= 1"):
         main(["eval", "synthesis", "--rooms", "1", "--steps", "0"])
+    with pytest.raises(ValueError, match=r"--guidance scales must be finite and >= 0.*-1.0"):
+        main(["eval", "synthesis", "--rooms", "1", "--guidance", "1", "-1"])

@@ -110,8 +110,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--num-samples", type=int, default=1, help="variations sampled in one batch (default 1)")
     p.add_argument("--steps", type=int, default=20, help="denoising steps (respaced; default 20)")
     p.add_argument("--eta", type=float, default=0.0, help="DDIM eta (0 deterministic, 1 ancestral)")
-    p.add_argument("--guidance", type=float, nargs=2, default=(1.0, 1.0), metavar=("SCENE", "ACTION"),
-                   help="classifier-free guidance scales (default 1 1)")
     add_guidance_arguments(p)
     add_postprocess_arguments(p)
     p.add_argument("--max-seconds", type=float, default=600.0, help="give up when the plan is not done by then")

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .sampling_args import (GOAL_GUIDANCE, GOAL_ITERS, add_guidance_arguments, add_postprocess_arguments,
+from .sampling_args import (CFG_SCALES, GOAL_GUIDANCE, GOAL_ITERS, add_guidance_arguments, add_postprocess_arguments,
                             postprocess_kwargs)
 
 __all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS"]
@@ -38,8 +38,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta", type=float, default=0.0, help="DDIM eta of the fast sampler (0 deterministic, 1 "
                    "ancestral: with --steps 100 --goal-guidance 0 it samples what the naive sampler samples)")
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
-    p.add_argument("--guidance", type=float, nargs=2, default=(1.0, 1.0), metavar=("SCENE", "ACTION"),
-                   help="classifier-free guidance scales of the fast sampler, as `trumans sample --guidance` (default 1 1)")
     add_guidance_arguments(p)
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
                    help="also evaluate an ablation checkpoint (e.g. no_progress=runs/noprog/checkpoint.pt)")
@@ -67,7 +65,7 @@ def _plans(sc, seed: int):
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
              guidance: tuple[float, int] = (GOAL_GUIDANCE, GOAL_ITERS), post: dict | None = None, encoder: str | None = None,
-             eta: float = 0.0, cfg_scales: tuple[float, float] = (1.0, 1.0)) -> dict:
+             eta: float = 0.0, cfg_scales: tuple[float, float] = CFG_SCALES) -> dict:
     """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
     ``cfg_scales``: its classifier-free guidance scales (scene, action);
     ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one)."""

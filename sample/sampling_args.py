@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["add_guidance_arguments", "add_postprocess_arguments", "postprocess_kwargs", "GOAL_GUIDANCE", "GOAL_ITERS"]
+__all__ = ["add_guidance_arguments", "add_postprocess_arguments", "postprocess_kwargs", "GOAL_GUIDANCE", "GOAL_ITERS",
+           "CFG_SCALES"]
 
 # The default goal guidance: three updates a step of size 20. One update of size 80 is ~3x faster
 # (one backward pass a step instead of three) and met every target on the 6 evaluation rooms, but
 # left the default room's body 9.4 cm into the chair at a sit-down (README, sampling speed).
 GOAL_GUIDANCE = 20.0
 GOAL_ITERS = 3
+# classifier-free guidance scales (scene, action) of the sampler; 1 = plain conditional
+CFG_SCALES = (1.0, 1.0)
 
 
 def add_guidance_arguments(p: argparse.ArgumentParser) -> None:
@@ -19,6 +22,9 @@ def add_guidance_arguments(p: argparse.ArgumentParser) -> None:
                         f"default {GOAL_GUIDANCE:g})")
     p.add_argument("--goal-iters", type=int, default=GOAL_ITERS,
                    help=f"guidance updates per denoising step, each a backward pass (default {GOAL_ITERS})")
+    p.add_argument("--guidance", type=float, nargs=2, default=CFG_SCALES, metavar=("SCENE", "ACTION"),
+                   help="classifier-free guidance scales of the scene and action conditions (1 = plain conditional; "
+                        f"default {CFG_SCALES[0]:g} {CFG_SCALES[1]:g})")
 
 
 def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:

@@ -6,7 +6,8 @@ room, a seeded plan "walk to a seat, sit, stand up, walk to a far point, drink, 
 (``sample.cli.default_plan`` with a seeded start). Every figure of ``sample.synthesis_metrics`` is
 averaged over the plans; speed is measured on the same plans: ``seconds_per_episode`` of the fast
 sampler (conditions encoded once per episode, ``--steps`` respaced DDIM steps, inference mode)
-and of the naive one (full T-step ancestral sampling, conditions recomputed at every step) over
+and of the naive one (full T-step ancestral sampling, conditions recomputed at every step, the
+same classifier-free guidance scales, so both sample the same distribution) over
 the same episodes of the first plan, in this run (three interleaved runs of each, the median; the
 time of the episodes with their post-processing, not of the plan's path search);
 ``realtime_factor`` = seconds of motion per
@@ -106,7 +107,8 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     figs["seconds_of_motion"] = round(motion_s, 1)
     if naive_episodes > 0:
         sc, plan, res = first
-        naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True))
+        naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True,
+                                                             scene_scale=cfg_scales[0], action_scale=cfg_scales[1]))
         fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
                                                             goal_iters=guidance[1], scene_scale=cfg_scales[0],
                                                             action_scale=cfg_scales[1], **(post or {})))

@@ -15,8 +15,10 @@ refined end to end (resampling, windows, blending). Figures (means over clips an
   the object, for the output (``hand_obj_dist_in_cm`` for the input);
 - ``mpjpe_*_ra_mm``: the same, root-aligned (each frame's pelvis moved onto the truth's: a whole-body
   translation such as the corruption's shared drift does not count);
-- ``obj_t_err_out_no_rest_cm`` / ``obj_rot_err_out_no_rest_deg`` (default block): the same clips
-  refined without pooling the object's rests (``trumans.hoi.object_rest``), a second run;
+- ``obj_t_err_out_no_rest_cm`` / ``obj_rot_err_out_no_rest_deg`` and ``mpjpe_out_no_drift_mm``
+  (default block): the same clips refined without pooling the object's rests
+  (``trumans.hoi.object_rest``) and without the body-drift correction (``trumans.hoi.body_drift``),
+  a second run;
 - ``frames_per_s``: refined frames per second of wall time, all clips' windows batched
   (``HOIFilter.refine_many``); ``frames_per_s_per_clip`` (default block): one clip per call.
 
@@ -55,6 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="corruption and sampling seed")
     p.add_argument("--no-rest-pooling", action="store_true", help="refine without pooling the object's rests "
                                                                 "(trumans.hoi.object_rest)")
+    p.add_argument("--no-drift-correction", action="store_true", help="refine without removing the body drift seen "
+                                                                    "by the planted feet (trumans.hoi.body_drift)")
     p.add_argument("--category", action="append", default=[], metavar="NAME",
                    help="only test clips of this object category (repeatable; default: every category)")
     p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
@@ -145,8 +149,9 @@ def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window
     """Figures of one corruption setting on clean world clips (N, T, 235) with categories. The clips
     are refined together (``HOIFilter.refine_many``: all windows batched); ``frames_per_s`` is that
     run's rate. per_clip_speed: also time the clips one by one (``frames_per_s_per_clip``, the
-    one-sequence-per-call rate). rest_ablation: also refine without rest pooling and report its
-    object errors (``*_no_rest_*``)."""
+    one-sequence-per-call rate). rest_ablation: also refine without rest pooling and without the
+    body-drift correction and report its object errors (``*_no_rest_*``) and joint error
+    (``mpjpe_out_no_drift_mm``)."""
     from trumans.hoi.corrupt import corrupt
 
     tracked = corrupt(clean, filt.fps, np.random.default_rng(seed), corruption)
@@ -162,8 +167,11 @@ def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window
         for tr, cat in zip(tracked, cats):
             filt.refine_frames(tr, filt.fps, cat, options)
         fig["frames_per_s_per_clip"] = frames / max(time.perf_counter() - t0, 1e-9)
-    if rest_ablation and options.rest_pooling:
-        plain = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats), replace(options, rest_pooling=False))
+    if rest_ablation and (options.rest_pooling or options.body_drift):
+        plain = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats),
+                                 replace(options, rest_pooling=False, body_drift=False))
+        fig["mpjpe_out_no_drift_mm"] = float(np.mean([1000 * np.linalg.norm(_joints(o) - _joints(cl), axis=-1).mean()
+                                                      for o, cl in zip(plain, clean)]))
         fig["obj_t_err_out_no_rest_cm"] = float(np.mean([100 * np.linalg.norm(o[:, 216:219] - cl[:, 216:219], axis=-1).mean()
                                                          for o, cl in zip(plain, clean)]))
         fig["obj_rot_err_out_no_rest_deg"] = float(np.mean([_rot_deg(o[:, 219:225], cl[:, 219:225]).mean()
@@ -235,7 +243,8 @@ def run(args: argparse.Namespace) -> int:
     from .refine import HOIFilter, RefineOptions
 
     filt = HOIFilter.load(args.checkpoint)
-    opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, rest_pooling=not args.no_rest_pooling)
+    opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, rest_pooling=not args.no_rest_pooling,
+                         body_drift=not args.no_drift_correction)
     data = args.data or filt.ckpt.data.get("path")
     if not data or not Path(data).is_dir():
         raise FileNotFoundError(f"the checkpoint's dataset {data!r} is not on this machine; pass --data DIR "
@@ -257,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
     res = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "data": str(Path(args.data)), "seed": args.seed,
            "categories": sorted(set(cats)),
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
-    res["rest_pooling"] = opts.rest_pooling
+    res["rest_pooling"], res["body_drift"] = opts.rest_pooling, opts.body_drift
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True,
                         rest_ablation=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)
@@ -268,7 +277,7 @@ def run(args: argparse.Namespace) -> int:
         abl = HOIFilter.load(args.ablation)
         res["ablation"] = {"checkpoint": args.ablation,
                            **evaluate(abl, test_clean, cats, CorruptionConfig(), sg, args.seed, opts)}
-    keys = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_gt",
+    keys = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_out_no_drift_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_gt",
             "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_t_err_out_no_rest_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg",
             "obj_rot_err_out_no_rest_deg", "frames_per_s")
     for name, block in [("default", res), ("no_imu", res["no_imu"]), ("drift", res["drift"])] + (

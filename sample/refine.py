@@ -16,6 +16,7 @@ from typing import Literal
 import numpy as np
 import torch
 
+from trumans.hoi.body_drift import remove_body_drift
 from trumans.hoi.filter import FilterModel, category_indices, configure_skip, prepare_windows, sample_x0
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
@@ -38,7 +39,8 @@ class RefineOptions:
     network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames and
     object rotations that flip and back within a second as missing before filtering
     (``trumans.hoi.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
-    after filtering (``trumans.hoi.object_rest``)."""
+    after filtering (``trumans.hoi.object_rest``); body_drift: remove the whole-body drift's
+    changes seen by the planted feet after filtering (``trumans.hoi.body_drift``)."""
 
     num_steps: int = 2
     mode: Mode = "noise"
@@ -48,6 +50,7 @@ class RefineOptions:
     seed: int = 0
     drop_failures: bool = True
     rest_pooling: bool = True
+    body_drift: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
@@ -115,6 +118,8 @@ class HOIFilter:
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
             if options.rest_pooling:
                 blended = pool_rest(blended, p["tracked"], self.fps)
+            if options.body_drift:
+                blended = remove_body_drift(blended, self.fps)
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 

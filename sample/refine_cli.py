@@ -41,6 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-rest-pooling", action="store_true",
                    help="keep the filter's object pose in every frame (default: one pose per rest of the object, "
                         "pooled over the whole rest; trumans.hoi.object_rest)")
+    p.add_argument("--no-drift-correction", action="store_true",
+                   help="keep the filter's body position (default: the whole-body drift's changes seen by the "
+                        "planted feet are removed; trumans.hoi.body_drift)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.add_argument("--interactions", action="store_true",
                    help="contact-driven interaction tracking (iReplica) instead of the filter")
@@ -61,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from .refine import HOIFilter, RefineOptions
 
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
-                         rest_pooling=not args.no_rest_pooling)
+                         rest_pooling=not args.no_rest_pooling, body_drift=not args.no_drift_correction)
     seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from sample.controller import Controller, Phase, compile_plan
+from sample.controller import Controller, Phase, compile_plan, sit_down_subgoal
 from sample.plan import Step, load_plan, plan_from_dict, validate_plan
 from scenes import furniture
 from scenes.occupancy import scene_occupancy
@@ -173,6 +173,28 @@ def test_controller_timed_phase_spans_episodes():
     np.testing.assert_allclose(seq, 1.0 + np.arange(1, 21) / 20, atol=1e-6)
     assert ctrl.done and np.allclose(b.goal, [1.0, 1.0])
     assert b.labels[-1, VOCAB.index("sit")] == 1.5  # held posture after sitting down
+
+
+def test_an_episode_ending_inside_a_sit_down_gets_the_data_s_profile_not_the_seat():
+    """The seat is the subgoal only of the episode in which the sit-down ends; before that the
+    pelvis subgoal follows the data's smooth step from where the sit-down starts."""
+    start, seat = np.array([0.0, 0.0]), np.array([0.4, 0.0])
+    ph = [Phase("sit_down", ("sit_down",), frames=20, goal=seat, start=start)]
+    ctrl = Controller(ph, VOCAB, L=16, k=2, fps=10)
+    a = ctrl.next(start, np.zeros((2, len(VOCAB)), np.float32))  # 14 of 20 frames: progress 0.7
+    np.testing.assert_allclose(a.goal, start + (3 * 0.7 ** 2 - 2 * 0.7 ** 3) * (seat - start))
+    assert 0.0 < a.goal[0] < 0.4
+    b = ctrl.next(a.goal, a.labels[-2:])
+    assert ctrl.done and np.allclose(b.goal, seat)
+    np.testing.assert_allclose([sit_down_subgoal(start, seat, p)[0] for p in (-1.0, 0.0, 0.5, 1.0, 2.0)],
+                               [0.0, 0.0, 0.2, 0.4, 0.4])
+
+
+def test_compiled_sit_down_starts_where_the_walk_ends(room):
+    scene, wm = room
+    plan = plan_from_dict({"steps": [{"do": "sit_on", "object": "chair_0", "seconds": 2}]})
+    phases = compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {}, fps=10, vocabulary=("walk", "turn", "sit_down", "sit"))
+    assert np.allclose(phases[2].start, phases[0].path[-1]) and phases[3].start is None
 
 
 @pytest.mark.parametrize("kind, actions", [("act", ("drink",)), ("turn", ("turn",))])

@@ -120,6 +120,15 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     assert rc == 0
     r2 = load_sequence(tmp_path / "np.npz")
     np.testing.assert_allclose(r2.joints, r.joints, atol=1e-6)
+    # the body-drift correction moves the joints only, by one translation per frame
+    rc = console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / "nd.npz"),
+                       "--checkpoint", str(ck), "--steps", "2", "--no-drift-correction"])
+    assert rc == 0
+    r3 = load_sequence(tmp_path / "nd.npz")
+    shift = r.joints - r3.joints
+    np.testing.assert_allclose(shift, shift[:, :1].repeat(shift.shape[1], 1), atol=1e-5)
+    np.testing.assert_allclose(r3.rotations, r.rotations, atol=1e-6)
+    np.testing.assert_allclose(r3.objects["box_0"].pose, r.objects["box_0"].pose, atol=1e-6)
     rc = console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / "x.npz"),
                        "--checkpoint", str(ck), "--category", "chair"])
     err = capsys.readouterr().err

@@ -1,5 +1,7 @@
 """HOI filter data side: frame vector round trips, canonical frames, IMU simulation, corruption,
 regularisers on analytic cases, windows and overlap blending."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -137,6 +139,23 @@ def test_corruption_is_seeded_and_shaped():
         CorruptionConfig(p_flip=2.0)
     with pytest.raises(ValueError, match=r"\(B, L, 235\)"):
         corrupt(W[0], 30.0, np.random.default_rng(0))
+
+
+def test_corruption_position_scale_sets_each_window_s_severity():
+    W = add_clean_imu(np.stack([frames_from_sequence(_clip(T=64, seed=k))[0] for k in range(16)]), 30.0)
+    off = CorruptionConfig(p_joint_occlusion=0.0, p_dropout=0.0, p_freeze=0.0)
+
+    def per_window(cfg):
+        e = np.linalg.norm((corrupt(W, 30.0, np.random.default_rng(0), cfg) - W)[..., JOINTS].reshape(16, 64, 24, 3), axis=-1)
+        return e.mean(axis=(1, 2))
+
+    base = per_window(off)
+    assert np.array_equal(per_window(replace(off, position_scale=(1.0, 1.0))), base)  # the default draws nothing
+    np.testing.assert_allclose(per_window(replace(off, position_scale=(0.0, 0.0))), 0.0, atol=1e-6)
+    mixed = per_window(replace(off, position_scale=(0.0, 2.0)))
+    assert mixed.min() < 0.5 * base.mean() and mixed.max() > 1.3 * base.mean()  # windows differ in severity
+    with pytest.raises(ValueError, match="position_scale"):
+        CorruptionConfig(position_scale=(1.0, 0.5))
 
 
 def _t(x):

@@ -5,7 +5,8 @@ Corruption (``CorruptionConfig``; every draw from the caller's ``numpy.random.Ge
 
 - human: per-joint, per-frame Gaussian jitter (``jitter_m``) with rare outlier spikes
   (``p_spike``, ``spike_m``); slow drift = smooth noise with knots every ``drift_frames`` frames,
-  shared by the body (``drift_m``) plus a smaller per-joint part (``joint_drift_m``); local rotation
+  shared by the body (``drift_m``) plus a smaller per-joint part (``joint_drift_m``); jitter, spikes and
+  drifts of a window scaled by one factor drawn from ``position_scale`` (default 1: a fixed severity); local rotation
   noise (``rot_noise_rad``, axis-angle); occluded joints (runs of NaN per joint, mostly the arms);
   the whole rotation block missing with ``p_no_rotations`` (a joints-only tracker);
 - dropouts: runs of missing frames (NaN) for the human and, separately, for the object
@@ -67,6 +68,8 @@ class CorruptionConfig:
     imu_rot_noise_rad: float = 0.01
     imu_acc_bias: float = 0.2
     imu_acc_noise: float = 0.5
+    position_scale: tuple[float, float] = (1.0, 1.0)  # per window: factor on joint jitter, spikes and drifts
+
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -76,7 +79,10 @@ class CorruptionConfig:
                 raise ValueError(f"corruption {f.name} must be finite and >= 0, got {v}")
             if f.name.startswith("p_") and v > 1:
                 raise ValueError(f"corruption {f.name} is a probability, got {v}")
-            if isinstance(v, tuple) and (len(v) != 2 or not 1 <= v[0] <= v[1]):
+            if f.name == "position_scale":
+                if len(v) != 2 or not v[0] <= v[1]:
+                    raise ValueError(f"corruption position_scale must be (min, max) with 0 <= min <= max, got {v}")
+            elif isinstance(v, tuple) and (len(v) != 2 or not 1 <= v[0] <= v[1]):
                 raise ValueError(f"corruption {f.name} must be (min, max) frames with 1 <= min <= max, got {v}")
         if self.drift_frames < 1:
             raise ValueError(f"drift_frames must be >= 1, got {self.drift_frames}")
@@ -163,10 +169,11 @@ def corrupt(frames: np.ndarray, fps: float, rng: np.random.Generator,
     c = cfg
     # human positions: jitter, spikes, drift (body + per joint)
     J = x[..., JOINTS].reshape(B, L, NUM_JOINTS, 3)
+    scale = 1.0 if c.position_scale == (1.0, 1.0) else rng.uniform(*c.position_scale, (B, 1, 1, 1))  # severity per window
     noise = rng.normal(0.0, c.jitter_m, J.shape)
     spikes = (rng.random((B, L, NUM_JOINTS, 1)) < c.p_spike) * rng.normal(0.0, c.spike_m, J.shape)
     drift = _smooth(rng, (B, L, 1, 3), c.drift_m, c.drift_frames) + _smooth(rng, (B, L, NUM_JOINTS, 3), c.joint_drift_m, c.drift_frames)
-    out[..., JOINTS] = (J + noise + spikes + drift).reshape(B, L, -1)
+    out[..., JOINTS] = (J + scale * (noise + spikes + drift)).reshape(B, L, -1)
     # rotations: axis-angle noise on every local rotation
     R6 = x[..., ROTATIONS].reshape(B, L, NUM_JOINTS, 6)
     out[..., ROTATIONS] = _compose6d(_rot_noise(rng, (B, L, NUM_JOINTS), c.rot_noise_rad), R6).reshape(B, L, -1)

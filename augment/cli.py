@@ -7,7 +7,7 @@ import json
 from trumans.argtypes import float_in, fraction, int_in, nonneg_int, positive_float
 from trumans.contacts.rule import HOLD_THRESHOLD
 
-from .pipeline import MAX_VARIATIONS, PipelineConfig, SourcesFailed, augment_dataset
+from .pipeline import MAX_VARIATIONS, SOURCES, PipelineConfig, SourcesFailed, augment_dataset
 from .variations import KINDS
 
 __all__ = ["add_arguments", "run"]
@@ -21,6 +21,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS), default=2,
                    help=f"variations per touched object, 1..{MAX_VARIATIONS} (default 2, as the paper)")
     p.add_argument("--splits", nargs="+", default=["train"], help="source splits to augment (default: train)")
+    p.add_argument("--source", choices=list(SOURCES), default="all",
+                   help="which takes of a `trumans data synth` dataset to augment: the real (mocap) takes its index lists "
+                        "under 'real', the procedural ones, or all (default)")
     p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS), help="variation kinds to draw from")
     p.add_argument("--window", type=positive_float, default=1.0, help="offset fade window W in seconds (default 1 s = 30 frames at 30 fps)")
     p.add_argument("--threshold", type=float_in(0.0, 1.0, lo_open=True), default=HOLD_THRESHOLD,
@@ -39,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = PipelineConfig(data=args.data, out=args.out, variations=args.variations, seed=args.seed,
                          splits=tuple(args.splits), kinds=tuple(args.kinds), workers=args.workers,
                          occupancy=args.occupancy, window_s=args.window, threshold=args.threshold,
-                         max_unreachable=args.max_unreachable)
+                         max_unreachable=args.max_unreachable, source=args.source)
     try:
         summary = augment_dataset(cfg, progress=not args.json, overwrite=args.overwrite)
     except SourcesFailed as e:  # print what was done, then fail with the one error line

@@ -39,6 +39,8 @@ from trumans.sequence import Sequence, atomic_write, save_sequence
 from .core import AugmentConfig, augment_many, sequence_contacts
 from .variations import KINDS, sample_variation
 
+SOURCES = ("all", "real", "procedural")
+
 __all__ = ["PipelineConfig", "augment_dataset", "contacted_objects", "vary_sequence"]
 
 
@@ -49,7 +51,9 @@ class PipelineConfig:
     processes (0 = CPU count); occupancy: also cache each new scene's occupancy grid;
     max_penetration: a variation whose new motion puts a joint centre deeper than this (m) inside
     the changed object (``trumans.metrics.joint_centre_inside_cm``) is redrawn (up to ``tries`` times) and otherwise skipped; so is one whose IK
-    leaves more than ``max_unreachable`` of its contact frames unreachable (1.0 = keep all)."""
+    leaves more than ``max_unreachable`` of its contact frames unreachable (1.0 = keep all); source:
+    which takes of a ``trumans data synth`` dataset (its index lists the mocap ones under 'real'):
+    all, real or procedural."""
 
     data: str
     out: str
@@ -64,6 +68,7 @@ class PipelineConfig:
     max_penetration: float = 0.03
     max_unreachable: float = 0.1
     tries: int = 4
+    source: str = "all"
 
     def __post_init__(self) -> None:
         if not 1 <= self.variations <= MAX_VARIATIONS:
@@ -81,10 +86,12 @@ class PipelineConfig:
             raise ValueError(f"workers must be >= 0 (0 = all CPUs), got {self.workers}")
         if not 0.0 <= self.max_unreachable <= 1.0:
             raise ValueError(f"max_unreachable must be a fraction in [0, 1], got {self.max_unreachable}")
+        if self.source not in SOURCES:
+            raise ValueError(f"source must be one of {SOURCES}, got {self.source!r}")
 
     def settings(self) -> dict:
         """What the outputs depend on (not ``out`` or ``workers``); ``data`` as an absolute path."""
-        d = {k: v for k, v in asdict(self).items() if k not in ("workers", "out")}
+        d = {k: v for k, v in asdict(self).items() if k not in ("workers", "out") and not (k == "source" and v == "all")}
         d["data"] = str(Path(self.data).resolve())
         return d
 
@@ -248,12 +255,16 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool 
     if out.resolve() == ds.root.resolve() or out.resolve() in ds.root.resolve().parents:
         raise ValueError(f"--out {out} is (or holds) the source dataset --data {cfg.data}; writing there would "
                          f"replace its index; choose another --out")
+    real = set(ds.index.get("real", {}))  # a `trumans data synth` dataset lists its mocap takes here
     jobs = []
     for split in cfg.splits:
         for p in ds.split(split):
-            jobs.append((cfg, len(jobs), str(p.relative_to(ds.root)), split))
+            rel = str(p.relative_to(ds.root))
+            if cfg.source == "all" or (rel in real) == (cfg.source == "real"):
+                jobs.append((cfg, len(jobs), rel, split))
     if not jobs:
-        raise ValueError(f"no sequences in splits {list(cfg.splits)} of {cfg.data}; choose splits that hold some")
+        raise ValueError(f"no {'' if cfg.source == 'all' else cfg.source + ' '}sequences in splits {list(cfg.splits)} "
+                         f"of {cfg.data}; choose splits (or --source) that hold some")
     digest = scenes_digest(ds)
     jobs = [(c, i, rel, split, cfg.key(ds.root / rel, i, digest)) for c, i, rel, split in jobs]
     with DatasetWriter(out, "augment", cfg.settings(), overwrite=overwrite) as writer:

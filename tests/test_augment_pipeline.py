@@ -97,3 +97,25 @@ def test_eval_cli_prints_figures_last(capsys):
               "unreachable_frac", "frames_per_s"):
         assert np.isfinite(fig[k]), k
     assert fig["outputs"] == 5 and fig["bone_length_err_mm"] < 0.1 and fig["smooth_ratio"] <= 1.0 + 1e-9
+
+
+def test_pipeline_source_picks_the_real_or_the_procedural_takes(data, tmp_path):
+    src = tmp_path / "src"
+    src.mkdir()
+    for d in ("scenes", "sequences"):
+        (src / d).symlink_to(data / d)
+    index = json.loads((data / "index.json").read_text())
+    index["real"] = {"sequences/sit.npz": "cmu:00_00"}  # as `trumans data synth` lists its mocap takes
+    (src / "index.json").write_text(json.dumps(index))
+    base = dict(data=str(src), variations=1, kinds=("scale",), workers=1, seed=3)
+    real = augment_dataset(PipelineConfig(out=str(tmp_path / "real"), source="real", **base), progress=False)
+    assert real["sources"] == 1 and all(p.name.startswith("sit__") for p in (tmp_path / "real" / "sequences").glob("*.npz"))
+    proc = augment_dataset(PipelineConfig(out=str(tmp_path / "proc"), source="procedural", **base), progress=False)
+    assert proc["sources"] == 2 and not list((tmp_path / "proc" / "sequences").glob("sit__*.npz"))
+    # "all" keeps the settings (and so the resume keys) of runs made before the option existed
+    assert "source" not in PipelineConfig(out="o", **base).settings()
+    assert PipelineConfig(out="o", source="real", **base).settings()["source"] == "real"
+    with pytest.raises(ValueError, match="source"):
+        PipelineConfig(out="o", source="mocap", **base)
+    with pytest.raises(ValueError, match="no real sequences"):
+        augment_dataset(PipelineConfig(data=str(data), out=str(tmp_path / "none"), source="real", workers=1), progress=False)

@@ -42,13 +42,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.rotations import rodrigues, unit
+from trumans.rotations import least_rotation, rodrigues, unit
 from trumans.skeleton import JOINT_INDEX, SUBTREE
 
 from .foot_cleanup import two_bone_positions
 
 __all__ = ["ReachCleanupConfig", "ARMS", "smoothstep", "reach_schedule", "release_weights", "lean_angle",
-           "tilt_limit", "clean_reach"]
+           "tilt_limit", "arm_ik", "clean_reach"]
 
 # (shoulder, elbow, wrist, index1) per arm; side 0 = left, 1 = right
 ARMS = tuple(tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("shoulder", "elbow", "wrist", "index1"))
@@ -138,10 +138,17 @@ def tilt_limit(trunk: np.ndarray, axis: np.ndarray, theta: np.ndarray, max_tilt:
     return np.where(first > n, theta, theta * (i + frac) / n)
 
 
-def _least_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) the least rotation turning direction a (..., 3) into direction b."""
-    a, b = unit(a), unit(b)
-    return rodrigues(np.cross(a, b), np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), (a * b).sum(-1)))
+def arm_ik(J: np.ndarray, arm: tuple[int, int, int, int], goal: np.ndarray, lengths: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Two-bone IK of one arm (``ARMS[side]``) of joints J (..., 24, 3) with the wrist to ``goal``
+    (..., 3): the shoulder stays, the elbow in the plane of the network's bend
+    (``foot_cleanup.two_bone_positions``), bone lengths kept. Returns (elbow, wrist, hand): the
+    new elbow and wrist (..., 3) and the wrist -> index1 vector turned with the forearm (the least
+    rotation from the old to the new forearm direction)."""
+    sh, el, wr, ix = arm
+    new_el, new_wr = two_bone_positions(J[..., sh, :], J[..., el, :], goal, float(lengths[el]), float(lengths[wr]))
+    turn = least_rotation(J[..., wr, :] - J[..., el, :], new_wr - new_el)
+    return new_el, new_wr, np.einsum("...ij,...j->...i", turn, J[..., ix, :] - J[..., wr, :])
 
 
 def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, weight: np.ndarray, fixed: int = 0,
@@ -183,9 +190,7 @@ def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, wei
         turned = O + np.einsum("btij,btnj->btni", R, J[:, :, upper] - O)
         J[:, :, upper] = np.where((theta > 0)[..., None, None], turned, J[:, :, upper])
         # 3. two-bone IK of the arm, the elbow in the plane of the network's bend, the hand turning with the forearm
-        new_el, new_wr = two_bone_positions(J[:, :, sh], J[:, :, el], goal, l1, l2)
-        turn = _least_rotation(J[:, :, wr] - J[:, :, el], new_wr - new_el)
-        hand = np.einsum("btij,btj->bti", turn, J[:, :, ix] - J[:, :, wr])
+        new_el, new_wr, hand = arm_ik(J, (sh, el, wr, ix), goal, lengths)
         fore = new_wr - new_el
         cross = np.cross(hand, fore)
         angle = np.arctan2(np.linalg.norm(cross, axis=-1), (hand * fore).sum(-1))

@@ -23,6 +23,7 @@ from .carry_plan import planned_object_poses
 from .controller import Controller, Phase, compile_plan
 from .foot_cleanup import clean_feet
 from .plan import Plan
+from .arm_pushout import push_arms_out
 from .reach_cleanup import clean_reach
 from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
 from .scene_pushout import push_out
@@ -125,10 +126,12 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
     if sampler.config.scene_pushout and sdf is not None:  # before the feet: they re-lock after it
         world = push_out(world, sdf, sampler.k)
+    weight = np.stack([c.reach_weight for c in ctrls])  # (B, L, 2) from the plan's hand phases (controller)
+    if sampler.config.arm_pushout and sdf is not None:  # a hand still in: arm IK, except where the plan reaches
+        world = push_arms_out(world, lengths, sdf, sampler.k, keep=weight > 0)
     if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
         world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k,
                            sdf=sdf if sampler.config.scene_pushout else None)
-    weight = np.stack([c.reach_weight for c in ctrls])  # (B, L, 2) from the plan's hand phases (controller)
     if sampler.config.reach_cleanup and (weight > 0).any():  # the acting arm onto its hand target
         world = clean_reach(world, lengths, np.stack([c.reach_target for c in ctrls]), weight, sampler.k)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)

@@ -62,7 +62,8 @@ class SamplerConfig:
     penetration_guidance: the goal guidance also pushes the joints out of the scene
     (``sample.penetration_guidance``; needs grids); scene_pushout: after each episode a smooth
     root offset moves the new frames' body out of the scene (``sample.scene_pushout``; applied by
-    ``sample.rollout``; needs grids); reach_cleanup: after each episode the acting arm (and, out of
+    ``sample.rollout``; needs grids); arm_pushout: then a hand still in the scene is moved out by
+    arm IK (``sample.arm_pushout``; needs grids); reach_cleanup: after each episode the acting arm (and, out of
     reach, the upper body) is moved onto the hand target of the plan's hand phases
     (``sample.reach_cleanup``; applied by ``sample.rollout``)."""
 
@@ -78,6 +79,7 @@ class SamplerConfig:
     seat_guidance: bool = True
     penetration_guidance: bool = True
     scene_pushout: bool = True
+    arm_pushout: bool = True
     reach_cleanup: bool = True
 
     def __post_init__(self) -> None:
@@ -134,13 +136,14 @@ class EpisodeSampler:
         self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
         self.hip_width = 0.12  # m, the start pose's hip line length (set by the rollout for its body)
         guide_sdf = config.penetration_guidance and config.goal_guidance > 0
-        # the scene's signed distance: for the penetration guidance and the push-out (sample.rollout)
-        self.scene_sdf = SceneSDF(grids.static) if grids is not None and (guide_sdf or config.scene_pushout) else None
+        # the scene's signed distance: for the penetration guidance and the push-outs (sample.rollout)
+        pushout = config.scene_pushout or config.arm_pushout
+        self.scene_sdf = SceneSDF(grids.static) if grids is not None and (guide_sdf or pushout) else None
         self.sdf = self.scene_sdf if guide_sdf else None
         # with the dynamic objects (chairs, stools, doors) at their scene poses: the push-out's field
         # while the plan has moved none of them (``sample.rollout``)
         full = getattr(grids, "occ", None) if grids is not None and getattr(grids, "points", None) else None
-        self.scene_sdf_all = SceneSDF(full) if config.scene_pushout and full is not None else self.scene_sdf
+        self.scene_sdf_all = SceneSDF(full) if pushout and full is not None else self.scene_sdf
 
     # ------------------------------------------------------------------ one episode
     def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:

@@ -42,6 +42,9 @@ def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not push the joints out of the scene (sample/penetration_guidance.py)")
     g.add_argument("--no-scene-pushout", dest="scene_pushout", action="store_false",
                    help="do not move the body out of the scene after each episode (sample/scene_pushout.py)")
+    g.add_argument("--no-arm-pushout", dest="arm_pushout", action="store_false",
+                   help="keep a hand that is still in the scene after the body push-out (no arm IK; "
+                        "sample/arm_pushout.py)")
     g.add_argument("--no-reach-cleanup", dest="reach_cleanup", action="store_false",
                    help="keep the network's arm at hand goals (no arm IK / lean onto handles and grasp points; "
                         "sample/reach_cleanup.py)")
@@ -53,4 +56,4 @@ def postprocess_kwargs(args: argparse.Namespace) -> dict:
     """The ``SamplerConfig`` fields set by the switches above."""
     return {"foot_cleanup": bool(args.foot_cleanup), "seam_blend": int(args.seam_blend),
             "seat_guidance": bool(args.seat_guidance), "penetration_guidance": bool(args.penetration_guidance),
-            "scene_pushout": bool(args.scene_pushout), "reach_cleanup": bool(args.reach_cleanup)}
+            "scene_pushout": bool(args.scene_pushout), "arm_pushout": bool(args.arm_pushout), "reach_cleanup": bool(args.reach_cleanup)}

@@ -160,3 +160,16 @@ def test_fit_yaw_recovers_a_turn_and_weights():
     np.testing.assert_allclose(fit_yaw(a, b2, w), th, atol=1e-12)
     with pytest.raises(ValueError, match="a and b"):
         fit_yaw(a, b[:, :4])
+
+
+def test_least_rotation_turns_a_into_b_about_their_common_normal():
+    from trumans.rotations import least_rotation
+
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    R = least_rotation(a, b)
+    ua, ub = a / np.linalg.norm(a, axis=-1, keepdims=True), b / np.linalg.norm(b, axis=-1, keepdims=True)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", R, ua), ub, atol=1e-9)
+    n = np.cross(ua, ub)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", R, n), n, atol=1e-9)  # the normal stays: least turn
+    np.testing.assert_allclose(least_rotation(a, 2 * a), np.broadcast_to(np.eye(3), (50, 3, 3)), atol=1e-9)

@@ -23,6 +23,7 @@ __all__ = [
     "sixd_to_matrix",
     "matrix_to_quat",
     "quat_to_matrix",
+    "least_rotation",
     "matrix_to_axis_angle",
     "axis_angle_to_matrix",
     "euler_to_matrix",
@@ -135,6 +136,14 @@ def rodrigues(axis: np.ndarray | torch.Tensor, angle: np.ndarray | torch.Tensor 
     R[..., 2, 0] -= sk[..., 1]
     R[..., 2, 1] += sk[..., 0]
     return R
+
+
+def least_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) the least rotation turning direction a (..., 3) into direction b (identity where
+    they are parallel; undefined axis where opposite)."""
+    a, b = unit(a), unit(b)
+    c = np.cross(a, b)
+    return rodrigues(c, np.arctan2(np.linalg.norm(c, axis=-1), (a * b).sum(-1)))
 
 
 def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ import torch
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import gaussian_filter1d
 
+from .foot_cleanup import episode_joints
 from .penetration_guidance import SceneSDF
 from .reach_cleanup import ARMS, arm_ik
 from .scene_pushout import push_radii
@@ -98,12 +99,8 @@ def push_arms_out(joints: np.ndarray, lengths: np.ndarray, sdf: SceneSDF, fixed:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> copy with the hands moved out of the
     scene by arm IK (module doc). Frames < ``fixed`` (the context) are kept; keep (B, T, 2) bool:
     frames of an arm left as they are (the plan's hand phases)."""
-    J = np.array(joints, dtype=np.float64, copy=True)
-    if J.ndim != 4 or J.shape[2:] != (24, 3):
-        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
+    J = episode_joints(joints, fixed)
     B, T = J.shape[:2]
-    if not 0 <= fixed <= T:
-        raise ValueError(f"fixed must be in [0, {T}] frames, got {fixed}")
     if keep is not None and np.shape(keep) != (B, T, 2):
         raise ValueError(f"keep must be (B, T, 2) = {(B, T, 2)}, got {np.shape(keep)}")
     free = np.ones((B, T, 2), bool) if keep is None else ~np.asarray(keep, bool)

@@ -47,7 +47,7 @@ import numpy as np
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene", "clean_feet",
+__all__ = ["episode_joints", "FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene", "clean_feet",
            "two_bone_positions", "FOOT_REST"]
 
 # (hip, knee, ankle, toe) per leg
@@ -355,18 +355,25 @@ def knee_out_of_scene(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, outw
     return centre + np.cos(turn)[..., None] * u + np.sin(turn)[..., None] * e2
 
 
+def episode_joints(joints: np.ndarray, fixed: int) -> np.ndarray:
+    """A float64 copy of an episode's joints (B, T, 24, 3), checked with its ``fixed`` context
+    frames (0 <= fixed <= T): the common input of the sampling-time cleanups."""
+    J = np.array(joints, dtype=np.float64, copy=True)
+    if J.ndim != 4 or J.shape[2:] != (24, 3):
+        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
+    if not 0 <= fixed <= J.shape[1]:
+        raise ValueError(f"fixed must be in [0, {J.shape[1]}] frames, got {fixed}")
+    return J
+
+
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
                config: FootCleanupConfig = FootCleanupConfig(), sdf=None) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
     (the context) are kept and seed the locks. sdf: a ``SceneSDF`` of the scene (floor excluded) or
     None; with it, planted and swinging feet are moved out of furniture (``out_of_scene``, core
     radii). See the module doc."""
-    J = np.array(joints, dtype=np.float64, copy=True)
-    if J.ndim != 4 or J.shape[2:] != (24, 3):
-        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
+    J = episode_joints(joints, fixed)
     B, T = J.shape[:2]
-    if not 0 <= fixed <= T:
-        raise ValueError(f"fixed must be in [0, {T}] frames, got {fixed}")
     contact = foot_contacts(J, fps, config)
     if config.support:
         l, r = LEGS["left"], LEGS["right"]

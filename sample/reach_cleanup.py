@@ -45,7 +45,7 @@ import numpy as np
 from trumans.rotations import least_rotation, rodrigues, unit
 from trumans.skeleton import JOINT_INDEX, SUBTREE
 
-from .foot_cleanup import two_bone_positions
+from .foot_cleanup import episode_joints, two_bone_positions
 
 __all__ = ["ReachCleanupConfig", "ARMS", "smoothstep", "reach_schedule", "release_weights", "lean_angle",
            "tilt_limit", "arm_ik", "clean_reach"]
@@ -156,9 +156,7 @@ def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, wei
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,); target (B, T, 2, 3) wrist targets of
     the (left, right) arm (any value where the weight is 0); weight (B, T, 2) in [0, 1] -> cleaned
     copy (module doc). Frames < ``fixed`` (the context) are kept."""
-    J = np.array(joints, dtype=np.float64, copy=True)
-    if J.ndim != 4 or J.shape[2:] != (24, 3):
-        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
+    J = episode_joints(joints, fixed)
     B, T = J.shape[:2]
     target, weight = np.asarray(target, dtype=np.float64), np.asarray(weight, dtype=np.float64)
     if target.shape != (B, T, 2, 3) or weight.shape != (B, T, 2):
@@ -172,8 +170,6 @@ def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, wei
     if not np.isfinite(target[active]).all():
         raise ValueError("a reach target with a weight > 0 is not finite (NaN / inf); give a finite wrist target "
                          "or weight 0 there")
-    if not 0 <= fixed <= T:
-        raise ValueError(f"fixed must be in [0, {T}] frames, got {fixed}")
     upper = SUBTREE[SPINE1]
     for side, (sh, el, wr, ix) in enumerate(ARMS):
         act = active[..., side]

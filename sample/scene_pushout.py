@@ -31,6 +31,7 @@ from scipy.interpolate import BSpline
 from trumans.contacts.rule import JOINT_CORE_RADIUS, JOINT_RADIUS
 from trumans.skeleton import SEAT
 
+from .foot_cleanup import episode_joints
 from .penetration_guidance import SceneSDF
 
 __all__ = ["PushOutConfig", "push_radii", "seam_spline_basis", "push_out"]
@@ -82,11 +83,8 @@ def push_out(joints: np.ndarray, sdf: SceneSDF, fixed: int, config: PushOutConfi
     """joints (B, T, 24, 3) world m -> copy with frames >= ``fixed`` translated out of the scene
     (module doc); frames < ``fixed`` are kept (the offset is 0 at frame ``fixed - 1``)."""
     J = np.asarray(joints)
-    if J.ndim != 4 or J.shape[2:] != (24, 3):
-        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
+    episode_joints(J, fixed)
     B, T = J.shape[:2]
-    if not 0 <= fixed <= T:
-        raise ValueError(f"fixed must be in [0, {T}] frames, got {fixed}")
     seam = max(fixed - 1, 0)
     n = T - 1 - seam
     if n < 1:

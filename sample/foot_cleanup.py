@@ -47,8 +47,8 @@ import numpy as np
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["episode_joints", "FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene", "clean_feet",
-           "two_bone_positions", "FOOT_REST"]
+__all__ = ["episode_joints", "FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene",
+           "clean_feet", "two_bone_positions", "FOOT_REST"]
 
 # (hip, knee, ankle, toe) per leg
 LEGS = {side: tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle", "foot")) for side in ("left", "right")}

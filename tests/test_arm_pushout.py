@@ -95,3 +95,14 @@ def test_bad_input_raises():
         ArmPushConfig(spread=0)
     with pytest.raises(ValueError, match="margin"):
         ArmPushConfig(margin=float("nan"))
+
+
+def test_batch_members_are_pushed_independently():
+    sdf, k = _wall(0.70, 0.84), 2
+    J = _standing(10)
+    clear = J.copy()
+    clear[..., 1] -= 0.3
+    lengths = bone_lengths_of(J[0, 0])
+    both = push_arms_out(np.concatenate([J, clear]), lengths, sdf, fixed=k)
+    np.testing.assert_allclose(both[:1], push_arms_out(J, lengths, sdf, fixed=k), atol=1e-9)
+    np.testing.assert_array_equal(both[1:], clear)

@@ -71,6 +71,30 @@ def test_a_standing_body_keeps_only_a_constant_offset():
     np.testing.assert_allclose(off.mean(0), [0.02, 0.0, 0.0], atol=0.002)
 
 
+def test_a_flat_floor_ties_the_height_of_stances_far_apart():
+    """Stand, walk off at 1 m/s (no stance), stand again, while the tracker's height drifts 2 cm in
+    between: each stance alone cannot see the change, one floor height for all stances can."""
+    T = 180
+    J = np.repeat(np.asarray(REST_JOINTS, np.float64)[None], T, axis=0)
+    J[:, :, 0] += np.clip(np.arange(T) - 60, 0, 60)[:, None] / FPS
+    s = np.clip((np.arange(T) - 60) / 60, 0, 1)
+    d = np.zeros((T, 3))
+    d[:, 2] = 0.02 * (3 * s ** 2 - 2 * s ** 3)
+    planted = stance_mask(J + d[:, None], FPS)
+    assert planted[:50].all() and planted[130:].all() and not planted[70:110].any()
+
+    def gap(cfg: DriftConfig) -> float:  # the height change left between the two stances (m)
+        fixed = J + d[:, None] - estimate_body_drift(J + d[:, None], FPS, cfg)[:, None]
+        return (fixed[130:, 0, 2] - J[130:, 0, 2]).mean() - (fixed[:50, 0, 2] - J[:50, 0, 2]).mean()
+
+    assert abs(gap(DriftConfig())) < 0.003
+    assert abs(gap(DriftConfig(flat_floor=False))) > 0.015  # the stances' own heights absorb it
+    # the second stance on a 40 cm step is not on the floor: its height is its own again
+    J[120:, :, 2] += 0.4
+    fixed = J + d[:, None] - estimate_body_drift(J + d[:, None], FPS)[:, None]
+    assert abs((fixed[130:, 0, 2] - J[130:, 0, 2]).mean() - (fixed[:50, 0, 2] - J[:50, 0, 2]).mean()) > 0.015
+
+
 def test_no_stance_means_no_correction():
     J = np.repeat(np.asarray(REST_JOINTS, np.float64)[None], 90, axis=0)
     J[:, :, 0] += np.arange(90)[:, None] / FPS  # the whole body at 1 m/s: no foot is planted
@@ -103,6 +127,8 @@ def test_bad_inputs_are_refused():
         remove_body_drift(np.zeros((10, 10)), FPS)
     with pytest.raises(ValueError, match="speed_m_s"):
         DriftConfig(speed_m_s=0.0)
+    with pytest.raises(ValueError, match="floor_band_m"):
+        DriftConfig(floor_band_m=-0.01)
     with pytest.raises(ValueError, match="robust_iters"):
         DriftConfig(robust_iters=-1)
 

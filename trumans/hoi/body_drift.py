@@ -14,8 +14,11 @@ On the filtered joints at the filter's rate:
   ``speed_m_s`` (speed smoothed over ``smooth_s``), in runs of at least ``min_stance_s``;
 - drift (``estimate_body_drift``): a piecewise-linear curve d(t) (knots every ``knot_s``) fitted by
   least squares to the stance frames, each stance's own unknown position eliminated (the foot minus
-  its stance mean = d minus its stance mean), with a ridge prior (``ridge`` = (σ_noise / σ_drift)²
-  per knot: no observation -> no correction) and a second-difference smoothness term
+  its stance mean = d minus its stance mean). With ``flat_floor`` (DESIGN: the floor is z = 0
+  everywhere) a foot joint stands at one height in all its floor stances (those within
+  ``floor_band_m`` of its lowest; a higher one is on a step or a bed and keeps its own), so for
+  the vertical part only that one height is eliminated and stances far apart in time are tied
+  together. A ridge prior (``ridge`` = (σ_noise / σ_drift)² per knot: no observation -> no correction) and a second-difference smoothness term
   (``smoothness``); iteratively reweighted (Huber-like, scale ``robust_m``, ``robust_iters`` passes)
   so that a foot that slides or rolls in a "stance" counts less;
 - correction (``remove_body_drift``): every joint minus d(t). Rotations and the object are untouched.
@@ -42,7 +45,9 @@ FOOT_JOINTS = tuple(JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_
 @dataclass(frozen=True)
 class DriftConfig:
     """Speeds in m/s, durations in s, lengths in m (module doc). The defaults are the best of a grid
-    on the dataset's val split (speed 0.15-0.25, knots 0.33-1 s, ridge 0.3-3, robust 1-2 cm; README)."""
+    on the dataset's val split (speed 0.15-0.25, knots 0.33-1 s, ridge 0.3-3, robust 1-2 cm; then
+    floor_band 1-20 cm, flat from 5 to 12; README). flat_floor: the stances within ``floor_band_m``
+    of a foot joint's lowest share one height (module doc)."""
 
     speed_m_s: float = 0.2
     smooth_s: float = 0.17
@@ -52,9 +57,11 @@ class DriftConfig:
     smoothness: float = 1.0
     robust_m: float = 0.01
     robust_iters: int = 3
+    flat_floor: bool = True
+    floor_band_m: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("speed_m_s", "smooth_s", "knot_s", "ridge", "robust_m"):
+        for name in ("speed_m_s", "smooth_s", "knot_s", "ridge", "robust_m", "floor_band_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"drift {name} must be a positive number, got {v}")
@@ -107,27 +114,42 @@ def estimate_body_drift(joints: np.ndarray, fps: float, cfg: DriftConfig = Drift
         return np.zeros((T, 3))
     B = _design(T, fps, cfg.knot_s)
     K = B.shape[1]
-    runs, n = label(planted.T, structure=[[0, 0, 0], [1, 1, 1], [0, 0, 0]])  # (4, T) stance ids, 0 = none
+    runs, _ = label(planted.T, structure=[[0, 0, 0], [1, 1, 1], [0, 0, 0]])  # (4, T) stance ids, 0 = none
     j, t = np.nonzero(runs)
-    seg = runs[j, t]
-    count = np.bincount(seg, minlength=n + 1)[:, None]
     foot = J[t, np.asarray(FOOT_JOINTS)[j]]  # (N, 3)
+    stance = runs[j, t]
+    # the unknown each observation is relative to: its stance's position, or on a flat floor, for
+    # the height, its joint's one height over the whole sequence; a stance higher than the joint's
+    # lowest by more than floor_band_m stands on something else (a step, a bed) and keeps its own
+    height_group = stance
+    if cfg.flat_floor:  # DESIGN: the floor is z = 0 everywhere
+        level = np.zeros(stance.max() + 1)
+        np.add.at(level, stance, foot[:, 2])
+        level /= np.maximum(np.bincount(stance), 1)
+        lowest = np.full(len(FOOT_JOINTS), np.inf)
+        np.minimum.at(lowest, j, level[stance])
+        on_floor = level[stance] <= lowest[j] + cfg.floor_band_m
+        height_group = np.where(on_floor, stance.max() + 1 + j, stance)
+    parts = ((slice(0, 2), stance), (slice(2, 3), height_group))
 
-    def centred(x: np.ndarray) -> np.ndarray:  # x minus its stance's mean, (N, D)
-        sums = np.zeros((n + 1, x.shape[1]))
-        np.add.at(sums, seg, x)
-        return x - sums[seg] / count[seg]
+    def centred(x: np.ndarray, group: np.ndarray) -> np.ndarray:  # x minus its group's mean, (N, D)
+        sums = np.zeros((group.max() + 1, x.shape[1]))
+        np.add.at(sums, group, x)
+        return x - sums[group] / np.bincount(group)[group, None]
 
-    A, r = centred(B[t]), centred(foot)
+    systems = [(centred(B[t], g), centred(foot[:, ax], g)) for ax, g in parts]
     D2 = np.diff(np.eye(K), 2, axis=0)
     prior = cfg.ridge * np.eye(K) + cfg.smoothness * D2.T @ D2
-    w = np.ones(len(A))
+    w = np.ones(len(foot))
     for _ in range(cfg.robust_iters + 1):
-        Aw = A * w[:, None]
-        coef = np.linalg.solve(A.T @ Aw + prior, Aw.T @ r)  # (K, 3)
-        res = np.linalg.norm(r - A @ coef, axis=-1)
-        w = np.minimum(1.0, cfg.robust_m / np.maximum(res, 1e-12))
-    return B @ coef
+        coef, res2 = [], 0.0
+        for A, r in systems:
+            Aw = A * w[:, None]
+            c = np.linalg.solve(A.T @ Aw + prior, Aw.T @ r)  # (K, D)
+            coef.append(c)
+            res2 = res2 + ((r - A @ c) ** 2).sum(-1)
+        w = np.minimum(1.0, cfg.robust_m / np.maximum(np.sqrt(res2), 1e-12))
+    return B @ np.concatenate(coef, axis=1)
 
 
 def remove_body_drift(frames: np.ndarray, fps: float, cfg: DriftConfig = DriftConfig()) -> np.ndarray:

@@ -9,12 +9,12 @@ __all__ = ["add_guidance_arguments", "add_postprocess_arguments", "postprocess_k
 
 # The default goal guidance: three updates a step of size 20. One update of size 80 is ~3x faster
 # (one backward pass a step instead of three) and met every target on the 6 evaluation rooms, but
-# left the default room's body 9.4 cm into the chair at a sit-down (README, sampling speed).
+# left the default room's body 9.4 cm into the chair at a sit-down (docs/sampling_log.md, sampling speed).
 GOAL_GUIDANCE = 20.0
 GOAL_ITERS = 3
 # classifier-free guidance scales (scene, action) of the sampler; 1 = plain conditional. Action
 # guidance 2 raised action accuracy 0.78 -> 0.85 and lowered fid_matched 21.8 -> 18.5 on 5 plan
-# seeds, at ~1.5x the sampling time and rougher seams (jerk ratio 1.24 -> 1.46; README, issue 10)
+# seeds, at ~1.5x the sampling time and rougher seams (jerk ratio 1.24 -> 1.46; docs/sampling_log.md)
 CFG_SCALES = (1.0, 2.0)
 
 

@@ -25,7 +25,7 @@ import numpy as np
 from .sampling_args import (CFG_SCALES, GOAL_GUIDANCE, GOAL_ITERS, add_guidance_arguments, add_postprocess_arguments,
                             postprocess_kwargs)
 
-__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS"]
+__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS", "fid_figures", "write_windows", "read_windows"]
 
 EVAL_ROOM_SEEDS: tuple[int, ...] = (9001, 9002, 9003, 9004, 9005, 9006)
 SAME_SIZE_DRAWS = 10  # draws of train windows averaged for the real_*_same_size figures
@@ -48,6 +48,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="motion encoder of fid / diversity / action_acc (default: the shipped one; needs --data)")
     add_postprocess_arguments(p)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--save-windows", default=None, metavar="PATH",
+                   help="also write the generated windows' motion-encoder features and labels (.npz) there, "
+                        "e.g. to pool seeds: python benchmarks/pooled_fid.py")
     p.add_argument("--json", action="store_true")
 
 
@@ -66,10 +69,11 @@ def _plans(sc, seed: int):
 
 def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
              guidance: tuple[float, int] = (GOAL_GUIDANCE, GOAL_ITERS), post: dict | None = None, encoder: str | None = None,
-             eta: float = 0.0, cfg_scales: tuple[float, float] = CFG_SCALES) -> dict:
+             eta: float = 0.0, cfg_scales: tuple[float, float] = CFG_SCALES, save_windows: str | None = None) -> dict:
     """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
     ``cfg_scales``: its classifier-free guidance scales (scene, action);
-    ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one)."""
+    ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one);
+    ``save_windows``: a path for the generated windows' encoder features and labels (``write_windows``)."""
     import torch
 
     from trumans.model.checkpoint import load_checkpoint
@@ -123,7 +127,7 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
         t = {k: float(np.median(v)) for k, v in t.items()}
         figs["naive_seconds_per_episode"] = round(t["naive"], 4)
         figs["speedup_vs_naive"] = round(t["naive"] / t["fast"], 2)
-    figs.update(_encoder_figures(results, list(ckpt.vocabulary), reference, encoder))
+    figs.update(_encoder_figures(results, list(ckpt.vocabulary), reference, encoder, save_windows))
     return figs
 
 
@@ -149,23 +153,20 @@ def _load_reference() -> dict[str, np.ndarray] | None:
         return {k: z[k] for k in z.files}
 
 
-def _encoder_figures(results, vocabulary: list[str], reference: str | None, encoder: str | None = None) -> dict:
+def _encoder_figures(results, vocabulary: list[str], reference: str | None, encoder: str | None = None,
+                     save_windows: str | None = None) -> dict:
     """fid / diversity / action_acc of the generated clips (first sample of each plan) with the
-    motion encoder (default: the shipped one), and the real data's values beside them.
-    ``fid_matched``: fid against the real test windows weighted to the generated windows' action
-    mix (the plans walk, sit and drink; the test split also lies, opens doors, carries ...), with
-    ``real_fid_matched``, train windows against test windows under the same weights, beside it;
-    ``real_fid_same_size`` / ``real_fid_matched_same_size``: the same for train windows drawn to the
-    generated set's size and action mix (``like_sample``; mean of ``SAME_SIZE_DRAWS`` draws): the
-    fair real value for a set of a few dozen windows, whose Fréchet distance is biased upward."""
-    from trumans.model.motion_encoder import (action_acc, diversity, fid, like_sample, load_motion_encoder,
-                                              matched_weights)
+    motion encoder (default: the shipped one), and the real data's values beside them (``fid_figures``).
+    save_windows: also write the generated windows' features and labels there (``save_windows``)."""
+    from trumans.model.motion_encoder import action_acc, diversity, load_motion_encoder
 
     enc = load_motion_encoder(encoder)
     fps = results[0].fps
     feats = np.concatenate([enc.encode(r.joints[0], fps)[0] for r in results])
     probs = np.concatenate([enc.classify(r.joints[0], fps)[0] for r in results])
     labels = np.concatenate([enc.window_labels(r.labels[0], vocabulary, fps)[0] for r in results])
+    if save_windows is not None:
+        write_windows(save_windows, feats, labels)
     out = {"diversity": round(diversity(feats), 3), "action_acc": round(action_acc(probs, labels), 3),
            "real_action_acc": round(float(enc.info.get("test_acc", float("nan"))), 3)}
     if reference is None and encoder is not None:
@@ -174,10 +175,24 @@ def _encoder_figures(results, vocabulary: list[str], reference: str | None, enco
     ref = reference_windows(enc, reference) if reference is not None else _load_reference()
     if ref is None:
         return {**out, "fid": None, "fid_note": f"no reference features: give --data DATASET or ship {REFERENCE_FILE}"}
-    real = ref["features"].astype(np.float64)
-    out["fid"] = round(fid(real, feats), 3)
     out["real_fid"] = round(float(enc.info.get("fid_train_vs_test", float("nan"))), 3)
-    out["real_diversity"] = round(diversity(real), 3)
+    out["real_diversity"] = round(diversity(ref["features"].astype(np.float64)), 3)
+    return {**out, **fid_figures(feats, labels, ref)}
+
+
+def fid_figures(feats: np.ndarray, labels: np.ndarray, ref: dict[str, np.ndarray]) -> dict:
+    """Generated window features (N, D) and dominant-action labels (N,) against a reference
+    (``reference_windows`` / the shipped file): ``fid``; ``fid_matched``: fid against the real test
+    windows weighted to the generated windows' action mix (the plans walk, sit and drink; the test
+    split also lies, opens doors, carries ...), with ``real_fid_matched``, train windows against
+    test windows under the same weights, beside it; ``real_fid_same_size`` /
+    ``real_fid_matched_same_size``: the same for train windows drawn to the generated set's size and
+    action mix (``like_sample``; mean of ``SAME_SIZE_DRAWS`` draws): the fair real value for a set of
+    a few dozen windows, whose Fréchet distance is biased upward."""
+    from trumans.model.motion_encoder import fid, like_sample, matched_weights
+
+    real = ref["features"].astype(np.float64)
+    out = {"fid": round(fid(real, feats), 3)}
     if "labels" in ref and "train_features" in ref:
         w_test = matched_weights(ref["labels"], labels)
         out["fid_matched"] = round(fid(real, feats, real_weights=w_test), 3)
@@ -191,8 +206,37 @@ def _encoder_figures(results, vocabulary: list[str], reference: str | None, enco
             same_m.append(fid(real, sub, real_weights=w_test))
         out["real_fid_same_size"] = round(float(np.mean(same)), 3)
         out["real_fid_matched_same_size"] = round(float(np.mean(same_m)), 3)
-        out["windows"] = int(len(feats))
+    out["windows"] = int(len(feats))
     return out
+
+
+def write_windows(path: str | Path, feats: np.ndarray, labels: np.ndarray) -> None:
+    """Write generated windows (``--save-windows``): features (N, D) float32, labels (N,) int64."""
+    from trumans.sequence import atomic_write
+
+    f, y = np.asarray(feats, np.float32), np.asarray(labels, np.int64).ravel()
+    if f.ndim != 2 or len(f) != len(y):
+        raise ValueError(f"need features (N, D) and labels (N,), got {f.shape} and {y.shape}")
+
+    def _write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:  # a file object: np.savez would add ".npz" to a name
+            np.savez(fh, features=f, labels=y)
+
+    atomic_write(path, _write)
+
+
+def read_windows(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(features (N, D) float32, labels (N,) int64) written by ``write_windows``; never runs code."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"window file {path} does not exist; write it with `trumans eval synthesis --save-windows`")
+    with np.load(path, allow_pickle=False) as z:
+        if not {"features", "labels"} <= set(z.files):
+            raise ValueError(f"{path} holds {sorted(z.files)}, not the features and labels of --save-windows")
+        f, y = z["features"], z["labels"]
+    if f.ndim != 2 or y.shape != (len(f),) or not np.isfinite(f).all():
+        raise ValueError(f"{path}: need finite features (N, D) and labels (N,), got {f.shape} and {y.shape}")
+    return f.astype(np.float32), y.astype(np.int64)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -210,7 +254,8 @@ def run(args: argparse.Namespace) -> int:
                          "give --data DATASET (its test split is the reference)")
     guidance = (args.goal_guidance, args.goal_iters)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder, args.eta, tuple(args.guidance))
+                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder, args.eta, tuple(args.guidance),
+                    args.save_windows)
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:

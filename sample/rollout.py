@@ -29,6 +29,7 @@ from .sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
 from .scene_pushout import push_out
 from .seams import blend_seam
 from .seat_guidance import seated_heights
+from .support_lift import lift_onto_feet, support_weights
 
 __all__ = ["SampleResult", "start_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
 
@@ -122,6 +123,8 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     if sampler.config.seam_blend > 0:
         world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
     world = project_bones(world, lengths)
+    if sampler.config.support_lift:  # the network's legs come out shorter: back onto the feet, not onto bent knees
+        world = lift_onto_feet(world, support_weights(labels, list(sampler.ckpt.vocabulary)), sampler.k)
     # dynamic objects count where they stand until the plan moves one (then the static scene only)
     sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
     if sampler.config.scene_pushout and sdf is not None:  # before the feet: they re-lock after it

@@ -65,7 +65,9 @@ class SamplerConfig:
     ``sample.rollout``; needs grids); arm_pushout: then a hand still in the scene is moved out by
     arm IK (``sample.arm_pushout``; needs grids); reach_cleanup: after each episode the acting arm (and, out of
     reach, the upper body) is moved onto the hand target of the plan's hand phases
-    (``sample.reach_cleanup``; applied by ``sample.rollout``)."""
+    (``sample.reach_cleanup``; applied by ``sample.rollout``); support_lift: after the projection
+    onto the body's bones the body is raised until its lowest foot is back on the floor, where the
+    feet carry it (``sample.support_lift``; applied by ``sample.rollout``)."""
 
     steps: int = 20
     eta: float = 0.0
@@ -81,6 +83,7 @@ class SamplerConfig:
     scene_pushout: bool = True
     arm_pushout: bool = True
     reach_cleanup: bool = True
+    support_lift: bool = True
 
     def __post_init__(self) -> None:
         if self.steps < 1:

@@ -36,6 +36,9 @@ def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("sampling-time cleanup (on by default)")
     g.add_argument("--no-foot-cleanup", dest="foot_cleanup", action="store_false",
                    help="keep the network's feet (no foot locks, floor or leg IK; sample/foot_cleanup.py)")
+    g.add_argument("--no-support-lift", dest="support_lift", action="store_false",
+                   help="keep the pelvis where the network put it after the projection onto the body's bones (the feet "
+                        "then sink and the foot cleanup bends the knees; sample/support_lift.py)")
     g.add_argument("--no-seat-guidance", dest="seat_guidance", action="store_false",
                    help="do not pull a seated pelvis to its seat's height (sample/seat_guidance.py)")
     g.add_argument("--no-penetration-guidance", dest="penetration_guidance", action="store_false",
@@ -56,4 +59,5 @@ def postprocess_kwargs(args: argparse.Namespace) -> dict:
     """The ``SamplerConfig`` fields set by the switches above."""
     return {"foot_cleanup": bool(args.foot_cleanup), "seam_blend": int(args.seam_blend),
             "seat_guidance": bool(args.seat_guidance), "penetration_guidance": bool(args.penetration_guidance),
-            "scene_pushout": bool(args.scene_pushout), "arm_pushout": bool(args.arm_pushout), "reach_cleanup": bool(args.reach_cleanup)}
+            "scene_pushout": bool(args.scene_pushout), "arm_pushout": bool(args.arm_pushout), "reach_cleanup": bool(args.reach_cleanup),
+            "support_lift": bool(args.support_lift)}

@@ -38,3 +38,20 @@ def test_standing_pose_is_a_real_frame_in_the_canonical_frame():
     assert np.linalg.norm(pose - REST_JOINTS * [1, 1, 1] + REST_JOINTS[0] * [1, 1, 0], axis=-1).max() < 0.1
     with pytest.raises(ValueError, match=r"\(N, 24, 3\)"):
         standing_pose(np.zeros((0, 24, 3)))
+
+
+def test_every_body_weighs_the_same_with_per_body():
+    """Many frames of a small body and a few of a middle and a tall one: by frame the start pose is
+    the small body; with one vote per body it is the middle one (the median body)."""
+    rng = np.random.default_rng(1)
+
+    def body(scale: float, n: int) -> np.ndarray:
+        return np.stack([_arms_turned(a, y, np.r_[rng.uniform(-2, 2, 2), 0.0]) * scale
+                         for a, y in zip(rng.uniform(-0.3, 0.3, n), rng.uniform(-np.pi, np.pi, n))])
+
+    frames = np.concatenate([body(0.9, 60), body(1.0, 6), body(1.1, 6)])
+    legs = lambda J: bone_lengths(J).sum()  # noqa: E731
+    assert legs(standing_pose(frames)) == pytest.approx(0.9 * legs(REST_JOINTS), rel=1e-6)
+    assert legs(standing_pose(frames, per_body=6)) == pytest.approx(legs(REST_JOINTS), rel=1e-6)
+    with pytest.raises(ValueError, match="per_body"):
+        standing_pose(frames, per_body=0)

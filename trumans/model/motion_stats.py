@@ -5,7 +5,12 @@ are spaced like the training episodes' displacement), the typical duration of ea
 the progress indicator runs at the data's pace), and a standing start pose (canonical frame:
 pelvis at x = y = 0, facing +x): the standing frame nearest the coordinate-wise median of all of
 them, a real body. (The median itself is not one: averaging arms that hang, swing and fold
-shortens them, its forearms were 13 % shorter than any body's in the default data.)
+shortens them, its forearms were 13 % shorter than any body's in the default data.) Every distinct
+body (bone lengths to the centimetre) counts the same: in the default data 152 real takes share a
+few CMU skeletons, so frames weighted by take made the start body a CMU one, whose proportions
+(long legs, short trunk) the shipped generator does not keep: it drew its legs 5 % shorter, the
+projection onto the body's bones put the feet under the floor and the foot cleanup bent the knees
+(docs/sampling_log.md, "The start body").
 """
 from __future__ import annotations
 
@@ -14,11 +19,12 @@ import numpy as np
 from trumans.actions import remap_labels
 from trumans.contacts.intervals import runs
 from trumans.resample import resample_sequence
-from trumans.skeleton import JOINT_INDEX, heading
+from trumans.skeleton import JOINT_INDEX, bone_lengths, heading
 
 __all__ = ["sampling_stats", "standing_pose"]
 
 _PELVIS = JOINT_INDEX["pelvis"]
+PER_BODY = 20  # standing frames per distinct body for the start pose (module doc)
 
 
 def _canonical_pose(joints: np.ndarray) -> np.ndarray:
@@ -33,12 +39,21 @@ def _canonical_pose(joints: np.ndarray) -> np.ndarray:
     return d
 
 
-def standing_pose(frames: np.ndarray) -> np.ndarray:
+def standing_pose(frames: np.ndarray, per_body: int | None = None, seed: int = 0) -> np.ndarray:
     """Standing frames (N, 24, 3) world -> (24, 3) canonical: the frame nearest (mean joint
-    distance, canonical frames) to the coordinate-wise median of all of them (module doc)."""
+    distance, canonical frames) to the coordinate-wise median of all of them (module doc).
+    per_body: first keep at most this many frames (seeded draw) of each distinct body (bone
+    lengths rounded to 1 cm), so that every body weighs the same."""
     f = np.asarray(frames, dtype=np.float64)
     if f.ndim != 3 or f.shape[1:] != (24, 3) or len(f) == 0:
         raise ValueError(f"standing frames must be (N, 24, 3) with N >= 1, got {f.shape}")
+    if per_body is not None:
+        if per_body < 1:
+            raise ValueError(f"per_body must be >= 1, got {per_body}")
+        _, body = np.unique(np.round(bone_lengths(f), 2), axis=0, return_inverse=True)
+        rng = np.random.default_rng(seed)
+        keep = [rng.permutation(np.flatnonzero(body.ravel() == b))[:per_body] for b in np.unique(body)]
+        f = f[np.sort(np.concatenate(keep))]
     can = _canonical_pose(f)
     median = np.median(can, axis=0)
     return can[int(np.argmin(np.linalg.norm(can - median, axis=-1).mean(-1)))]
@@ -69,7 +84,7 @@ def sampling_stats(dataset, split: str, vocabulary: list[str], fps: float, max_s
             stand.append(seq.joints[only][::5])
     speed = float(np.median(np.concatenate(speeds))) if speeds and sum(map(len, speeds)) else 1.0
     pose_src = np.concatenate(stand) if stand and sum(map(len, stand)) else None
-    pose = standing_pose(pose_src) if pose_src is not None and len(pose_src) else None
+    pose = standing_pose(pose_src, per_body=PER_BODY) if pose_src is not None and len(pose_src) else None
     out = {"walk_speed": round(speed, 4),
            "action_seconds": {a: round(float(np.median(d)), 3) for a, d in durations.items() if d}}
     if pose is not None:

@@ -22,17 +22,13 @@ import numpy as np
 from trumans.skeleton import JOINT_INDEX
 
 from .foot_cleanup import FOOT_REST
+from .reach_cleanup import smoothstep
 
 __all__ = ["SEATED_ACTIONS", "support_weights", "lowest_foot_height", "lift_onto_feet"]
 
 SEATED_ACTIONS = ("sit", "lie", "lie_down", "get_up")  # the seat or bed carries the body (weight 0)
 _FEET = np.array([JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot")])
 _REST = np.array([FOOT_REST[0], FOOT_REST[0], FOOT_REST[1], FOOT_REST[1]])
-
-
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...]) -> np.ndarray:
@@ -53,9 +49,9 @@ def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...])
     for name in SEATED_ACTIONS:
         w[on(name)] = 0.0
     if "sit_down" in vocab:
-        w = np.where(on("sit_down"), 1.0 - _smoothstep(progress("sit_down")), w)
+        w = np.where(on("sit_down"), 1.0 - smoothstep(progress("sit_down")), w)
     if "stand_up" in vocab:
-        w = np.where(on("stand_up"), _smoothstep(progress("stand_up")), w)
+        w = np.where(on("stand_up"), smoothstep(progress("stand_up")), w)
     return w
 
 

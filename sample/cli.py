@@ -92,6 +92,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plan", default=None, help="plan file (.json or .toml); see sample/plan.py")
     p.add_argument("--start", default=None, help="start floor point X,Y (m); default: the plan's, else the room centre")
     p.add_argument("--heading", type=float, default=None, help="start heading (rad, from +x)")
+    p.add_argument("--body", default=None, metavar="SEQ.npz[:FRAME]",
+                   help="sample with the body of a standing frame of a sequence (default frame 0; its bone lengths "
+                        "are kept); default: the checkpoint's start body")
     g = p.add_argument_group("plan steps (in command-line order)")
     g.add_argument("--goto", action=_StepAction, metavar="X,Y", help="walk to a floor point")
     g.add_argument("--sit-on", dest="sit_on", action=_StepAction, metavar="NAME[:S]", help="sit on a seat for S s")
@@ -117,6 +120,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="print one JSON object of figures as the last line")
     p.add_argument("--no-progress", action="store_true")
+
+
+def body_frame(spec: str) -> np.ndarray:
+    """``--body SEQ.npz[:FRAME]`` -> that frame's joints (24, 3) world m (``rollout.body_pose`` checks it)."""
+    from trumans.sequence import load_sequence
+
+    path, frame = spec, 0
+    head, sep, tail = spec.rpartition(":")
+    if sep and tail.lstrip("-").isdigit():
+        path, frame = head, int(tail)
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"--body: sequence {path} does not exist; give SEQ.npz[:FRAME]")
+    joints = load_sequence(path).joints
+    if not -len(joints) <= frame < len(joints):
+        raise ValueError(f"--body: {path} has {len(joints)} frames, frame {frame} is out of range")
+    return np.asarray(joints[frame])
 
 
 def default_plan(sc) -> dict:
@@ -148,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     from trumans.sequence import Sequence
 
     from .plan import load_plan, plan_from_dict, validate_plan
-    from .rollout import sample_plan
+    from .rollout import body_pose, sample_plan
     from .sampler import EpisodeSampler, SamplerConfig
     from .scene_input import load_sample_scene
     from .synthesis_metrics import motion_figures
@@ -181,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
         plan = replace(plan, start=tuple(_xy(args.start, 2, "--start")) if args.start else plan.start,
                        heading=args.heading if args.heading is not None else plan.heading)
     validate_plan(plan, sc.scene, ckpt.vocabulary)
+    body = None if args.body is None else body_pose(body_frame(args.body), f"--body {args.body}")
     config = SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
                            goal_guidance=args.goal_guidance, goal_iters=args.goal_iters, **postprocess_kwargs(args))
     sampler = EpisodeSampler(ckpt, sc.grids, config, device=str(device))
@@ -188,7 +208,8 @@ def run(args: argparse.Namespace) -> int:
     if not sc.walkmap.query(start[None])[0]:
         raise ValueError(f"start {np.round(start, 2).tolist()} is not on walkable floor; give another --start")
     result = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, num_samples=args.num_samples, seed=args.seed,
-                         max_seconds=args.max_seconds, progress=not args.no_progress, start_xy=start)
+                         max_seconds=args.max_seconds, progress=not args.no_progress, start_xy=start,
+                         body=body)
     out = Path(args.out)
     written: list[str] = []
     from .export import export

@@ -31,7 +31,7 @@ from .seams import blend_seam
 from .seat_guidance import seated_heights
 from .support_lift import lift_onto_feet, support_weights
 
-__all__ = ["SampleResult", "start_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
+__all__ = ["SampleResult", "start_pose", "body_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
 
 PELVIS = JOINT_INDEX["pelvis"]
 INCREMENTAL_SCHEDULE: tuple[int, ...] = (2, 4, 8)
@@ -79,9 +79,40 @@ def start_pose(ckpt: Checkpoint) -> np.ndarray:
     return mean
 
 
-def start_context(ckpt: Checkpoint, xy: np.ndarray, heading: float, batch: int = 1) -> np.ndarray:
-    """(B, k, 24, 3) world: the start pose standing still at floor point xy facing ``heading``."""
-    p = start_pose(ckpt).astype(np.float64)
+def body_pose(frame: np.ndarray, what: str = "the body frame") -> np.ndarray:
+    """A body to sample with from one standing frame (24, 3) world m, z up -> (24, 3) canonical
+    (pelvis at x = y = 0, facing +x) with its lowest foot joint at its rest height; the sampler keeps
+    its bone lengths. Raises ValueError naming ``what`` unless the frame is finite and stands: both
+    legs at least 85 % straight (hip to ankle against thigh + shin) and the trunk within 30 degrees
+    of vertical."""
+    from trumans.model.motion_stats import canonical_pose
+    from trumans.skeleton import NUM_JOINTS
+
+    from .support_lift import lowest_foot_height
+
+    f = np.asarray(frame, dtype=np.float64)
+    if f.shape != (NUM_JOINTS, 3) or not np.isfinite(f).all():
+        raise ValueError(f"{what} must be finite joints (24, 3), got shape {f.shape}"
+                         + ("" if f.shape != (NUM_JOINTS, 3) else " with NaN / inf"))
+    L = bone_lengths_of(f)
+    for side in ("left", "right"):
+        hip, knee, ankle = (JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle"))
+        if np.linalg.norm(f[ankle] - f[hip]) < 0.85 * (L[knee] + L[ankle]):
+            raise ValueError(f"{what} does not stand (the {side} knee is bent); give a standing frame (PATH:FRAME)")
+    trunk = f[JOINT_INDEX["neck"]] - f[PELVIS]
+    if trunk[2] < np.cos(np.radians(30.0)) * np.linalg.norm(trunk):
+        raise ValueError(f"{what} does not stand (the trunk leans more than 30 degrees); give a standing frame "
+                         f"(PATH:FRAME)")
+    p = canonical_pose(f[None])[0]
+    p[:, 2] -= lowest_foot_height(p)
+    return p.astype(np.float32)
+
+
+def start_context(ckpt: Checkpoint, xy: np.ndarray, heading: float, batch: int = 1,
+                  pose: np.ndarray | None = None) -> np.ndarray:
+    """(B, k, 24, 3) world: the start pose (``pose`` (24, 3) canonical, default the checkpoint's
+    ``start_pose``) standing still at floor point xy facing ``heading``."""
+    p = (start_pose(ckpt) if pose is None else np.asarray(pose)).astype(np.float64)
     c, s = np.cos(heading), np.sin(heading)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     w = p @ R.T + np.array([xy[0], xy[1], 0.0])
@@ -161,8 +192,11 @@ def sit_offset(pose: np.ndarray) -> float:
 
 def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,
                 seed: int = 0, max_seconds: float = 600.0, progress: bool = False,
-                start_xy: np.ndarray | None = None, max_episodes: int | None = None) -> SampleResult:
+                start_xy: np.ndarray | None = None, max_episodes: int | None = None,
+                body: np.ndarray | None = None) -> SampleResult:
     """Roll ``plan`` out in ``scene`` for ``num_samples`` variations (one batch); see the module doc.
+    ``body``: a standing frame (24, 3) world m whose body to use (``body_pose``; default the
+    checkpoint's ``start_pose``).
 
     Raises ValueError when the plan is not done after ``max_seconds`` of motion; ``max_episodes``
     instead stops quietly after that many episodes (timing runs)."""
@@ -175,7 +209,8 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary)
     controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
                    for _ in range(num_samples)]
-    context = start_context(ckpt, xy, heading, num_samples)
+    pose = start_pose(ckpt) if body is None else body_pose(body, "body")
+    context = start_context(ckpt, xy, heading, num_samples, pose)
     lengths = bone_lengths_of(context[0, 0].astype(np.float64))
     sampler.hip_width = float(np.linalg.norm(context[0, 0, JOINT_INDEX["left_hip"], :2]
                                              - context[0, 0, JOINT_INDEX["right_hip"], :2]))
@@ -186,7 +221,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     frames, labels, phase = [context], [np.broadcast_to(stand, (num_samples,) + stand.shape)], \
         [np.full((num_samples, ckpt.k), -1)]
     g = torch.Generator().manual_seed(int(seed))
-    seat = sit_offset(start_pose(ckpt))
+    seat = sit_offset(pose)
     limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
     t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
     bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
@@ -215,20 +250,22 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
 
 
 def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, seed: int = 0,
-           schedule: tuple[int, ...] = INCREMENTAL_SCHEDULE) -> Generator[np.ndarray, Plan | None, None]:
+           schedule: tuple[int, ...] = INCREMENTAL_SCHEDULE, body: np.ndarray | None = None
+           ) -> Generator[np.ndarray, Plan | None, None]:
     """Yield (n, 24, 3) world frames as they are made, forever; ``send(plan)`` switches to a new
     plan from where the body is. After a (new) plan the first episodes commit ``schedule`` new
     frames each (2, 4, 8), then full episodes of L - k frames. When the plan is done the body
-    stands (or holds its posture) where it is."""
+    stands (or holds its posture) where it is. ``body``: as in ``sample_plan``."""
     k, L = ckpt.k, ckpt.L_epi
     if any(not 1 <= n <= L - k for n in schedule):
         raise ValueError(f"schedule entries must be in [1, {L - k}], got {schedule}")
     xy = np.asarray(plan.start if plan.start is not None else (0.0, 0.0), dtype=np.float64)
-    context = start_context(ckpt, xy, float(plan.heading or 0.0), 1)
+    pose = start_pose(ckpt) if body is None else body_pose(body, "body")
+    context = start_context(ckpt, xy, float(plan.heading or 0.0), 1, pose)
     lengths = bone_lengths_of(context[0, 0].astype(np.float64))
     prev = np.zeros((1, k, len(ckpt.vocabulary)), np.float32)
     g = torch.Generator().manual_seed(int(seed))
-    seat = sit_offset(start_pose(ckpt))
+    seat = sit_offset(pose)
 
     def controller_for(p: Plan, at: np.ndarray) -> Controller:
         return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary),

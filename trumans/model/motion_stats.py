@@ -21,13 +21,13 @@ from trumans.contacts.intervals import runs
 from trumans.resample import resample_sequence
 from trumans.skeleton import JOINT_INDEX, bone_lengths, heading
 
-__all__ = ["sampling_stats", "standing_pose"]
+__all__ = ["sampling_stats", "standing_pose", "canonical_pose"]
 
 _PELVIS = JOINT_INDEX["pelvis"]
 PER_BODY = 20  # standing frames per distinct body for the start pose (module doc)
 
 
-def _canonical_pose(joints: np.ndarray) -> np.ndarray:
+def canonical_pose(joints: np.ndarray) -> np.ndarray:
     """(N, 24, 3) world -> (N, 24, 3) each frame with its pelvis at x = y = 0, facing +x."""
     yaw = heading(joints)
     c, s = np.cos(-yaw), np.sin(-yaw)
@@ -54,7 +54,7 @@ def standing_pose(frames: np.ndarray, per_body: int | None = None, seed: int = 0
         rng = np.random.default_rng(seed)
         keep = [rng.permutation(np.flatnonzero(body.ravel() == b))[:per_body] for b in np.unique(body)]
         f = f[np.sort(np.concatenate(keep))]
-    can = _canonical_pose(f)
+    can = canonical_pose(f)
     median = np.median(can, axis=0)
     return can[int(np.argmin(np.linalg.norm(can - median, axis=-1).mean(-1)))]
 

@@ -7,7 +7,7 @@ from test_sample_rollout import open_room, tiny_checkpoint  # noqa: F401 - the f
 
 from sample.cli import body_frame
 from sample.plan import plan_from_dict
-from sample.rollout import body_pose, sample_plan
+from sample.rollout import body_pose, sample_plan, stream
 from sample.sampler import EpisodeSampler, SamplerConfig, bone_lengths_of
 from sample.support_lift import lowest_foot_height
 from scenes.scene_grids import SceneGrids
@@ -62,6 +62,10 @@ def test_sample_plan_keeps_the_given_body(open_room):  # noqa: F811
                       body=body)
     got = bone_lengths_of(res.joints[0].astype(np.float64))
     np.testing.assert_allclose(got, np.broadcast_to(bone_lengths_of(body), got.shape), atol=1e-4)
+    gen = stream(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=2)), scene, wm, plan, seed=0, body=body)
+    streamed = np.concatenate([next(gen) for _ in range(3)]).astype(np.float64)
+    np.testing.assert_allclose(bone_lengths_of(streamed), np.broadcast_to(bone_lengths_of(body), streamed.shape[:2]),
+                               atol=1e-4)
 
 
 def test_body_frame_parses_path_and_frame(tmp_path):

@@ -303,6 +303,13 @@ def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: 
         train(cfg, root, tmp_path / "c", steps=2, resume=True, progress=False, augmented_dirs=[aug])
     with pytest.raises(ValueError, match="other data"):
         train(cfg, root, tmp_path / "a", steps=2, resume=True, progress=False)  # resumed without --augmented
+    # fine-tuning (--init) may train on other data: the init's weights and normalisation start the run
+    ft = train(cfg, aug, tmp_path / "ft", steps=0, progress=False, init=with_aug.checkpoint)
+    start, tuned = load_checkpoint(with_aug.checkpoint), load_checkpoint(ft.checkpoint)
+    np.testing.assert_array_equal(tuned.normalizer.mean, start.normalizer.mean)
+    for k, v in start.ema_state.items():
+        torch.testing.assert_close(tuned.model_state[k], v)
+    assert tuned.data["hash"] != start.data["hash"] and tuned.meta["init"] == str(with_aug.checkpoint)
 
 
 def test_run_folder_has_one_writer_and_sweeps_killed_temp_files(tiny, tmp_path: Path) -> None:

@@ -27,7 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=None, help="total optimisation steps (default: the config's)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--init", default=None, metavar="CHECKPOINT",
-                   help="fine-tune: start from this checkpoint's weights (same task, config and data), fresh optimiser")
+                   help="fine-tune: start from this checkpoint's weights and normalisation (same task and model; "
+                        "its data or other data with the same action vocabulary), fresh optimiser")
     p.add_argument("--seed", type=int, default=0, help="random seed (data order, noise, init)")
     p.add_argument("--ablate", action="append", default=[], metavar="NAME",
                    help="switch off a part (generator: progress (indicator), scene / action (condition), "

@@ -212,12 +212,13 @@ class ContactTask:
 
     def setup(self, data_dir: str | Path, out_dir: Path, *, is_main: bool, barrier: Callable[[], None],
               prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
-              progress: bool = True) -> None:
-        """The train and val splits of ``data_dir`` (sequences with rotations and contacts)."""
+              progress: bool = True, fine_tune: bool = False) -> None:
+        """The train and val splits of ``data_dir`` (sequences with rotations and contacts); a resumed
+        run (``prev``, not ``fine_tune``) refuses other data."""
         if extra_dirs:
             raise ValueError("the contact task trains on one dataset; --augmented is not supported for it")
         ds = Dataset(data_dir)
-        if prev is not None and prev.data.get("hash") != ds.hash:
+        if prev is not None and prev.data.get("hash") != ds.hash and not fine_tune:
             raise ValueError(f"the run in {out_dir} was trained on other data (hash {str(prev.data.get('hash'))[:12]}, "
                              f"now {ds.hash[:12]}); resume with the same --data")
         self.data_record = {"name": ds.name, "hash": ds.hash, "path": str(Path(data_dir).resolve())}

@@ -200,10 +200,11 @@ class FilterTask:
 
     def setup(self, data_dir: str | Path, out_dir: Path, *, is_main: bool, barrier: Callable[[], None],
               prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
-              progress: bool = True) -> None:
+              progress: bool = True, fine_tune: bool = False) -> None:
         """Windows of the train and val splits; normalisation fitted on clean canonical train
-        windows and the joints' linear skip on corrupted ones (or the resumed run's); a fixed
-        corrupted validation batch."""
+        windows and the joints' linear skip on corrupted ones (or ``prev``'s: the resumed run, on the
+        same data, or with ``fine_tune`` the --init checkpoint, on any data); a fixed corrupted
+        validation batch."""
         if extra_dirs:
             raise ValueError("the filter trains on one dataset; --augmented is not supported for --task filter")
         net, fc = self.config.net, self.config.filter
@@ -211,7 +212,7 @@ class FilterTask:
         self.data_record = {"name": ds.name, "hash": ds.hash, "path": str(Path(data_dir).resolve())}
         cats = None
         if prev is not None:
-            if prev.data.get("hash") != ds.hash:
+            if prev.data.get("hash") != ds.hash and not fine_tune:
                 raise ValueError(f"the run in {out_dir} was trained on other data; resume with the same --data")
             cats = list(prev.extra["categories"])
         self.train_data = load_filter_windows(data_dir, "train", net.window, fc.stride, net.fps, cats)

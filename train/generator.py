@@ -129,9 +129,11 @@ class GeneratorTask:
 
     def setup(self, data_dir: str | Path, out_dir: Path, *, is_main: bool, barrier: Callable[[], None],
               prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
-              progress: bool = True) -> None:
+              progress: bool = True, fine_tune: bool = False) -> None:
         """Episodes of ``data_dir``'s train and val splits (+ the train splits of the augmented
-        dataset folders ``extra_dirs`` unless ``data.augmented`` is False), cached in ``out_dir/cache``."""
+        dataset folders ``extra_dirs`` unless ``data.augmented`` is False), cached in ``out_dir/cache``;
+        ``prev``: the resumed run (same data) or, with ``fine_tune``, the --init checkpoint (any data
+        with its action vocabulary)."""
         cfg = self.config
         ds = Dataset(data_dir)
         vocab = ds.vocabulary
@@ -144,12 +146,13 @@ class GeneratorTask:
                             "augmented": [{"name": a.name, "hash": a.hash, "path": str(a.root.resolve())} for a in aug]}
         if prev is not None:
             if prev.vocabulary != vocab:
-                raise ValueError(f"the run in {out_dir} was trained with the action vocabulary {prev.vocabulary}, but "
+                what = "the --init checkpoint was" if fine_tune else f"the run in {out_dir} was"
+                raise ValueError(f"{what} trained with the action vocabulary {prev.vocabulary}, but "
                                  f"{data_dir} has {vocab}; resume on the data it was trained on, or train a new run "
                                  f"(another --out)")
             old_h = [prev.data.get("hash")] + [a.get("hash") for a in prev.data.get("augmented", [])]
             new_h = [ds.hash] + [a.hash for a in aug]
-            if old_h != new_h:
+            if old_h != new_h and not fine_tune:
                 raise ValueError(f"the run in {out_dir} was trained on other data (hashes {[str(h)[:12] for h in old_h]}, "
                                  f"now {[str(h)[:12] for h in new_h]}); resume with the same --data / --augmented")
         self.vocabulary = vocab

@@ -134,9 +134,9 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
     steps: total optimisation steps (default ``config.train.steps``); resume: continue from
     ``out_dir/checkpoint.pt``; augmented_dirs: extra data folders handed to the task (the
     generator: augmented datasets whose train split joins training unless ``data.augmented`` is
-    False); init: a checkpoint of the same kind, trained on the same data, to fine-tune: its weights
-    (EMA if present), normalisation and task state start the run, with a fresh optimiser and step 0
-    (ignored when resuming). Under torchrun every process calls this; rank 0 writes the files.
+    False); init: a checkpoint of the same kind to fine-tune, on its data or other data the task can
+    read (the same action vocabulary): its weights (EMA if present), normalisation and task state
+    start the run, with a fresh optimiser and step 0 (ignored when resuming). Under torchrun every process calls this; rank 0 writes the files.
     """
     from tqdm import tqdm
 
@@ -177,7 +177,7 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
         init_name = str(init) if start is not None else (prev.meta.get("init") if prev is not None else None)
         t0 = time.perf_counter()
         task.setup(data_dir, out, is_main=info.is_main, barrier=lambda: ddp.barrier(info), prev=prev or start,
-                   seed=seed, extra_dirs=augmented_dirs, progress=progress)
+                   seed=seed, extra_dirs=augmented_dirs, progress=progress, fine_tune=start is not None)
         data_seconds = time.perf_counter() - t0
 
         model = initial_model(task, seed).to(info.device)

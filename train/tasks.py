@@ -42,10 +42,12 @@ class Task(Protocol):
 
     def setup(self, data_dir: str | Path, out_dir: Path, *, is_main: bool, barrier: Callable[[], None],
               prev: Checkpoint | None, seed: int = 0, extra_dirs: Sequence[str | Path] = (),
-              progress: bool = True) -> None:
+              progress: bool = True, fine_tune: bool = False) -> None:
         """Load (rank 0 first: it writes caches, then ``barrier()``, then the others) the training and
-        validation data, batches ordered by ``seed``; with ``prev`` (a resumed run) refuse data it was
-        not trained on and reuse its data statistics (normalisation)."""
+        validation data, batches ordered by ``seed``; with ``prev`` reuse its data statistics
+        (normalisation) and refuse data it cannot read (another vocabulary or categories); a resumed run
+        (``fine_tune`` False) also refuses data it was not trained on, while a fine-tuned one
+        (``--init``, ``fine_tune`` True) may train on other data."""
 
     def build_model(self) -> nn.Module:
         """A freshly initialised model (CPU); the loop seeds torch before calling it."""

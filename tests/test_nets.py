@@ -181,11 +181,20 @@ def test_guidance_with_precomputed_embeddings() -> None:
     x, t = torch.randn(2, 16, 72), torch.tensor([5, 50])
     s, a = torch.rand(2, 32, 32, 32) > 0.5, torch.rand(2, 16, 5)
     with torch.inference_mode():
-        for scales in ((1.0, 1.0), (2.5, 3.0), (0.0, 0.0)):
+        for scales, rows in (((1.0, 1.0), 2), ((2.5, 3.0), 6), ((0.0, 0.0), 6), ((1.0, 2.0), 4)):
             g = GuidedDenoiser(m, *scales)
             emb = g.encode_conditions(scene=s, actions=a)
-            assert emb.shape == ((2, 32) if scales == (1.0, 1.0) else (6, 32))
+            assert emb.shape == (rows, 32) and g.passes * 2 == rows
             assert torch.equal(g(x, t, cond_emb=emb), g(x, t, scene=s, actions=a))
+        # scene scale 1 (the default action guidance): the (∅,∅) pass cancels and is not run
+        g = GuidedDenoiser(m, 1.0, 2.0)
+        emb = g.encode_conditions(scene=s, actions=a)
+        assert torch.equal(emb[:2], m.encode_conditions(scene=s))
+        assert torch.equal(emb[2:], m.encode_conditions(scene=s, actions=a))
+        three = m(x, t) + 1.0 * (m(x, t, scene=s) - m(x, t)) + 2.0 * (m(x, t, scene=s, actions=a) - m(x, t, scene=s))
+        assert torch.allclose(g(x, t, cond_emb=emb), three, atol=1e-5)
+        with pytest.raises(ValueError, match="2B"):
+            g(x, t, cond_emb=m.encode_conditions(scene=s, actions=a))
         g = GuidedDenoiser(m, 2.5, 3.0)
         emb = g.encode_conditions(scene=s, actions=a)
         # the stacked embeddings are the model's own for (∅,∅), (S,∅), (S,A)

@@ -228,8 +228,10 @@ class Denoiser(nn.Module):
 class GuidedDenoiser(nn.Module):
     """Classifier-free guidance with separate scales (compositional form, Liu et al. 2022):
     ε = ε(∅,∅) + s_scene (ε(S,∅) - ε(∅,∅)) + s_action (ε(S,A) - ε(S,∅)).
-    Scales 1, 1 give the plain conditional prediction in one pass. The combination is linear, so
-    it applies to any prediction type (ε, x0, v)."""
+    Scales 1, 1 give the plain conditional prediction in one pass; with s_scene = 1 the (∅,∅) term
+    cancels, so two passes [(S,∅); (S,A)] suffice (ε = ε(S,∅) + s_action (ε(S,A) - ε(S,∅)); the
+    default action guidance), else three. The combination is linear, so it applies to any
+    prediction type (ε, x0, v)."""
 
     def __init__(self, model: Denoiser, scene_scale: float = 1.0, action_scale: float = 1.0) -> None:
         super().__init__()
@@ -239,20 +241,26 @@ class GuidedDenoiser(nn.Module):
     def guided(self) -> bool:
         return not (self.scene_scale == 1.0 and self.action_scale == 1.0)
 
+    @property
+    def passes(self) -> int:
+        """Network passes per prediction: 1 (not guided), 2 (s_scene = 1) or 3."""
+        return 1 if not self.guided else (2 if self.scene_scale == 1.0 else 3)
+
     def encode_conditions(self, *, scene: torch.Tensor | None = None, actions: torch.Tensor | None = None,
                           batch: int | None = None) -> torch.Tensor:
         """The embeddings ``forward(cond_emb=...)`` takes: (B, d_model) conditional when not guided;
-        else (3B, d_model) = [(∅,∅); (S,∅); (S,A)] stacked, each encoder run once on B samples."""
+        else (passes·B, d_model) = [(∅,∅);] (S,∅); (S,A) stacked, each encoder run once on B samples."""
         m = self.model
         if not self.guided:
             return m.encode_conditions(scene=scene, actions=actions, batch=batch)
         B = _batch_size(scene, actions, batch)
         s = m.condition_embedding("scene", scene, None, B)
         a = m.condition_embedding("actions", actions, None, B)
-        null_s = m.condition_embedding("scene", None, None, B)
         null_a = m.condition_embedding("actions", None, None, B)
-        return torch.cat([m.sum_embeddings(null_s, null_a, batch=B), m.sum_embeddings(s, null_a, batch=B),
-                          m.sum_embeddings(s, a, batch=B)])
+        parts = [m.sum_embeddings(s, null_a, batch=B), m.sum_embeddings(s, a, batch=B)]
+        if self.passes == 3:
+            parts.insert(0, m.sum_embeddings(m.condition_embedding("scene", None, None, B), null_a, batch=B))
+        return torch.cat(parts)
 
     def forward(self, x: torch.Tensor, t: torch.Tensor, *, mask=None, scene=None, actions=None, frame_cond=None,
                 cond_emb: torch.Tensor | None = None) -> torch.Tensor:
@@ -264,15 +272,19 @@ class GuidedDenoiser(nn.Module):
             raise ValueError("pass either cond_emb or the raw conditions (scene, actions), not both")
         if not self.guided:
             return self.model(x, t, mask=mask, frame_cond=frame_cond, cond_emb=cond_emb)
-        if len(cond_emb) != 3 * B:
-            raise ValueError(f"guided cond_emb must be (3B, d_model) = ({3 * B}, ...) from GuidedDenoiser.encode_conditions, "
+        n = self.passes
+        if len(cond_emb) != n * B:
+            raise ValueError(f"guided cond_emb must be ({n}B, d_model) = ({n * B}, ...) from GuidedDenoiser.encode_conditions, "
                              f"got {tuple(cond_emb.shape)}")
 
         def rep(v):
-            return None if v is None else torch.cat([v] * 3)
+            return None if v is None else torch.cat([v] * n)
 
         t = torch.as_tensor(t, device=x.device).reshape(-1).expand(B)
         out = self.model(rep(x), rep(t), mask=rep(None if mask is None else mask.expand_as(x)),
                          frame_cond=rep(frame_cond), cond_emb=cond_emb)
+        if n == 2:
+            es0, esa = out.chunk(2)
+            return es0 + self.action_scale * (esa - es0)
         e00, es0, esa = out.chunk(3)
         return e00 + self.scene_scale * (es0 - e00) + self.action_scale * (esa - es0)

@@ -177,7 +177,8 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
         init_name = str(init) if start is not None else (prev.meta.get("init") if prev is not None else None)
         t0 = time.perf_counter()
         task.setup(data_dir, out, is_main=info.is_main, barrier=lambda: ddp.barrier(info), prev=prev or start,
-                   seed=seed, extra_dirs=augmented_dirs, progress=progress, fine_tune=start is not None)
+                   seed=seed, extra_dirs=augmented_dirs, progress=progress,
+                   **({"fine_tune": True} if start is not None else {}))  # only then: older tasks lack the keyword
         data_seconds = time.perf_counter() - t0
 
         model = initial_model(task, seed).to(info.device)

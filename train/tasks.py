@@ -47,7 +47,8 @@ class Task(Protocol):
         validation data, batches ordered by ``seed``; with ``prev`` reuse its data statistics
         (normalisation) and refuse data it cannot read (another vocabulary or categories); a resumed run
         (``fine_tune`` False) also refuses data it was not trained on, while a fine-tuned one
-        (``--init``, ``fine_tune`` True) may train on other data."""
+        (``--init``, ``fine_tune`` True) may train on other data. The loop passes ``fine_tune`` only
+        when fine-tuning, so a task without the keyword still trains and resumes."""
 
     def build_model(self) -> nn.Module:
         """A freshly initialised model (CPU); the loop seeds torch before calling it."""

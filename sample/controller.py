@@ -15,7 +15,10 @@ phases (sit down, stand up, ...) last their typical training-data duration. A ph
 (a turn, a timed action, a hand phase) starts with an episode, after the walk before it has run out
 its episode (and up to ``max_approach`` more while the body is farther than ``arrive_m`` from the
 walk's end): the data's walks end at rest, and a body still walking when a turn or a drink began
-carried 0.3-0.7 m/s into it (the data: 0.0-0.15).
+carried 0.3-0.7 m/s into it (the data: 0.0-0.15). A walk whose path leaves more than 35 degrees off
+the body's heading starts with a turn on the spot (``compile_plan``), as every procedural take's walk
+does; without it the network turned up to 180 degrees while walking, which the data never does, and
+the walk windows were the farthest from the data's (docs/sampling_log.md).
 """
 from __future__ import annotations
 
@@ -29,9 +32,16 @@ from .carry_plan import ObjectState, object_step_goals
 from .plan import Plan
 from .reach_cleanup import ReachCleanupConfig, reach_schedule, release_weights
 
-__all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "seat_target",
+__all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "TURN_BEFORE_WALK", "free_margin", "seat_target",
            "line_of_sight_arc", "off_walkable", "sit_down_subgoal"]
 
+# a walk whose path leaves more than this off the body's heading starts with a turn on the spot
+# (the procedural takes' threshold, ``trumans.synth.locomotion.walk``'s turn_threshold) where the
+# spot lies this far (m) inside the walkable floor (``free_margin``; obstacles are another walk-map
+# body radius, 0.25 m, away); in a tighter spot (a corner, against a wall) the body turns while it
+# walks away: turning in place there swept elbows 9 cm into the eval rooms' furniture
+TURN_BEFORE_WALK = np.radians(35.0)
+TURN_FREE_MARGIN_M = 0.2
 # typical durations (s) when the checkpoint carries none (meta "action_seconds")
 DEFAULT_SECONDS: dict[str, float] = {
     "sit_down": 2.0, "stand_up": 1.8, "lie_down": 3.0, "get_up": 3.0, "reach": 1.5, "sit": 4.0, "lie": 4.0,
@@ -129,18 +139,31 @@ def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray
 
 
 def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
-                 fps: float, spacing: float = 0.3, vocabulary: tuple[str, ...] | list[str] = ()) -> list[Phase]:
-    """Phases of ``plan`` in ``scene`` from ``start_xy`` (2,). Raises ValueError (naming the step)
-    when a goal is not reachable on the walkable floor. The phases follow the training data's
-    order, as far as the model's ``vocabulary`` has the actions: sitting down starts with a turn on
-    the spot to the seat's sitting direction (the procedural takes turn ~150 degrees, then sit down
-    without turning); lying down first sits on the edge at the seat place nearest the lying pelvis,
-    and getting up ends seated there, then stands up."""
+                 fps: float, spacing: float = 0.3, vocabulary: tuple[str, ...] | list[str] = (),
+                 heading: float | None = None) -> list[Phase]:
+    """Phases of ``plan`` in ``scene`` from ``start_xy`` (2,) facing ``heading`` (rad; None =
+    unknown). Raises ValueError (naming the step) when a goal is not reachable on the walkable
+    floor. The phases follow the training data's order, as far as the model's ``vocabulary`` has
+    the actions: a walk whose path leaves more than ``TURN_BEFORE_WALK`` off the body's heading
+    starts with a turn on the spot to the path's direction (the procedural takes' rule,
+    ``trumans.synth.locomotion``; the heading is followed through the plan: a walk ends facing along
+    its path, a seated body faces the seat's sitting direction, unknown after lying or a reach);
+    sitting down starts with a turn on the spot to the seat's sitting direction (the procedural
+    takes turn ~150 degrees, then sit down without turning); lying down first sits on the edge at
+    the seat place nearest the lying pelvis, and getting up ends seated there, then stands up."""
     def frames(name: str, s: float | None = None) -> int:
         return max(2, int(round((s if s is not None else seconds.get(name, DEFAULT_SECONDS.get(name, 2.0))) * fps)))
 
     phases: list[Phase] = []
     pos = np.asarray(start_xy, dtype=np.float64)
+    yaw_now = None if heading is None else float(heading)  # where the body faces (rad), None = unknown
+    free: list[np.ndarray] = []  # free_margin(wm), computed at the first walk that may turn
+
+    def _free_at(p: np.ndarray) -> float:
+        if not free:
+            free.append(free_margin(wm))
+        i = np.clip(wm.index(p), 0, np.asarray(wm.walkable.shape) - 1)
+        return float(free[0][i[0], i[1]])
     if not wm.query(pos[None])[0]:  # a body slightly off the walkable floor plans from the nearest free cell
         pos = nearest_walkable(wm, pos)
     posture: str | None = None  # "sit" / "lie" while seated / lying
@@ -164,7 +187,7 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
         posture = None
 
     def walk(i: int, goal: np.ndarray) -> None:
-        nonlocal pos
+        nonlocal pos, yaw_now
         leave(i)
         if not wm.query(goal[None])[0]:
             raise ValueError(f"plan step {i + 1}: goal {np.round(goal, 2).tolist()} is not on walkable floor "
@@ -176,8 +199,12 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
         except NoPathError as e:
             raise ValueError(f"plan step {i + 1}: no walkable path from {np.round(pos, 2).tolist()} to "
                              f"{np.round(goal, 2).tolist()} ({e})") from None
+        out_dir, in_dir = _path_direction(path, 0), _path_direction(path, -1)
+        if yaw_now is not None and "turn" in vocabulary and abs(_wrap(out_dir - yaw_now)) > TURN_BEFORE_WALK \
+                and _free_at(pos) >= TURN_FREE_MARGIN_M:
+            phases.append(Phase("turn", ("turn",), frames("turn"), goal=pos.copy(), step=i, heading=out_dir))
         phases.append(Phase("walk", ("walk",), path=path, goal=goal, step=i))
-        pos = goal
+        pos, yaw_now = goal, in_dir
 
     for i, s in enumerate(plan.steps):
         obj = scene.objects.get(s.object) if s.object else None
@@ -196,8 +223,10 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
                                         step=i, heading=yaw, info={"object": obj.name}))
                 phases.append(Phase("sit_down", ("sit_down",), frames("sit_down"), goal=seat[:2], step=i,
                                     info={"seat_height": h, "object": obj.name}, heading=yaw, start=pos.copy()))
+                yaw_now = yaw if s.kind == "sit_on" else None
             else:
                 walk(i, _approach(obj, wm))
+                yaw_now = None
             if s.kind == "sit_on":
                 phases.append(Phase("sit", ("sit",), frames("sit", s.seconds), goal=seat[:2], step=i,
                                     info={"seat_height": h, "object": obj.name}, heading=yaw))
@@ -231,6 +260,7 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
                 phases.append(Phase("reach", (action,), max(2, int(round((span[1] - span[0]) * frames(action)))),
                                     hand_goal=point, hand=hand, step=i, span=span, info=info))
             phases[-1].info["after"] = sg.after  # where the object is once the step is done (scene grids)
+            yaw_now = None
         elif s.kind == "reach":
             target = s.target
             if isinstance(target, str):
@@ -248,7 +278,32 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             hand = "left_wrist" if s.hand == "left" else "right_wrist"
             phases.append(Phase("reach", (action,), frames(action), hand_goal=point, hand=hand, step=i,
                                 info={"object": target if isinstance(target, str) else None}))
+            yaw_now = None
     return phases
+
+
+def free_margin(wm: WalkMap) -> np.ndarray:
+    """(Nx, Ny) m: how far each walk-map cell centre is inside the walkable floor (the distance to the
+    nearest cell that is not walkable; 0 off it). The walk map already keeps its body radius off
+    obstacles, so an obstacle is this plus that radius away."""
+    from scipy import ndimage
+
+    return ndimage.distance_transform_edt(wm.walkable) * wm.cell
+
+
+def _wrap(a: float) -> float:
+    """Angle (rad) wrapped to [-pi, pi)."""
+    return float((a + np.pi) % (2 * np.pi) - np.pi)
+
+
+def _path_direction(path: np.ndarray, end: int, look_m: float = 0.3) -> float:
+    """World heading (rad) of a path (P, 2) leaving its start (``end`` 0) or arriving at its end
+    (``end`` -1): the direction to / from the path point ``look_m`` m along it."""
+    pts = path if end == 0 else path[::-1]
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    q = np.array([np.interp(min(look_m, cum[-1]), cum, pts[:, 0]), np.interp(min(look_m, cum[-1]), cum, pts[:, 1])])
+    d = q - pts[0] if end == 0 else pts[0] - q
+    return float(np.arctan2(d[1], d[0]))
 
 
 def sit_down_subgoal(start: np.ndarray, goal: np.ndarray, progress: float) -> np.ndarray:

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from trumans.model.checkpoint import Checkpoint
-from trumans.skeleton import JOINT_INDEX
+from trumans.skeleton import JOINT_INDEX, heading as body_heading
 
 from .carry_plan import planned_object_poses
 from .controller import Controller, Phase, compile_plan
@@ -206,7 +206,8 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         raise ValueError(f"num_samples must be >= 1, got {num_samples}")
     xy = np.asarray(plan.start if plan.start is not None else start_xy, dtype=np.float64)
     heading = float(plan.heading) if plan.heading is not None else 0.0
-    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary)
+    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
+                          heading=heading)
     controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
                    for _ in range(num_samples)]
     pose = start_pose(ckpt) if body is None else body_pose(body, "body")
@@ -267,11 +268,11 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
     g = torch.Generator().manual_seed(int(seed))
     seat = sit_offset(pose)
 
-    def controller_for(p: Plan, at: np.ndarray) -> Controller:
-        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary),
-                          ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
+    def controller_for(p: Plan, at: np.ndarray, facing: float) -> Controller:
+        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
+                                       heading=facing), ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
 
-    ctrl = controller_for(plan, xy)
+    ctrl = controller_for(plan, xy, float(plan.heading or 0.0))
     todo = list(schedule)
     while True:
         n = todo.pop(0) if todo else L - k
@@ -288,7 +289,7 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         prev = lab[:, k:k + n][:, -k:] if n >= k else np.concatenate([prev, lab[:, k:k + n]], 1)[:, -k:]
         sent = yield out[0]
         if sent is not None:
-            ctrl = controller_for(sent, context[0, -1, PELVIS, :2].astype(np.float64))
+            ctrl = controller_for(sent, context[0, -1, PELVIS, :2].astype(np.float64), float(body_heading(context[0, -1])))
             todo = list(schedule)
 
 

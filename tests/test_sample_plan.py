@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from sample.controller import Controller, Phase, compile_plan, sit_down_subgoal
+from sample.controller import TURN_FREE_MARGIN_M, Controller, Phase, compile_plan, free_margin, sit_down_subgoal
 from sample.plan import Step, load_plan, plan_from_dict, validate_plan
 from scenes import furniture
 from scenes.occupancy import scene_occupancy
@@ -107,6 +107,46 @@ def test_sitting_down_starts_with_a_turn_when_the_model_knows_turn(room):
     # a model without 'turn' sits down straight from the walk
     plain = compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {}, fps=10, vocabulary=("walk", "sit_down", "sit"))
     assert [p.kind for p in plain] == ["walk", "sit_down", "sit"]
+
+
+def test_a_walk_off_the_body_s_heading_starts_with_a_turn_on_the_spot(room):
+    """As in the procedural takes: a walk whose path leaves more than 35 degrees off where the body
+    faces starts with a turn to the path's direction; the heading is followed through the plan."""
+    scene, wm = room
+    vocab = ("walk", "turn", "sit_down", "sit", "stand_up", "drink")
+    there_and_back = plan_from_dict({"steps": [{"do": "goto", "to": [1.0, 1.0]}, {"do": "act", "action": "drink", "seconds": 2},
+                                               {"do": "goto", "to": [1.0, 3.0]}]})
+    # facing +y: the first walk goes straight on; the walk back turns (~180 degrees) after the drink
+    phases = compile_plan(there_and_back, scene, wm, np.array([1.0, 3.0]), {"turn": 0.8}, fps=10,
+                          vocabulary=vocab, heading=-np.pi / 2)
+    assert [p.kind for p in phases] == ["walk", "act", "turn", "walk"]
+    turn = phases[2]
+    assert turn.frames == 8 and np.allclose(turn.goal, phases[0].path[-1])  # on the spot where the drink was
+    assert abs(np.cos(turn.heading - np.pi / 2)) > 0.99  # to the path's direction, +y
+    # facing +x at the start: the first walk (to -y) starts with a turn too
+    phases = compile_plan(there_and_back, scene, wm, np.array([1.0, 3.0]), {}, fps=10, vocabulary=vocab, heading=0.0)
+    assert [p.kind for p in phases] == ["turn", "walk", "act", "turn", "walk"]
+    assert abs(np.cos(phases[0].heading + np.pi / 2)) > 0.99
+    # unknown heading or a model without 'turn': no turn before the first walk
+    assert compile_plan(there_and_back, scene, wm, np.array([1.0, 3.0]), {}, fps=10, vocabulary=vocab)[0].kind == "walk"
+    plain = compile_plan(there_and_back, scene, wm, np.array([1.0, 3.0]), {}, fps=10, heading=0.0,
+                         vocabulary=("walk", "drink"))
+    assert [p.kind for p in plain] == ["walk", "act", "walk"]
+    # standing up from a chair faces its sitting direction: walking on that way needs no turn; walking
+    # back would, but the spot in front of the chair is too tight to turn in place (elbows, knees)
+    sit = [{"do": "sit_on", "object": "chair_0", "seconds": 2}, {"do": "stand_up"}]
+    phases = compile_plan(plan_from_dict({"steps": sit}), scene, wm, np.array([1.0, 2.0]), {}, fps=10,
+                          vocabulary=vocab, heading=0.0)
+    sit_down, stand_up = [p for p in phases if p.kind == "sit_down"][0], phases[-1]
+    facing = np.array([np.cos(sit_down.heading), np.sin(sit_down.heading)])
+    i = wm.index(stand_up.goal)
+    assert free_margin(wm)[i[0], i[1]] < TURN_FREE_MARGIN_M
+    for way in (1.0, -1.0):
+        goal = stand_up.goal + way * 0.8 * facing
+        plan = plan_from_dict({"steps": sit + [{"do": "goto", "to": goal.tolist()}]})
+        got = [p.kind for p in compile_plan(plan, scene, wm, np.array([1.0, 2.0]), {}, fps=10, vocabulary=vocab,
+                                            heading=0.0)]
+        assert got[-2:] == ["stand_up", "walk"]
 
 
 def test_lying_down_sits_on_the_edge_first_and_gets_up_through_sitting():

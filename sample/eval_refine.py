@@ -57,6 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="corruption and sampling seed")
     p.add_argument("--no-rest-pooling", action="store_true", help="refine without pooling the object's rests "
                                                                 "(trumans.hoi.object_rest)")
+    p.add_argument("--no-hand-link", action="store_true", help="pool each rest of the object on its own, moves "
+                                                             "not driven by the wrists (trumans.hoi.object_rest)")
     p.add_argument("--no-drift-correction", action="store_true", help="refine without removing the body drift seen "
                                                                     "by the planted feet (trumans.hoi.body_drift)")
     p.add_argument("--category", action="append", default=[], metavar="NAME",
@@ -244,6 +246,7 @@ def run(args: argparse.Namespace) -> int:
 
     filt = HOIFilter.load(args.checkpoint)
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, rest_pooling=not args.no_rest_pooling,
+                         hand_link=not args.no_hand_link,
                          body_drift=not args.no_drift_correction)
     data = args.data or filt.ckpt.data.get("path")
     if not data or not Path(data).is_dir():

@@ -20,7 +20,7 @@ from trumans.hoi.body_drift import remove_body_drift
 from trumans.hoi.filter import FilterModel, category_indices, configure_skip, prepare_windows, sample_x0
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
-from trumans.hoi.object_rest import pool_rest
+from trumans.hoi.object_rest import RestConfig, pool_rest
 from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips
 from trumans.hoi.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
@@ -39,7 +39,8 @@ class RefineOptions:
     network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames and
     object rotations that flip and back within a second as missing before filtering
     (``trumans.hoi.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
-    after filtering (``trumans.hoi.object_rest``); body_drift: remove the whole-body drift's
+    after filtering (``trumans.hoi.object_rest``); hand_link: with rest pooling, moves held rigidly by a
+    wrist follow it and tie the rests on either side (``RestConfig.hand_link``); body_drift: remove the whole-body drift's
     changes seen by the planted feet after filtering (``trumans.hoi.body_drift``)."""
 
     num_steps: int = 2
@@ -50,6 +51,7 @@ class RefineOptions:
     seed: int = 0
     drop_failures: bool = True
     rest_pooling: bool = True
+    hand_link: bool = True
     body_drift: bool = True
 
     def __post_init__(self) -> None:
@@ -116,10 +118,10 @@ class HOIFilter:
             i += n
             blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
-            if options.rest_pooling:
-                blended = pool_rest(blended, p["tracked"], self.fps)
             if options.body_drift:
                 blended = remove_body_drift(blended, self.fps)
+            if options.rest_pooling:  # after the body drift: moves follow the corrected wrists
+                blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link=options.hand_link))
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 

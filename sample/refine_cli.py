@@ -41,6 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-rest-pooling", action="store_true",
                    help="keep the filter's object pose in every frame (default: one pose per rest of the object, "
                         "pooled over the whole rest; trumans.hoi.object_rest)")
+    p.add_argument("--no-hand-link", action="store_true",
+                   help="pool each rest of the object on its own (default: a move held rigidly by a wrist follows "
+                        "the wrist and ties the rests on either side; trumans.hoi.object_rest)")
     p.add_argument("--no-drift-correction", action="store_true",
                    help="keep the filter's body position (default: the whole-body drift's changes seen by the "
                         "planted feet are removed; trumans.hoi.body_drift)")
@@ -64,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
     from .refine import HOIFilter, RefineOptions
 
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
-                         rest_pooling=not args.no_rest_pooling, body_drift=not args.no_drift_correction)
+                         rest_pooling=not args.no_rest_pooling, hand_link=not args.no_hand_link,
+                         body_drift=not args.no_drift_correction)
     seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()

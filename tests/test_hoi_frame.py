@@ -18,7 +18,7 @@ from trumans.skeleton import forward_kinematics, rest_offsets
 
 
 def _clip(T=40, seed=0, imu=True):
-    """A kinematically exact clip: random smooth rotations, FK joints, a moving object."""
+    """A kinematically exact clip: random smooth rotations, FK joints, an object carried by the right wrist."""
     rng = np.random.default_rng(seed)
     aa = 0.3 * np.sin(np.linspace(0, 3, T)[:, None, None] + rng.uniform(0, 6, (1, 24, 3)))
     R = axis_angle_to_matrix(aa)
@@ -26,7 +26,7 @@ def _clip(T=40, seed=0, imu=True):
     joints, _ = forward_kinematics(R, root)
     pose = np.tile(np.eye(4), (T, 1, 1))
     pose[:, :3, :3] = axis_angle_to_matrix(np.stack([np.zeros(T), np.zeros(T), np.linspace(0, 2, T)], -1))
-    pose[:, :3, 3] = joints[:, 21] + [0.05, 0, 0]
+    pose[:, :3, 3] = joints[:, 21] + pose[:, :3, :3] @ [0.05, 0, 0]  # held by the right wrist, 5 cm off in its own frame
     ob = ObjectTrack(pose=pose.astype(np.float32), category="box")
     if imu:
         ob.imu_rot = matrix_to_6d(pose[:, :3, :3]).astype(np.float32)

@@ -2,9 +2,10 @@
 import numpy as np
 import pytest
 
-from trumans.hoi.frame import FRAME_DIM, OBJ_R, OBJ_T
+from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
 from trumans.hoi.object_rest import RestConfig, pool_rest, rest_mask
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
+from trumans.skeleton import JOINT_INDEX
 
 FPS = 30.0
 
@@ -122,3 +123,75 @@ def test_bad_inputs_raise():
         RestConfig(lo_m_s=0.5, hi_m_s=0.2)
     with pytest.raises(ValueError, match="max_rot_deg"):
         RestConfig(max_rot_deg=0.0)
+
+
+def _carried(T: int = 240, a: int = 90, b: int = 150, turn_deg: float = 60.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A cup carried by the right wrist between two rests: (obj_t (T, 3), obj_R (T, 3, 3), joints
+    (T, 24, 3)); the grasp sits at o in the cup's frame, the cup turns ``turn_deg`` about z on the way,
+    the left wrist hangs still 0.8 m away, the wrists rest on the cup before and after the move."""
+    s = np.clip((np.arange(T) - a) / (b - a), 0, 1)  # at a steady 0.3 m/s: the rests are found to the frame
+    p = np.stack([0.6 * s, 0 * s, 0 * s], -1)
+    R = axis_angle_to_matrix(np.stack([0 * s, 0 * s, np.radians(turn_deg) * s], -1))
+    o = np.array([0.05, 0.0, 0.03])
+    J = np.zeros((T, 24, 3))
+    J[:, JOINT_INDEX["right_wrist"]] = p + R @ o
+    J[:, JOINT_INDEX["left_wrist"]] = np.array([0.0, 0.8, 1.0])
+    return p, R, J
+
+
+def _with_joints(obj_t: np.ndarray, R: np.ndarray, J: np.ndarray) -> np.ndarray:
+    f = _frames(obj_t, matrix_to_6d(R))
+    f[:, JOINTS] = J.reshape(len(J), -1)
+    return f
+
+
+def test_hand_link_ties_the_rests_through_the_carrying_wrist():
+    p, R, J = _carried()
+    T = len(p)
+    # the tracker's drift: +4 cm in x before the move, -4 cm after, changing during it (the filter
+    # kept it); jitter
+    drift = np.zeros((T, 3))
+    drift[:, 0] = 0.04 - 0.08 * np.clip((np.arange(T) - 90) / 60, 0, 1)
+    rng = np.random.default_rng(0)
+    tracked = _with_joints(p + drift + rng.normal(0, 0.01, (T, 3)), R, J)
+    filtered = _with_joints(p + drift, R, J)
+    linked = pool_rest(filtered, tracked, FPS)
+    alone = pool_rest(filtered, tracked, FPS, RestConfig(hand_link=False))
+    err = lambda f: np.linalg.norm(f[:, OBJ_T] - p, axis=-1)  # noqa: E731
+    mv = slice(100, 140)
+    assert err(alone)[:60].mean() > 0.035 and err(alone)[-60:].mean() > 0.035  # each rest keeps its own drift
+    assert err(linked)[mv].max() < 0.01  # the move follows the wrist ...
+    o_hat = np.einsum("tji,tj->ti", R[mv], J[mv, JOINT_INDEX["right_wrist"]] - linked[mv, OBJ_T])
+    assert np.ptp(o_hat, axis=0).max() < 1e-5  # ... minus one grasp offset in the cup's frame
+    assert np.array_equal(linked[:, :OBJ_T.start], filtered[:, :OBJ_T.start])
+    # a wrist trusted at the grasp and the release ties the two rests together: where the cup does
+    # not turn, they lie apart by the wrist's displacement between the move's first and last frame
+    # (a turn lets the unknown grasp offset absorb part of their difference), and share one drift
+    p, R, J = _carried(turn_deg=0.0)
+    tracked = _with_joints(p + drift + rng.normal(0, 0.01, (T, 3)), R, J)
+    filtered = _with_joints(p + drift, R, J)
+    tied = pool_rest(filtered, tracked, FPS, RestConfig(link_weight=1e4))
+    alone = pool_rest(filtered, tracked, FPS, RestConfig(hand_link=False))
+    moving = np.flatnonzero(~rest_mask(filtered[:, OBJ_T], FPS))
+    s, e = moving[0], moving[-1] + 1
+    wrist = J[:, JOINT_INDEX["right_wrist"]]
+    assert np.abs(tied[e, OBJ_T] - tied[s - 1, OBJ_T] - (wrist[e] - wrist[s - 1])).max() < 1e-3
+    assert np.abs(alone[e, OBJ_T] - alone[s - 1, OBJ_T] - (wrist[e] - wrist[s - 1])).max() > 0.03
+    assert err(tied).mean() < 0.6 * err(alone).mean()
+
+
+def test_hand_link_ignores_a_wrist_that_does_not_hold_the_object():
+    p, R, J = _carried()
+    J[:, JOINT_INDEX["right_wrist"]] = np.array([0.3, -0.8, 1.0])  # nobody holds the cup: it moves alone
+    T = len(p)
+    rng = np.random.default_rng(1)
+    tracked = _with_joints(p + rng.normal(0, 0.02, (T, 3)), R, J)
+    filtered = _with_joints(p + 0.03, R, J)
+    assert np.array_equal(pool_rest(filtered, tracked, FPS), pool_rest(filtered, tracked, FPS, RestConfig(hand_link=False)))
+
+
+def test_rest_config_rejects_bad_hand_link_settings():
+    with pytest.raises(ValueError, match="prior_weight"):
+        RestConfig(prior_weight=0.0)
+    with pytest.raises(ValueError, match="rigid_tol_m"):
+        RestConfig(rigid_tol_m=-0.1)

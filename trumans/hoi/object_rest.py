@@ -12,9 +12,19 @@ filter's rate:
   observed in it, and its rotation the chordal mean of the tracked rotations observed in it that lie
   within ``max_rot_deg`` of the filtered rotations' mean (flips left out; that mean itself where
   fewer than 3 remain). Tracked rather than filtered rotations: the filter leans on the object IMU,
-  whose constant bias (~3°) no pooling removes. The moving frames keep their filtered motion, shifted by the translation
-  change interpolated linearly between the neighbouring rests (held at the ends), so the path stays
-  continuous.
+  whose constant bias (~3°) no pooling removes;
+- hands (``hand_link``, iReplica §4.3: a moved object is driven by a hand): a move during which one
+  wrist keeps its place in the object's frame (the std of R(t)ᵀ(wrist(t) − p(t)) over the move, on the
+  filtered sequence, under ``rigid_tol_m``) is a grasp with an unknown offset o in the object's frame,
+  p(t) = wrist(t) − R(t) o. The rests' positions and the grasps' offsets are then one least-squares
+  problem: every observed tracked translation of a rest measures its position, every one of a move
+  measures wrist(t) − R(t) o, the wrist at the move's first and last frame ties the offset to the
+  rests on either side (``link_weight``, in frames), and the filtered path is a weak prior for the
+  offset (``prior_weight`` per frame). So the tracker's drift is averaged over every rest the hand
+  links, not over one; the move itself follows the wrist (body drift removed first:
+  ``trumans.hoi.body_drift``). The other moving frames keep their filtered motion, shifted by the
+  translation change interpolated linearly between the neighbouring rests (held at the ends), so
+  the path stays continuous.
 
 Not in I'm-HOI (whose filter sees one window); measured in the README's filter section.
 """
@@ -29,15 +39,20 @@ from scipy.spatial.transform import Rotation
 from trumans.contacts.intervals import runs
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
-from .frame import FRAME_DIM, OBJ_R, OBJ_T
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
+
+from .frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
 
 __all__ = ["RestConfig", "rest_mask", "pool_rest"]
+
+_WRISTS = [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"]]
 
 
 @dataclass(frozen=True)
 class RestConfig:
-    """Speeds in m/s, durations in s (module doc). The defaults are the best of a grid on the
-    dataset's val split (lo 0.1-0.2, hi 0.25-0.4, smooth 0.15-0.5 s, pad 0-0.2 s; README)."""
+    """Speeds in m/s, durations in s, lengths in m, weights in frames (module doc). The detection
+    defaults are the best of a grid on the dataset's val split (lo 0.1-0.2, hi 0.25-0.4, smooth
+    0.15-0.5 s, pad 0-0.2 s); the hand link's too (rigid_tol 0.03-0.1 m, link weight 3-100; README)."""
 
     lo_m_s: float = 0.2
     hi_m_s: float = 0.25
@@ -45,6 +60,10 @@ class RestConfig:
     pad_s: float = 0.0
     min_rest_s: float = 0.33
     max_rot_deg: float = 45.0
+    hand_link: bool = True
+    rigid_tol_m: float = 0.05
+    link_weight: float = 10.0
+    prior_weight: float = 0.05
 
     def __post_init__(self) -> None:
         if not 0 < self.lo_m_s <= self.hi_m_s:
@@ -54,6 +73,9 @@ class RestConfig:
         if min(self.smooth_s, self.pad_s, self.min_rest_s) < 0:
             raise ValueError(f"smooth_s, pad_s and min_rest_s must be >= 0, got {self.smooth_s}, {self.pad_s}, "
                              f"{self.min_rest_s}")
+        if min(self.rigid_tol_m, self.link_weight) < 0 or not self.prior_weight > 0:
+            raise ValueError(f"need rigid_tol_m, link_weight >= 0 and prior_weight > 0, got {self.rigid_tol_m}, "
+                             f"{self.link_weight}, {self.prior_weight}")
 
 
 def rest_mask(obj_t: np.ndarray, fps: float, config: RestConfig = RestConfig()) -> np.ndarray:
@@ -95,10 +117,59 @@ def _rest_rotation(filtered6: np.ndarray, tracked6: np.ndarray, max_deg: float) 
     return matrix_to_6d(ref.as_matrix())
 
 
+def _grasping_wrist(P: np.ndarray, R: np.ndarray, joints: np.ndarray, a: int, b: int, tol: float) -> int | None:
+    """The wrist (joint index) that keeps its place in the object's frame over frames [a, b) within
+    ``tol`` m (std of R(t)ᵀ(wrist(t) − p(t)), summed over axes in quadrature), the steadier of the
+    two; None if neither does. P: (T, 3), R: (T, 3, 3), joints: (T, 24, 3)."""
+    rel = np.einsum("tji,thj->hti", R[a:b], joints[a:b][:, _WRISTS] - P[a:b, None])  # (2, n, 3) in the object's frame
+    spread = np.linalg.norm(rel.std(axis=1), axis=-1)
+    h = int(np.argmin(spread))
+    return _WRISTS[h] if spread[h] <= tol else None
+
+
+def _solve_positions(P: np.ndarray, R: np.ndarray, joints: np.ndarray, tr: np.ndarray, seen: np.ndarray,
+                     rests: list[tuple[int, int]], moves: list[tuple[int, int, int]], config: RestConfig) -> np.ndarray:
+    """Least squares (module doc) for the rests' positions and the grasps' offsets: (len(rests) +
+    len(moves), 3). moves: (first, end, wrist) of each rigid move; rests: [a, b) with >= 3 observed
+    frames. Normal equations, assembled block by block (every R(t) is orthonormal, so RᵀR = I)."""
+    K = len(rests)
+    n = K + len(moves)
+    if n == 0:
+        return np.zeros((0, 3))
+    A = np.zeros((n, 3, n, 3))
+    y = np.zeros((n, 3))
+    eye = np.eye(3)
+    for k, (a, b) in enumerate(rests):
+        ok = seen[a:b]
+        A[k, :, k, :] += ok.sum() * eye
+        y[k] += tr[a:b][ok].sum(0)
+    rest_at = {t: k for k, (a, b) in enumerate(rests) for t in (a, b - 1)}
+    for m, (s, e, w) in enumerate(moves):
+        i = K + m
+        ok = seen[s:e]
+        Rm = R[s:e]
+        A[i, :, i, :] += (ok.sum() + config.prior_weight * (e - s)) * eye
+        y[i] += np.einsum("tji,tj->i", Rm[ok], joints[s:e, w][ok] - tr[s:e][ok])
+        y[i] += config.prior_weight * np.einsum("tji,tj->i", Rm, joints[s:e, w] - P[s:e])
+        for t in (s - 1, e):  # the rests on either side: p_k + R(t) o = wrist(t)
+            k = rest_at.get(t)
+            if k is None:
+                continue
+            c = config.link_weight
+            A[k, :, k, :] += c * eye
+            A[i, :, i, :] += c * eye
+            A[k, :, i, :] += c * R[t]
+            A[i, :, k, :] += c * R[t].T
+            y[k] += c * joints[t, w]
+            y[i] += c * R[t].T @ joints[t, w]
+    return np.linalg.solve(A.reshape(3 * n, 3 * n), y.reshape(-1)).reshape(n, 3)
+
+
 def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,
               config: RestConfig = RestConfig()) -> np.ndarray:
-    """filtered: (T, 235) the filter's output, tracked: (T, 235) its input on the same frames (NaN =
-    missing) -> (T, 235) a copy with one object pose per rest (module doc). Rests with fewer than 3
+    """filtered: (T, 235) the filter's output (body drift already removed), tracked: (T, 235) its
+    input on the same frames (NaN = missing) -> (T, 235) a copy with one object pose per rest and,
+    with ``config.hand_link``, moves driven by a grasping wrist (module doc). Rests with fewer than 3
     observed tracked translations are left as filtered; so is a sequence without an observed object."""
     out = np.array(filtered, dtype=np.float64, copy=True)
     tr = np.asarray(tracked, dtype=np.float64)
@@ -106,16 +177,34 @@ def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,
         raise ValueError(f"filtered and tracked must both be (T, {FRAME_DIM}), got {out.shape} and {tr.shape}")
     if len(out) < 2 or not np.isfinite(out[:, OBJ_T]).all() or not np.isfinite(tr[:, OBJ_T]).any():
         return out.astype(filtered.dtype)
-    seen = np.isfinite(tr[:, OBJ_T]).all(-1)
-    offset = np.full((len(out), 3), np.nan)
-    for a, b in runs(rest_mask(out[:, OBJ_T], fps, config)):
-        ok = seen[a:b]
-        if ok.sum() < 3:
-            continue
-        offset[a:b] = tr[a:b, OBJ_T][ok].mean(0) - out[a:b, OBJ_T]
+    T = len(out)
+    P = out[:, OBJ_T].copy()
+    trp = tr[:, OBJ_T]
+    seen = np.isfinite(trp).all(-1)
+    rest = rest_mask(P, fps, config)
+    rests = [(a, b) for a, b in runs(rest) if seen[a:b].sum() >= 3]
+    for a, b in rests:
         out[a:b, OBJ_R] = _rest_rotation(out[a:b, OBJ_R], tr[a:b, OBJ_R], config.max_rot_deg)[None]
+    R = sixd_to_matrix(out[:, OBJ_R])
+    joints = out[:, JOINTS].reshape(T, NUM_JOINTS, 3)
+    moves = []
+    if config.hand_link and np.isfinite(joints[:, _WRISTS]).all():
+        for s, e in runs(~rest):
+            w = _grasping_wrist(P, R, joints, max(s - 1, 0), min(e + 1, T), config.rigid_tol_m)
+            if w is not None:
+                moves.append((s, e, w))
+    x = _solve_positions(P, R, joints, np.nan_to_num(trp), seen, rests, moves, config)
+    offset = np.full((T, 3), np.nan)
+    for k, (a, b) in enumerate(rests):
+        out[a:b, OBJ_T] = x[k]
+        offset[a:b] = x[k] - P[a:b]
     have = np.isfinite(offset[:, 0])
-    if have.any():
-        t = np.arange(len(out))
-        out[:, OBJ_T] += np.stack([np.interp(t, t[have], offset[have, i]) for i in range(3)], -1)
+    driven = np.zeros(T, dtype=bool)
+    for m, (s, e, w) in enumerate(moves):
+        out[s:e, OBJ_T] = joints[s:e, w] - R[s:e] @ x[len(rests) + m]
+        driven[s:e] = True
+    free = ~have & ~driven
+    if have.any() and free.any():
+        t = np.arange(T)
+        out[free, OBJ_T] = P[free] + np.stack([np.interp(t[free], t[have], offset[have, i]) for i in range(3)], -1)
     return out.astype(filtered.dtype)

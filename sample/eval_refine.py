@@ -269,7 +269,7 @@ def run(args: argparse.Namespace) -> int:
     res = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "data": str(Path(args.data)), "seed": args.seed,
            "categories": sorted(set(cats)),
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
-    res["rest_pooling"], res["body_drift"] = opts.rest_pooling, opts.body_drift
+    res["rest_pooling"], res["hand_link"], res["body_drift"] = opts.rest_pooling, opts.hand_link, opts.body_drift
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True,
                         rest_ablation=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)

@@ -180,6 +180,19 @@ def test_hand_link_ties_the_rests_through_the_carrying_wrist():
     assert err(tied).mean() < 0.6 * err(alone).mean()
 
 
+def test_hand_link_meets_the_rests_without_a_jump():
+    # the body sits 4 cm off (a drift the feet did not see): the wrist's path and the rests disagree
+    # by up to a few cm where they meet; that gap is faded out over fade_s instead of jumping
+    p, R, J = _carried(turn_deg=90.0)
+    J[:, JOINT_INDEX["right_wrist"]] += [0.04, 0.0, 0.0]
+    rng = np.random.default_rng(0)
+    tracked = _with_joints(p + rng.normal(0, 0.01, (len(p), 3)), R, J)
+    step = lambda f: np.abs(np.diff(f[:, OBJ_T], axis=0)).max()  # noqa: E731
+    truth_step = np.abs(np.diff(p, axis=0)).max()  # 1 cm per frame
+    assert step(pool_rest(_with_joints(p, R, J), tracked, FPS, RestConfig(fade_s=0.0))) > truth_step + 0.01
+    assert step(pool_rest(_with_joints(p, R, J), tracked, FPS)) < truth_step + 0.004
+
+
 def test_hand_link_ignores_a_wrist_that_does_not_hold_the_object():
     p, R, J = _carried()
     J[:, JOINT_INDEX["right_wrist"]] = np.array([0.3, -0.8, 1.0])  # nobody holds the cup: it moves alone
@@ -195,3 +208,5 @@ def test_rest_config_rejects_bad_hand_link_settings():
         RestConfig(prior_weight=0.0)
     with pytest.raises(ValueError, match="rigid_tol_m"):
         RestConfig(rigid_tol_m=-0.1)
+    with pytest.raises(ValueError, match="fade_s"):
+        RestConfig(fade_s=-1.0)

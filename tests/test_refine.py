@@ -255,7 +255,7 @@ def test_eval_refine_command(tmp_path, capsys):
               "hand_obj_dist_cm", "frames_per_s", "frames_per_s_per_clip", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm",
               "mpjpe_savgol_ra_mm", "obj_t_err_out_no_rest_cm", "obj_rot_err_out_no_rest_deg"):
         assert np.isfinite(res[k]), k
-    assert res["rest_pooling"] is True and "obj_t_err_out_no_rest_cm" not in res["no_imu"]
+    assert res["rest_pooling"] is True and res["hand_link"] is True and "obj_t_err_out_no_rest_cm" not in res["no_imu"]
     assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
     assert res["savgol_window"] % 2 == 1
     rc = console_main(["eval", "refine", str(ck), "--data", str(data), "--clip", "8"])

@@ -22,9 +22,10 @@ filter's rate:
   rests on either side (``link_weight``, in frames), and the filtered path is a weak prior for the
   offset (``prior_weight`` per frame). So the tracker's drift is averaged over every rest the hand
   links, not over one; the move itself follows the wrist (body drift removed first:
-  ``trumans.hoi.body_drift``). The other moving frames keep their filtered motion, shifted by the
-  translation change interpolated linearly between the neighbouring rests (held at the ends), so
-  the path stays continuous.
+  ``trumans.hoi.body_drift``), plus what the rests leave at its ends, faded out over ``fade_s``
+  (no jump). The other moving frames keep their filtered motion, shifted by the translation change
+  interpolated linearly between the neighbouring rests (held at the ends), so the path stays
+  continuous.
 
 Not in I'm-HOI (whose filter sees one window); measured in the README's filter section.
 """
@@ -52,7 +53,9 @@ _WRISTS = [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"]]
 class RestConfig:
     """Speeds in m/s, durations in s, lengths in m, weights in frames (module doc). The detection
     defaults are the best of a grid on the dataset's val split (lo 0.1-0.2, hi 0.25-0.4, smooth
-    0.15-0.5 s, pad 0-0.2 s); the hand link's too (rigid_tol 0.03-0.1 m, link weight 3-100; README)."""
+    0.15-0.5 s, pad 0-0.2 s); the hand link's too (rigid_tol 0.03-0.1 m, link weight 3-100, prior
+    weight 0.05-1, fade 0.03-1 s; README). fade_s: what the rests leave at a driven move's ends is
+    faded out over this long inside the move."""
 
     lo_m_s: float = 0.2
     hi_m_s: float = 0.25
@@ -62,8 +65,9 @@ class RestConfig:
     max_rot_deg: float = 45.0
     hand_link: bool = True
     rigid_tol_m: float = 0.05
-    link_weight: float = 10.0
+    link_weight: float = 30.0
     prior_weight: float = 0.05
+    fade_s: float = 0.2
 
     def __post_init__(self) -> None:
         if not 0 < self.lo_m_s <= self.hi_m_s:
@@ -73,9 +77,9 @@ class RestConfig:
         if min(self.smooth_s, self.pad_s, self.min_rest_s) < 0:
             raise ValueError(f"smooth_s, pad_s and min_rest_s must be >= 0, got {self.smooth_s}, {self.pad_s}, "
                              f"{self.min_rest_s}")
-        if min(self.rigid_tol_m, self.link_weight) < 0 or not self.prior_weight > 0:
-            raise ValueError(f"need rigid_tol_m, link_weight >= 0 and prior_weight > 0, got {self.rigid_tol_m}, "
-                             f"{self.link_weight}, {self.prior_weight}")
+        if min(self.rigid_tol_m, self.link_weight, self.fade_s) < 0 or not self.prior_weight > 0:
+            raise ValueError(f"need rigid_tol_m, link_weight, fade_s >= 0 and prior_weight > 0, got {self.rigid_tol_m}, "
+                             f"{self.link_weight}, {self.fade_s}, {self.prior_weight}")
 
 
 def rest_mask(obj_t: np.ndarray, fps: float, config: RestConfig = RestConfig()) -> np.ndarray:
@@ -201,7 +205,14 @@ def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,
     have = np.isfinite(offset[:, 0])
     driven = np.zeros(T, dtype=bool)
     for m, (s, e, w) in enumerate(moves):
-        out[s:e, OBJ_T] = joints[s:e, w] - R[s:e] @ x[len(rests) + m]
+        a, b = max(s - 1, 0), min(e + 1, T)
+        path = joints[a:b, w] - R[a:b] @ x[len(rests) + m]  # frames s-1 .. e: the wrist's path
+        # what the rests on either side leave at the move's ends, spread linearly over it (no jump)
+        gap = [out[t, OBJ_T] - path[t - a] if 0 <= t < T and have[t] else np.zeros(3) for t in (s - 1, e)]
+        k = np.arange(s, e)[:, None]
+        fade = max(1.0, config.fade_s * fps)
+        out[s:e, OBJ_T] = (path[s - a:e - a] + np.clip(1 - (k - s + 1) / fade, 0, 1) * gap[0]
+                           + np.clip(1 - (e - k) / fade, 0, 1) * gap[1])
         driven[s:e] = True
     free = ~have & ~driven
     if have.any() and free.any():

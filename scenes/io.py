@@ -155,9 +155,27 @@ def _swap_in(tmp: Path, folder: Path) -> None:
                 raise
             continue  # another saver's folder appeared between our two renames
         finally:
-            if old.exists():
-                shutil.rmtree(old, ignore_errors=True)
+            _remove_scene_folder(old)
     raise OSError(f"could not replace {folder}: other processes keep saving it")
+
+
+def _remove_scene_folder(folder: Path) -> None:
+    """Delete a scene folder moved aside, its scene.json last: a concurrent saver that listed the
+    folder just before it was moved aside reads a listing that shrinks while we delete, and must
+    still see a scene folder (scene.json present) or an empty one, never a foreign one."""
+    try:
+        entries = os.listdir(folder)
+    except (FileNotFoundError, NotADirectoryError):
+        return
+    for name in entries:
+        if name != SCENE_FILE:
+            path = folder / name
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+    (folder / SCENE_FILE).unlink(missing_ok=True)
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 def _export(mesh: trimesh.Trimesh, path: Path) -> None:

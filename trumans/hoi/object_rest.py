@@ -44,7 +44,7 @@ from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
 
 from .frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
 
-__all__ = ["RestConfig", "rest_mask", "pool_rest"]
+__all__ = ["RestConfig", "rest_mask", "held_mask", "pool_rest"]
 
 _WRISTS = [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"]]
 
@@ -55,7 +55,9 @@ class RestConfig:
     defaults are the best of a grid on the dataset's val split (lo 0.1-0.2, hi 0.25-0.4, smooth
     0.15-0.5 s, pad 0-0.2 s); the hand link's too (rigid_tol 0.03-0.1 m, link weight 3-100, prior
     weight 0.05-1, fade 0.03-1 s; README). fade_s: what the rests leave at a driven move's ends is
-    faded out over this long inside the move."""
+    faded out over this long inside the move. held_*: the held-move test (``held_mask``): half its
+    window, and how far the wrist must move within the window (best of a grid on val: window
+    0.33-1.33 s, move 0.03-0.12 m)."""
 
     lo_m_s: float = 0.2
     hi_m_s: float = 0.25
@@ -68,6 +70,8 @@ class RestConfig:
     link_weight: float = 30.0
     prior_weight: float = 0.05
     fade_s: float = 0.2
+    held_window_s: float = 0.67
+    held_min_move_m: float = 0.05
 
     def __post_init__(self) -> None:
         if not 0 < self.lo_m_s <= self.hi_m_s:
@@ -77,6 +81,9 @@ class RestConfig:
         if min(self.smooth_s, self.pad_s, self.min_rest_s) < 0:
             raise ValueError(f"smooth_s, pad_s and min_rest_s must be >= 0, got {self.smooth_s}, {self.pad_s}, "
                              f"{self.min_rest_s}")
+        if min(self.held_window_s, self.held_min_move_m) < 0:
+            raise ValueError(f"held_window_s and held_min_move_m must be >= 0, got {self.held_window_s}, "
+                             f"{self.held_min_move_m}")
         if min(self.rigid_tol_m, self.link_weight, self.fade_s) < 0 or not self.prior_weight > 0:
             raise ValueError(f"need rigid_tol_m, link_weight, fade_s >= 0 and prior_weight > 0, got {self.rigid_tol_m}, "
                              f"{self.link_weight}, {self.fade_s}, {self.prior_weight}")
@@ -101,10 +108,59 @@ def rest_mask(obj_t: np.ndarray, fps: float, config: RestConfig = RestConfig()) 
     pad = int(round(config.pad_s * fps))
     if pad and moving.any():
         moving = binary_dilation(moving, iterations=pad)
-    rest = np.zeros(len(p), dtype=bool)
-    for a, b in runs(~moving, min_len=max(1, int(np.ceil(config.min_rest_s * fps)))):
-        rest[a:b] = True
-    return rest
+    return _long_runs(~moving, config.min_rest_s * fps)
+
+
+def _long_runs(mask: np.ndarray, min_frames: float) -> np.ndarray:
+    """(T,) bool: the runs of True in ``mask`` at least ``min_frames`` long."""
+    out = np.zeros(len(mask), dtype=bool)
+    for a, b in runs(mask, min_len=max(1, int(np.ceil(min_frames)))):
+        out[a:b] = True
+    return out
+
+
+def _window_variance(x: np.ndarray, ok: np.ndarray, half: int) -> tuple[np.ndarray, np.ndarray]:
+    """x: (T, 3), ok: (T,) bool -> (variance summed over the axes, count) of the ok rows in each
+    frame's window [t - half, t + half] (clipped at the ends): (T,), (T,)."""
+    size = 2 * half + 1
+    box = lambda a: uniform_filter1d(a, size, axis=0, mode="constant") * size  # noqa: E731  (window sums)
+    w = ok.astype(np.float64)
+    xs = np.where(ok[:, None], x, 0.0)
+    n = box(w)
+    mean = box(xs) / np.maximum(n, 1)[:, None]
+    return box((xs ** 2).sum(-1)) / np.maximum(n, 1) - (mean ** 2).sum(-1), n
+
+
+def held_mask(tracked_t: np.ndarray, rotations: np.ndarray, wrists: np.ndarray, fps: float,
+              config: RestConfig = RestConfig()) -> np.ndarray:
+    """Frames where the tracked object moves with a wrist (module doc), whatever its speed.
+
+    tracked_t: (T, 3) tracked object translations (m, NaN = missing); rotations: (T, 3, 3) the
+    filtered object rotations; wrists: (T, W, 3) the filtered wrists -> (T,) bool. In each frame's
+    window (± ``held_window_s``) the two hypotheses have three parameters each: the object stays at
+    one point (residual = the variance of its tracked translations), or it follows a wrist at one
+    offset o in its own frame, p = wrist − R o (residual = the variance of Rᵀ(wrist − p)). A frame
+    is held where some wrist's residual is below the still one's and that wrist moves at least
+    ``held_min_move_m`` (bounding-box diagonal) within the window; at least 6 observed frames."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    y = np.asarray(tracked_t, dtype=np.float64)
+    T = len(y)
+    half = max(1, int(round(config.held_window_s * fps)))
+    ok = np.isfinite(y).all(-1)
+    still, n = _window_variance(y, ok, half)
+    best = np.full(T, -np.inf)
+    moved = np.zeros(T)
+    for h in range(wrists.shape[1]):  # two wrists; frames and windows are vectorised
+        q = np.einsum("tji,tj->ti", rotations, wrists[:, h] - np.where(ok[:, None], y, 0.0))
+        held, _ = _window_variance(q, ok, half)
+        size = 2 * half + 1
+        box = maximum_filter1d(wrists[:, h], size, axis=0, mode="nearest") - minimum_filter1d(wrists[:, h], size, axis=0, mode="nearest")
+        score = still - held
+        better = score > best
+        best = np.where(better, score, best)
+        moved = np.where(better, np.linalg.norm(box, axis=-1), moved)
+    return (n >= 6) & (best > 0) & (moved >= config.held_min_move_m)
 
 
 def _rest_rotation(filtered6: np.ndarray, tracked6: np.ndarray, max_deg: float) -> np.ndarray:
@@ -186,13 +242,18 @@ def pool_rest(filtered: np.ndarray, tracked: np.ndarray, fps: float,
     trp = tr[:, OBJ_T]
     seen = np.isfinite(trp).all(-1)
     rest = rest_mask(P, fps, config)
-    rests = [(a, b) for a, b in runs(rest) if seen[a:b].sum() >= 3]
-    for a, b in rests:
-        out[a:b, OBJ_R] = _rest_rotation(out[a:b, OBJ_R], tr[a:b, OBJ_R], config.max_rot_deg)[None]
+    for a, b in runs(rest):  # rotations: one per rest as the speed sees it (slow moves hardly turn)
+        if seen[a:b].sum() >= 3:
+            out[a:b, OBJ_R] = _rest_rotation(out[a:b, OBJ_R], tr[a:b, OBJ_R], config.max_rot_deg)[None]
     R = sixd_to_matrix(out[:, OBJ_R])
     joints = out[:, JOINTS].reshape(T, NUM_JOINTS, 3)
+    link = config.hand_link and np.isfinite(joints[:, _WRISTS]).all()
+    if link:  # slow moves the speed misses, seen as the tracked object following a wrist
+        held = held_mask(trp, sixd_to_matrix(np.asarray(filtered, np.float64)[:, OBJ_R]), joints[:, _WRISTS], fps, config)
+        rest = _long_runs(rest & ~held, config.min_rest_s * fps)
+    rests = [(a, b) for a, b in runs(rest) if seen[a:b].sum() >= 3]
     moves = []
-    if config.hand_link and np.isfinite(joints[:, _WRISTS]).all():
+    if link:
         for s, e in runs(~rest):
             w = _grasping_wrist(P, R, joints, max(s - 1, 0), min(e + 1, T), config.rigid_tol_m)
             if w is not None:

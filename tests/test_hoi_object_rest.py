@@ -248,6 +248,10 @@ def test_held_mask_finds_a_slow_pull_and_not_a_reach():
     assert not held_mask(tracked[:, OBJ_T], R, still, FPS).any()
     with pytest.raises(ValueError, match="held_window_s"):
         RestConfig(held_window_s=-1.0)
+    with pytest.raises(ValueError, match=r"wrists \(T, W, 3\)"):
+        held_mask(tracked[:, OBJ_T], R, wrists[:-1], FPS)
+    with pytest.raises(ValueError, match="finite"):
+        held_mask(tracked[:, OBJ_T], R, np.full_like(wrists, np.nan), FPS)
 
 
 def test_pool_rest_follows_a_slow_pull_through_the_wrist():

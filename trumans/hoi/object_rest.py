@@ -146,6 +146,15 @@ def held_mask(tracked_t: np.ndarray, rotations: np.ndarray, wrists: np.ndarray, 
 
     y = np.asarray(tracked_t, dtype=np.float64)
     T = len(y)
+    rotations, wrists = np.asarray(rotations, dtype=np.float64), np.asarray(wrists, dtype=np.float64)
+    if y.ndim != 2 or y.shape[1] != 3 or rotations.shape != (T, 3, 3) or wrists.ndim != 3 or wrists.shape[0] != T \
+            or wrists.shape[2] != 3:
+        raise ValueError(f"need tracked_t (T, 3), rotations (T, 3, 3) and wrists (T, W, 3), got {y.shape}, "
+                         f"{rotations.shape}, {wrists.shape}")
+    if not (np.isfinite(rotations).all() and np.isfinite(wrists).all()):
+        raise ValueError("rotations and wrists must be finite (the filter's output); only tracked_t may have NaN")
+    if not fps > 0:
+        raise ValueError(f"fps must be > 0, got {fps}")
     half = max(1, int(round(config.held_window_s * fps)))
     ok = np.isfinite(y).all(-1)
     still, n = _window_variance(y, ok, half)

@@ -21,7 +21,7 @@ from trumans.hoi.filter import FilterModel, category_indices, configure_skip, pr
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.hoi.object_rest import RestConfig, pool_rest
-from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips
+from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips, unflip_object
 from trumans.hoi.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
 from trumans.sequence import Sequence
@@ -142,7 +142,7 @@ class HOIFilter:
         # model frames from time 0 over the whole duration (the last may end just past it)
         g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
         if drop_failures:
-            g = drop_object_flips(g, self.fps)
+            g = drop_object_flips(unflip_object(g), self.fps)  # long flip runs by the whole sequence, then short ones by their neighbours
         Tm, L = g.shape[0], self.window
         starts = window_starts(Tm, L, self.overlap)
         padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])

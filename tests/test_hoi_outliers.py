@@ -6,8 +6,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from trumans.hoi.frame import FRAME_DIM, OBJ_R, OBJ_T
-from trumans.hoi.outliers import drop_object_flips, object_flip_mask
-from trumans.rotations import matrix_to_6d
+from trumans.hoi.outliers import drop_object_flips, object_flip_labels, object_flip_mask, unflip_object
+from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
 
 def _turning(T: int = 150, fps: float = 30.0, deg_per_s: float = 90.0) -> np.ndarray:
@@ -37,6 +37,53 @@ def test_drop_object_flips_keeps_the_translation_and_the_rest():
     assert np.isfinite(f).all()  # the input is not changed
 
 
+def _flip(axis: int) -> np.ndarray:
+    v = np.zeros(3)
+    v[axis] = np.pi
+    return Rotation.from_rotvec(v).as_matrix()
+
+
+def test_long_and_leading_flip_runs_are_read_from_the_whole_sequence():
+    R = _turning(T=200)
+    obs = R.copy()
+    obs[0:45] = obs[0:45] @ _flip(1)  # the sequence starts flipped, for longer than the 1 s vote
+    obs[100:170] = obs[100:170] @ _flip(2)  # a 2.3 s run
+    obs[120:130] = obs[120:130] @ _flip(0)  # inside it, flipped about x as well (= about y overall)
+    obj6 = matrix_to_6d(obs)
+    obj6[60:75] = np.nan  # a gap is bridged (the object turns 45 deg in it)
+    labels = object_flip_labels(obj6)
+    want = np.zeros(200, int)
+    want[0:45], want[100:170], want[120:130], want[60:75] = 2, 3, 2, -1  # S_x S_z = S_y
+    np.testing.assert_array_equal(labels, want)
+    assert object_flip_mask(obj6, 30.0)[100:170].sum() < 70  # the local vote alone misses most of it
+    fixed = unflip_object(np.concatenate([np.zeros((200, OBJ_R.start)), obj6, np.zeros((200, FRAME_DIM - OBJ_R.stop))], 1))
+    seen = labels >= 0
+    np.testing.assert_allclose(sixd_to_matrix(fixed[seen][:, OBJ_R].astype(np.float64)), R[seen], atol=1e-5)
+    assert np.isnan(fixed[60:75, OBJ_R]).all()
+
+
+def test_flips_dense_enough_to_outvote_their_neighbours_are_still_found():
+    rng = np.random.default_rng(3)
+    R = _turning(T=240)
+    noisy = Rotation.from_rotvec(rng.normal(0, 0.02, (240, 3))).as_matrix() @ R
+    obs = noisy.copy()
+    flipped = np.zeros(240, bool)
+    for a in (20, 45, 75, 88):  # four runs close together: 60 % of frames 20..110 are flipped
+        flipped[a:a + 20] = True
+    obs[flipped] = obs[flipped] @ _flip(0)
+    labels = object_flip_labels(matrix_to_6d(obs))
+    np.testing.assert_array_equal(labels > 0, flipped)
+    assert not object_flip_labels(matrix_to_6d(noisy)).any()  # noise and a steady turn are no flips
+
+
+def test_a_step_no_flip_explains_cuts_the_chain():
+    R = np.repeat(np.eye(3)[None], 100, 0)
+    R[50:] = Rotation.from_rotvec([0, 0, np.radians(100)]).as_matrix()  # a 100 deg jump: neither a turn nor a flip
+    R[60:70] = R[60:70] @ _flip(1)
+    labels = object_flip_labels(matrix_to_6d(R))
+    assert (labels[:60] == 0).all() and (labels[60:70] == 2).all() and (labels[70:] == 0).all()
+
+
 def test_bad_inputs():
     with pytest.raises(ValueError, match=r"\(T, 6\)"):
         object_flip_mask(np.zeros((10, 9)), 30.0)
@@ -44,6 +91,13 @@ def test_bad_inputs():
         object_flip_mask(np.zeros((10, 6)), 30.0, max_angle_deg=200)
     with pytest.raises(ValueError, match=r"\(T, 235\)"):
         drop_object_flips(np.zeros((10, 6)), 30.0)
+    with pytest.raises(ValueError, match=r"\(T, 6\)"):
+        object_flip_labels(np.zeros((10, 4)))
+    with pytest.raises(ValueError, match="max_step_deg"):
+        object_flip_labels(np.zeros((10, 6)), max_step_deg=120)
+    with pytest.raises(ValueError, match=r"\(T, 235\)"):
+        unflip_object(np.zeros((10, 6)))
+    assert (object_flip_labels(np.full((4, 6), np.nan)) == -1).all()
 
 
 def test_frozen_frames_are_exact_repeats_and_become_missing():

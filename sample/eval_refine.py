@@ -59,6 +59,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                                                 "(trumans.hoi.object_rest)")
     p.add_argument("--no-hand-link", action="store_true", help="pool each rest of the object on its own, moves "
                                                              "not driven by the wrists (trumans.hoi.object_rest)")
+    p.add_argument("--no-hinge", action="store_true", help="no hinge fit for hinged categories (door; "
+                                                           "trumans.hoi.object_hinge)")
     p.add_argument("--no-drift-correction", action="store_true", help="refine without removing the body drift seen "
                                                                     "by the planted feet (trumans.hoi.body_drift)")
     p.add_argument("--category", action="append", default=[], metavar="NAME",
@@ -246,7 +248,7 @@ def run(args: argparse.Namespace) -> int:
 
     filt = HOIFilter.load(args.checkpoint)
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, rest_pooling=not args.no_rest_pooling,
-                         hand_link=not args.no_hand_link,
+                         hand_link=not args.no_hand_link, hinge=False if args.no_hinge else None,
                          body_drift=not args.no_drift_correction)
     data = args.data or filt.ckpt.data.get("path")
     if not data or not Path(data).is_dir():
@@ -270,6 +272,7 @@ def run(args: argparse.Namespace) -> int:
            "categories": sorted(set(cats)),
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
     res["rest_pooling"], res["hand_link"], res["body_drift"] = opts.rest_pooling, opts.hand_link, opts.body_drift
+    res["hinge"] = opts.hinge is not False
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True,
                         rest_ablation=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)

@@ -21,6 +21,7 @@ from trumans.hoi.filter import FilterModel, category_indices, configure_skip, pr
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.hoi.object_rest import RestConfig, pool_rest
+from trumans.hoi.object_hinge import HINGED_CATEGORIES, fit_hinge
 from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips, unflip_object
 from trumans.hoi.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
@@ -41,7 +42,9 @@ class RefineOptions:
     (``trumans.hoi.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
     after filtering (``trumans.hoi.object_rest``); hand_link: with rest pooling, moves held rigidly by a
     wrist follow it and tie the rests on either side (``RestConfig.hand_link``); body_drift: remove the whole-body drift's
-    changes seen by the planted feet after filtering (``trumans.hoi.body_drift``)."""
+    changes seen by the planted feet after filtering (``trumans.hoi.body_drift``); hinge: with rest pooling, turn
+    the object about one hinge fitted to the whole sequence (``trumans.hoi.object_hinge``; None = for the
+    hinged categories, ``HINGED_CATEGORIES``)."""
 
     num_steps: int = 2
     mode: Mode = "noise"
@@ -53,6 +56,7 @@ class RefineOptions:
     rest_pooling: bool = True
     hand_link: bool = True
     body_drift: bool = True
+    hinge: bool | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
@@ -112,7 +116,7 @@ class HOIFilter:
                                strength=options.strength if options.mode == "sdedit" else 1.0)
         out = self.normalizer.denormalize(x0.numpy())
         results, i = [], 0
-        for p, r in zip(parts, fps):
+        for p, r, c in zip(parts, fps, categories):
             n = len(p["starts"])
             world = from_frame(out[i:i + n], p["inp"].origin, p["inp"].yaw)
             i += n
@@ -122,6 +126,8 @@ class HOIFilter:
                 blended = remove_body_drift(blended, self.fps)
             if options.rest_pooling:  # after the body drift: moves follow the corrected wrists
                 blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link=options.hand_link))
+                if options.hinge or (options.hinge is None and c in HINGED_CATEGORIES):
+                    blended = fit_hinge(blended, p["tracked"])
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 

@@ -44,6 +44,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-hand-link", action="store_true",
                    help="pool each rest of the object on its own (default: a move held rigidly by a wrist follows "
                         "the wrist and ties the rests on either side; trumans.hoi.object_rest)")
+    hinge = p.add_mutually_exclusive_group()
+    hinge.add_argument("--hinge", dest="hinge", action="store_const", const=True, default=None,
+                       help="the object turns about one fixed hinge: fit it to the whole sequence (default: for "
+                            "hinged categories, door; trumans.hoi.object_hinge)")
+    hinge.add_argument("--no-hinge", dest="hinge", action="store_const", const=False,
+                       help="no hinge fit, whatever the category")
     p.add_argument("--no-drift-correction", action="store_true",
                    help="keep the filter's body position (default: the whole-body drift's changes seen by the "
                         "planted feet are removed; trumans.hoi.body_drift)")
@@ -68,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
 
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
                          rest_pooling=not args.no_rest_pooling, hand_link=not args.no_hand_link,
-                         body_drift=not args.no_drift_correction)
+                         body_drift=not args.no_drift_correction, hinge=args.hinge)
     seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()

@@ -129,6 +129,17 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     np.testing.assert_allclose(shift, shift[:, :1].repeat(shift.shape[1], 1), atol=1e-5)
     np.testing.assert_allclose(r3.rotations, r.rotations, atol=1e-6)
     np.testing.assert_allclose(r3.objects["box_0"].pose, r.objects["box_0"].pose, atol=1e-6)
+    # the hinge fit: a box is not hinged, so the default is --no-hinge; --hinge turns the object only
+    for flag, name in (("--hinge", "h.npz"), ("--no-hinge", "nh.npz")):
+        assert console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / name),
+                             "--checkpoint", str(ck), "--steps", "2", flag]) == 0
+    r4, r5 = load_sequence(tmp_path / "h.npz"), load_sequence(tmp_path / "nh.npz")
+    np.testing.assert_array_equal(r5.objects["box_0"].pose, r.objects["box_0"].pose)
+    np.testing.assert_allclose(r4.joints, r.joints, atol=1e-6)
+    assert np.abs(r4.objects["box_0"].pose[:, :3, 3] - r.objects["box_0"].pose[:, :3, 3]).max() > 1e-3
+    assert console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / "x.npz"),
+                         "--hinge", "--no-hinge"]) == 2 and not (tmp_path / "x.npz").exists()
+    capsys.readouterr()
     rc = console_main(["refine", str(tmp_path / "tracked.npz"), "--out", str(tmp_path / "x.npz"),
                        "--checkpoint", str(ck), "--category", "chair"])
     err = capsys.readouterr().err
@@ -255,7 +266,7 @@ def test_eval_refine_command(tmp_path, capsys):
               "hand_obj_dist_cm", "frames_per_s", "frames_per_s_per_clip", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm",
               "mpjpe_savgol_ra_mm", "obj_t_err_out_no_rest_cm", "obj_rot_err_out_no_rest_deg"):
         assert np.isfinite(res[k]), k
-    assert res["rest_pooling"] is True and res["hand_link"] is True and "obj_t_err_out_no_rest_cm" not in res["no_imu"]
+    assert res["rest_pooling"] is True and res["hand_link"] is True and res["hinge"] is True and "obj_t_err_out_no_rest_cm" not in res["no_imu"]
     assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
     assert res["savgol_window"] % 2 == 1
     rc = console_main(["eval", "refine", str(ck), "--data", str(data), "--clip", "8"])

@@ -37,8 +37,9 @@ Mode = Literal["noise", "sdedit"]
 class RefineOptions:
     """num_steps: DDIM steps; mode: 'noise' (the paper) or 'sdedit'; strength: SDEdit's noise level
     in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
-    network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames and
-    object rotations that flip and back within a second as missing before filtering
+    network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames as
+    missing, turn object rotations flipped by π about an own axis back (read from the whole sequence) and
+    treat other rotations that flip and back within a second as missing, before filtering
     (``trumans.hoi.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
     after filtering (``trumans.hoi.object_rest``); hand_link: with rest pooling, moves held rigidly by a
     wrist follow it and tie the rests on either side (``RestConfig.hand_link``); body_drift: remove the whole-body drift's
@@ -134,7 +135,7 @@ class HOIFilter:
     def _windows(self, frames: np.ndarray, fps: float, drop_failures: bool = True) -> dict:
         """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T,
         the network inputs (``prepare_windows``) and the tracked frames at that rate (``tracked``);
-        ``drop_failures``: frozen frames and flipped object rotations -> missing."""
+        ``drop_failures``: frozen frames -> missing, flipped object rotations turned back (or missing)."""
         f = np.asarray(frames, dtype=np.float32)
         if f.ndim != 2 or f.shape[1] != FRAME_DIM:
             raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")

@@ -1,6 +1,7 @@
 """Object rests pooled over the whole rest (trumans.hoi.object_rest)."""
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
 from trumans.hoi.object_rest import RestConfig, held_mask, pool_rest, rest_mask
@@ -161,8 +162,9 @@ def test_hand_link_ties_the_rests_through_the_carrying_wrist():
     mv = slice(100, 140)
     assert err(alone)[:60].mean() > 0.035 and err(alone)[-60:].mean() > 0.035  # each rest keeps its own drift
     assert err(linked)[mv].max() < 0.02  # the move follows the wrist ...
-    o_hat = np.einsum("tji,tj->ti", R[mv], J[mv, JOINT_INDEX["right_wrist"]] - linked[mv, OBJ_T])
-    assert np.ptp(o_hat, axis=0).max() < 1e-5  # ... minus one grasp offset in the cup's frame
+    R_out = sixd_to_matrix(linked[mv, OBJ_R].astype(np.float64))
+    o_hat = np.einsum("tji,tj->ti", R_out, J[mv, JOINT_INDEX["right_wrist"]] - linked[mv, OBJ_T])
+    assert np.ptp(o_hat, axis=0).max() < 1e-5  # ... minus one grasp offset in the cup's (output) frame
     assert np.array_equal(linked[:, :OBJ_T.start], filtered[:, :OBJ_T.start])
     # a wrist trusted at the grasp and the release ties the two rests together: where the cup does
     # not turn, they lie apart by the wrist's displacement between the move's first and last frame
@@ -261,3 +263,21 @@ def test_pool_rest_follows_a_slow_pull_through_the_wrist():
     linked = err(pool_rest(filtered, tracked, FPS))
     assert alone[:60].mean() > 0.05 and alone[-40:].mean() > 0.05  # one rest over the whole clip
     assert linked.mean() < 0.4 * alone.mean() and linked.max() < 0.04
+
+
+def test_rest_rotation_corrections_fade_into_the_move_without_a_step():
+    p, R, J = _carried(turn_deg=60.0)
+    T = len(p)
+    bias = Rotation.from_rotvec([0.0, np.radians(8.0), 0.0])  # the filter's rotation is off by 8 deg throughout
+    filtered = _with_joints(p, (bias * Rotation.from_matrix(R)).as_matrix(), J)
+    noise = Rotation.from_rotvec(np.random.default_rng(2).normal(0, 0.02, (T, 3)))
+    tracked = _with_joints(p, (noise * Rotation.from_matrix(R)).as_matrix(), J)
+    out = pool_rest(filtered, tracked, FPS, RestConfig(hand_link=False))
+    Ro = Rotation.from_matrix(sixd_to_matrix(out[:, OBJ_R].astype(np.float64)))
+    err = np.degrees((Ro * Rotation.from_matrix(R).inv()).magnitude())
+    assert err[:80].max() < 1.0 and err[-80:].max() < 1.0  # the rests: pooled from the tracked rotations
+    assert abs(err[120] - 8.0) < 0.5  # mid-move: the filter's rotation
+    step = np.degrees((Ro[1:] * Ro[:-1].inv()).magnitude())
+    fade = RestConfig().fade_s * FPS
+    assert step.max() < np.degrees(np.radians(60.0) / 60) + 8.0 / fade + 0.3  # faded in, not one 8 deg step
+    assert step.max() < 4.0

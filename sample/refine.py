@@ -144,12 +144,12 @@ class HOIFilter:
             raise ValueError(f"a tracked sequence needs at least 2 frames, got {T}")
         if not np.isfinite(fps) or fps <= 0:
             raise ValueError(f"fps must be a positive number, got {fps}")
-        if drop_failures:
-            f = drop_frozen_frames(f)  # at the input's rate: resampling would blur the exact repeats
+        if drop_failures:  # at the input's rate: resampling would blur exact repeats and blend flipped with unflipped
+            f = unflip_object(drop_frozen_frames(f))
         # model frames from time 0 over the whole duration (the last may end just past it)
         g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
         if drop_failures:
-            g = drop_object_flips(unflip_object(g), self.fps)  # long flip runs by the whole sequence, then short ones by their neighbours
+            g = drop_object_flips(g, self.fps)  # what the whole-sequence reading left: short runs outvoted by their neighbours
         Tm, L = g.shape[0], self.window
         starts = window_starts(Tm, L, self.overlap)
         padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])

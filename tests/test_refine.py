@@ -322,3 +322,20 @@ def test_root_aligned_mpjpe_ignores_a_body_translation_and_real_clips_are_body_o
     assert clips.shape == (3, 64, 235) and np.isfinite(clips[..., JOINTS]).all()
     assert np.isnan(clips[..., 72:216]).all() and np.isnan(clips[..., OBJ_T]).all()  # no rotations, no object
     assert (clips[..., 234] == 0).all()  # no IMU
+
+
+def test_flips_are_turned_back_before_resampling(tmp_path):
+    """Flips are turned back at the input's rate: resampling 45 -> 30 fps never blends a flipped frame
+    with an unflipped one (halfway between R and R S_z the 6D average has no first column, so its
+    orthonormalisation is arbitrary)."""
+    from trumans.hoi.frame import OBJ_R
+    from trumans.rotations import matrix_to_6d, sixd_to_matrix
+
+    filt = HOIFilter.load(_ckpt(tmp_path / "f.pt"))
+    frames, _ = frames_from_sequence(_clip(T=120))
+    flipped = frames.copy()
+    S = np.diag([-1.0, -1.0, 1.0])  # pi about the object's own z
+    flipped[23:78, OBJ_R] = matrix_to_6d(sixd_to_matrix(frames[23:78, OBJ_R].astype(np.float64)) @ S)  # ends between output frames
+    want = filt._windows(frames, 45.0)["tracked"][:, OBJ_R].astype(np.float64)
+    got = filt._windows(flipped, 45.0)["tracked"][:, OBJ_R].astype(np.float64)
+    np.testing.assert_allclose(sixd_to_matrix(got), sixd_to_matrix(want), atol=1e-4)

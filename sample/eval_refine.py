@@ -13,6 +13,9 @@ refined end to end (resampling, windows, blending). Figures (means over clips an
 - ``obj_t_err_in_cm`` / ``_out_cm``, ``obj_rot_err_in_deg`` / ``_out_deg``;
 - ``hand_obj_dist_cm``: mean |d̂ − d| with d the distance from the nearer hand (wrist / index1) to
   the object, for the output (``hand_obj_dist_in_cm`` for the input);
+- ``foot_skate_out_cm`` / ``_savgol_cm`` / ``_gt_cm``: how far a foot joint (ankles, feet) slides
+  horizontally while the truth's is planted (under 0.1 m/s and within 5 cm of its lowest in the
+  clip), summed over each such run and averaged over runs (``trumans.metrics.foot_slides``), cm;
 - ``mpjpe_*_ra_mm``: the same, root-aligned (each frame's pelvis moved onto the truth's: a whole-body
   translation such as the corruption's shared drift does not count);
 - ``obj_t_err_out_no_rest_cm`` / ``obj_rot_err_out_no_rest_deg`` and ``mpjpe_out_no_drift_mm``
@@ -59,6 +62,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                                                 "(trumans.hoi.object_rest)")
     p.add_argument("--no-hand-link", action="store_true", help="pool each rest of the object on its own, moves "
                                                              "not driven by the wrists (trumans.hoi.object_rest)")
+    p.add_argument("--no-foot-lock", action="store_true", help="refine without holding planted feet still "
+                                                               "(trumans.hoi.foot_lock)")
     p.add_argument("--no-hinge", action="store_true", help="no hinge fit for hinged categories (door; "
                                                            "trumans.hoi.object_hinge)")
     p.add_argument("--no-drift-correction", action="store_true", help="refine without removing the body drift seen "
@@ -117,7 +122,7 @@ def _root_aligned(J: np.ndarray, Jc: np.ndarray) -> np.ndarray:
     return np.linalg.norm((J - J[:, :1]) - (Jc - Jc[:, :1]), axis=-1)
 
 
-def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarray) -> dict[str, float]:
+def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarray, fps: float) -> dict[str, float]:
     Jt, Jo, Jc, Js = _joints(tr), _joints(out), _joints(cl), sg.reshape(-1, 24, 3)
     e_in = np.linalg.norm(Jt - Jc, axis=-1)
     obs = np.isfinite(e_in)
@@ -145,7 +150,26 @@ def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarra
         "obj_rot_err_out_deg": _rot_deg(out[:, 219:225], cl[:, 219:225]).mean(),
         "hand_obj_dist_in_cm": 100 * np.nanmean(np.abs(_hand_dist(np.where(np.isfinite(tr), tr, np.nan)) - _hand_dist(cl))),
         "hand_obj_dist_cm": 100 * np.abs(_hand_dist(out) - _hand_dist(cl)).mean(),
+        **{f"foot_skate_{k}_cm": _skate_cm(J, Jc, fps) for k, J in (("out", Jo), ("savgol", Js), ("gt", Jc))},
     }
+
+
+def _mean_finite(values: list[float]) -> float:
+    v = np.asarray(values, dtype=np.float64)
+    return float(v[np.isfinite(v)].mean()) if np.isfinite(v).any() else float("nan")
+
+
+def _skate_cm(J: np.ndarray, Jc: np.ndarray, fps: float) -> float:
+    """Mean horizontal slide (cm) of the foot joints of J (T, 24, 3) over the truth Jc's planted runs
+    (foot joint under 0.1 m/s and within 5 cm of its lowest in the clip); NaN without a run."""
+    from trumans.hoi.body_drift import FOOT_JOINTS
+    from trumans.metrics import foot_slides
+
+    feet = Jc[:, FOOT_JOINTS]
+    speed = np.linalg.norm(np.gradient(feet[..., :2], axis=0), axis=-1) * fps
+    planted = (speed < 0.1) & (feet[..., 2] - feet[..., 2].min(0) < 0.05)
+    s = foot_slides(J[:, FOOT_JOINTS], planted)
+    return float(100 * s.mean()) if len(s) else float("nan")
 
 
 def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window: int, seed: int, options,
@@ -162,8 +186,8 @@ def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window
     t0 = time.perf_counter()
     outs = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats), options)
     seconds = time.perf_counter() - t0
-    rows = [_clip_figures(tr, out, _savgol(tr, savgol_window), cl) for tr, out, cl in zip(tracked, outs, clean)]
-    fig = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+    rows = [_clip_figures(tr, out, _savgol(tr, savgol_window), cl, filt.fps) for tr, out, cl in zip(tracked, outs, clean)]
+    fig = {k: _mean_finite([r[k] for r in rows]) for k in rows[0]}  # a clip without a planted foot has no skate
     frames = int(sum(len(tr) for tr in tracked))
     fig["frames_per_s"] = frames / max(seconds, 1e-9)
     if per_clip_speed:
@@ -219,7 +243,7 @@ def _real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
 
 _BODY_KEYS = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_out_observed_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm",
               "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_err_savgol",
-              "accel_gt", "accel_out", "frames_per_s", "clips")
+              "accel_gt", "accel_out", "foot_skate_out_cm", "foot_skate_savgol_cm", "foot_skate_gt_cm", "frames_per_s", "clips")
 
 
 def evaluate_real(filt, clip: int, max_clips: int, savgol_window: int, seed: int, options) -> dict:
@@ -249,6 +273,7 @@ def run(args: argparse.Namespace) -> int:
     filt = HOIFilter.load(args.checkpoint)
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, rest_pooling=not args.no_rest_pooling,
                          hand_link=not args.no_hand_link, hinge=False if args.no_hinge else None,
+                         foot_lock=not args.no_foot_lock,
                          body_drift=not args.no_drift_correction)
     data = args.data or filt.ckpt.data.get("path")
     if not data or not Path(data).is_dir():
@@ -272,7 +297,7 @@ def run(args: argparse.Namespace) -> int:
            "categories": sorted(set(cats)),
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
     res["rest_pooling"], res["hand_link"], res["body_drift"] = opts.rest_pooling, opts.hand_link, opts.body_drift
-    res["hinge"] = opts.hinge is not False
+    res["hinge"], res["foot_lock"] = opts.hinge is not False, opts.foot_lock
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True,
                         rest_ablation=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)

@@ -21,6 +21,7 @@ from trumans.hoi.filter import FilterModel, category_indices, configure_skip, pr
 from trumans.hoi.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.hoi.object_rest import RestConfig, pool_rest
+from trumans.hoi.foot_lock import lock_feet
 from trumans.hoi.object_hinge import HINGED_CATEGORIES, fit_hinge
 from trumans.hoi.outliers import drop_frozen_frames, drop_object_flips, unflip_object
 from trumans.hoi.windows import blend_windows, window_starts
@@ -45,7 +46,8 @@ class RefineOptions:
     wrist follow it and tie the rests on either side (``RestConfig.hand_link``); body_drift: remove the whole-body drift's
     changes seen by the planted feet after filtering (``trumans.hoi.body_drift``); hinge: with rest pooling, turn
     the object about one hinge fitted to the whole sequence (``trumans.hoi.object_hinge``; None = for the
-    hinged categories, ``HINGED_CATEGORIES``)."""
+    hinged categories, ``HINGED_CATEGORIES``); foot_lock: hold each planted foot joint at one point
+    per stance, the legs following by IK (``trumans.hoi.foot_lock``)."""
 
     num_steps: int = 2
     mode: Mode = "noise"
@@ -58,6 +60,7 @@ class RefineOptions:
     hand_link: bool = True
     body_drift: bool = True
     hinge: bool | None = None
+    foot_lock: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
@@ -125,6 +128,8 @@ class HOIFilter:
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
             if options.body_drift:
                 blended = remove_body_drift(blended, self.fps)
+            if options.foot_lock:  # after the drift fit, which reads the same stances as drift
+                blended = lock_feet(blended, self.fps)
             if options.rest_pooling:  # after the body drift: moves follow the corrected wrists
                 blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link=options.hand_link))
                 if options.hinge or (options.hinge is None and c in HINGED_CATEGORIES):

@@ -50,6 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                             "hinged categories, door; trumans.hoi.object_hinge)")
     hinge.add_argument("--no-hinge", dest="hinge", action="store_const", const=False,
                        help="no hinge fit, whatever the category")
+    p.add_argument("--no-foot-lock", action="store_true",
+                   help="keep the filter's feet (default: each planted foot joint is held at one point per stance, "
+                        "the legs following by IK; trumans.hoi.foot_lock)")
     p.add_argument("--no-drift-correction", action="store_true",
                    help="keep the filter's body position (default: the whole-body drift's changes seen by the "
                         "planted feet are removed; trumans.hoi.body_drift)")
@@ -74,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
 
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
                          rest_pooling=not args.no_rest_pooling, hand_link=not args.no_hand_link,
-                         body_drift=not args.no_drift_correction, hinge=args.hinge)
+                         body_drift=not args.no_drift_correction, hinge=args.hinge,
+                         foot_lock=not args.no_foot_lock)
     seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()

@@ -225,7 +225,7 @@ def test_window_objects_and_eval_figures():
     assert window_objects(s, np.array([0, 32]), 32) == ["box_0", "box_0"]  # the lamp never moves
     _, f = _tracked(T=64)
     f = add_clean_imu(f[None], 30.0)[0]
-    fig = _clip_figures(f, f, f[:, :72], f)
+    fig = _clip_figures(f, f, f[:, :72], f, 30.0)
     assert fig["mpjpe_in_mm"] == 0 and fig["mpjpe_out_mm"] == 0 and fig["obj_rot_err_out_deg"] < 1e-3
     assert fig["accel_err_out"] == 0 and fig["accel_gt"] > 0 and fig["hand_obj_dist_cm"] == 0
     rng = np.random.default_rng(0)
@@ -339,3 +339,20 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
     want = filt._windows(frames, 45.0)["tracked"][:, OBJ_R].astype(np.float64)
     got = filt._windows(flipped, 45.0)["tracked"][:, OBJ_R].astype(np.float64)
     np.testing.assert_allclose(sixd_to_matrix(got), sixd_to_matrix(want), atol=1e-4)
+
+
+def test_foot_skate_counts_slides_over_the_truths_planted_runs():
+    from sample.eval_refine import _skate_cm
+    from trumans.hoi.body_drift import FOOT_JOINTS
+
+    T = 20
+    Jc = np.zeros((T, 24, 3))
+    Jc[:, :, 2] = 0.5
+    Jc[:, FOOT_JOINTS, 2] = 0.05  # four foot joints standing still: one planted run each
+    J = Jc.copy()
+    J[:, FOOT_JOINTS[0], 0] += 0.01 * np.arange(T)  # the output's left ankle slides 1 cm per frame
+    assert _skate_cm(Jc, Jc, 30.0) == 0.0
+    assert abs(_skate_cm(J, Jc, 30.0) - 100 * 0.19 / 4) < 1e-9  # 19 cm on one run of four
+    moving = Jc.copy()
+    moving[:, :, 0] += 0.02 * np.arange(T)[:, None]  # 0.6 m/s: the truth never plants a foot
+    assert np.isnan(_skate_cm(J, moving, 30.0))

@@ -1,0 +1,88 @@
+"""trumans.hoi.foot_lock: planted foot joints pinned, the legs following by IK, rotations kept consistent."""
+import numpy as np
+import pytest
+
+from trumans.hoi.body_drift import DriftConfig, stance_mask
+from trumans.hoi.foot_lock import LockConfig, lock_feet
+from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_T, ROTATIONS
+from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
+from trumans.skeleton import JOINT_INDEX, forward_kinematics, rest_offsets
+
+FPS = 30.0
+LA, LF, RA = JOINT_INDEX["left_ankle"], JOINT_INDEX["left_foot"], JOINT_INDEX["right_ankle"]
+LEG = [JOINT_INDEX[n] for n in ("left_hip", "left_knee", "left_ankle", "left_foot")]
+
+
+def _standing(T: int = 120, wobble_deg: float = 1.5, swing_right: bool = False):
+    """An FK-exact body standing still whose left hip wobbles (the planted left foot wanders by ~1-2
+    cm, slower than 0.2 m/s); with ``swing_right`` the right leg swings fast (not a stance)."""
+    t = np.arange(T) / FPS
+    aa = np.zeros((T, 24, 3))
+    aa[:, JOINT_INDEX["left_hip"], 0] = np.radians(wobble_deg) * np.sin(2 * np.pi * 0.7 * t)
+    aa[:, JOINT_INDEX["left_knee"], 1] = np.radians(5.0)  # a slight bend (the knee's side is defined)
+    if swing_right:
+        aa[:, JOINT_INDEX["right_hip"], 1] = np.radians(35.0) * np.sin(2 * np.pi * 1.0 * t)
+    R = axis_angle_to_matrix(aa)
+    root = np.tile([0.3, -0.2, 0.93], (T, 1))
+    off = rest_offsets()
+    J, _ = forward_kinematics(R, root, off)
+    f = np.zeros((T, FRAME_DIM))
+    f[:, JOINTS] = J.reshape(T, -1)
+    f[:, ROTATIONS] = matrix_to_6d(R).reshape(T, -1)
+    f[:, OBJ_T] = np.random.default_rng(0).normal(size=(T, 3))
+    return f, R, root, off
+
+
+def _joints(f):
+    return f[:, JOINTS].reshape(len(f), 24, 3)
+
+
+def test_a_wandering_planted_foot_is_pinned_and_the_leg_follows_consistently():
+    f, R, root, off = _standing()
+    J0 = _joints(f)
+    assert np.ptp(J0[:, LA], axis=0).max() > 0.01  # the foot wanders by over 1 cm
+    out = lock_feet(f, FPS)
+    J = _joints(out)
+    assert np.ptp(J[:, LA], axis=0).max() < 1e-6 and np.ptp(J[:, LF], axis=0).max() < 1e-6  # one stance: pinned
+    for a, b in zip(LEG[:-1], LEG[1:]):  # bone lengths kept in every frame
+        np.testing.assert_allclose(np.linalg.norm(J[:, b] - J[:, a], axis=-1), np.linalg.norm(J0[:, b] - J0[:, a], axis=-1), atol=1e-9)
+    np.testing.assert_array_equal(J[:, LEG[0]], J0[:, LEG[0]])  # the hip stays
+    others = [j for j in range(24) if j not in LEG]
+    np.testing.assert_allclose(J[:, others], J0[:, others], atol=1e-12)  # (the still right foot: a zero correction)
+    np.testing.assert_array_equal(out[:, OBJ_T], f[:, OBJ_T])
+    # the rotations drive the same skeleton onto the new joints
+    P, _ = forward_kinematics(sixd_to_matrix(out[:, ROTATIONS].reshape(-1, 24, 6)), root, off)
+    np.testing.assert_allclose(P, J, atol=1e-6)
+
+
+def test_a_swinging_foot_is_left_alone_and_corrections_fade_in():
+    f, *_ = _standing(T=150, swing_right=True)
+    out = lock_feet(f, FPS, LockConfig(fade_s=0.2))
+    np.testing.assert_array_equal(_joints(out)[:, RA], _joints(f)[:, RA])  # 35 deg swings: never planted
+    # a stance that ends: the correction w(t) (target - joint) fades out linearly over fade_s after it
+    g, *_ = _standing(T=150, wobble_deg=1.5)
+    J = _joints(g).copy()
+    J[100:, [LA, LF]] += np.linspace(0, 1.5, 50)[:, None, None] * np.array([1.0, 0, 0])  # the foot leaves fast
+    g[:, JOINTS] = J.reshape(150, -1)
+    planted = stance_mask(J, FPS)[:, 0]  # FOOT_JOINTS[0]: the left ankle
+    end = np.flatnonzero(planted)[np.flatnonzero(planted) < 110].max()
+    target = J[:end + 1][planted[:end + 1], LA].mean(0)
+    out = _joints(lock_feet(g, FPS, LockConfig(fade_s=0.2)))
+    for k in range(1, 6):  # 0.2 s = 6 frames
+        np.testing.assert_allclose(out[end + k, LA] - J[end + k, LA], (1 - k / 6) * (target - J[end + k, LA]), atol=1e-9)
+    np.testing.assert_array_equal(out[end + 6:, LA], J[end + 6:, LA])
+
+
+def test_bad_inputs_and_nothing_to_lock():
+    f, *_ = _standing()
+    with pytest.raises(ValueError, match=r"\(T, 235\)"):
+        lock_feet(f[:, :10], FPS)
+    with pytest.raises(ValueError, match="fps"):
+        lock_feet(f, 0.0)
+    with pytest.raises(ValueError, match="fade_s"):
+        LockConfig(fade_s=-1.0)
+    g = f.copy()
+    g[5, 0] = np.nan
+    np.testing.assert_array_equal(lock_feet(g, FPS), g)  # missing joints: left as they are
+    strict = LockConfig(stance=DriftConfig(speed_m_s=1e-4))  # only the exactly still right foot is planted
+    np.testing.assert_allclose(lock_feet(f, FPS, strict), f, atol=1e-12)

@@ -62,6 +62,15 @@ class RefineOptions:
     hinge: bool | None = None
     foot_lock: bool = True
 
+    def post_steps(self, category: str) -> list[str]:
+        """The steps after the network these options run for an object of ``category``, in order."""
+        steps = ["body_drift"] if self.body_drift else []
+        steps += ["foot_lock"] if self.foot_lock else []
+        if self.rest_pooling:
+            steps += ["rest_pooling"] + (["hand_link"] if self.hand_link else [])
+            steps += ["hinge"] if self.hinge or (self.hinge is None and category in HINGED_CATEGORIES) else []
+        return steps
+
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
             raise ValueError(f"mode must be 'noise' or 'sdedit', got {self.mode!r}")
@@ -126,14 +135,15 @@ class HOIFilter:
             i += n
             blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
-            if options.body_drift:
+            steps = options.post_steps(c)  # the same list `trumans refine` reports
+            if "body_drift" in steps:
                 blended = remove_body_drift(blended, self.fps)
-            if options.foot_lock:  # after the drift fit, which reads the same stances as drift
+            if "foot_lock" in steps:  # after the drift fit, which reads the same stances as drift
                 blended = lock_feet(blended, self.fps)
-            if options.rest_pooling:  # after the body drift: moves follow the corrected wrists
-                blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link=options.hand_link))
-                if options.hinge or (options.hinge is None and c in HINGED_CATEGORIES):
-                    blended = fit_hinge(blended, p["tracked"])
+            if "rest_pooling" in steps:  # after the body drift: moves follow the corrected wrists
+                blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link="hand_link" in steps))
+            if "hinge" in steps:
+                blended = fit_hinge(blended, p["tracked"])
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 

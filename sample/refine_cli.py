@@ -46,7 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "the wrist and ties the rests on either side; trumans.hoi.object_rest)")
     hinge = p.add_mutually_exclusive_group()
     hinge.add_argument("--hinge", dest="hinge", action="store_const", const=True, default=None,
-                       help="the object turns about one fixed hinge: fit it to the whole sequence (default: for "
+                       help="the object turns about one fixed hinge: fit it to the whole sequence after rest pooling (default: for "
                             "hinged categories, door; trumans.hoi.object_hinge)")
     hinge.add_argument("--no-hinge", dest="hinge", action="store_const", const=False,
                        help="no hinge fit, whatever the category")
@@ -90,9 +90,11 @@ def run(args: argparse.Namespace) -> int:
     summary = {"out": str(args.out), "frames": seq.num_frames, "fps": seq.fps, "object": name,
                "category": out.objects[name].category,
                "missing_frames_in": int(np.isnan(seq.joints).any(axis=(1, 2)).sum()),
-               "seconds": round(seconds, 3), "frames_per_s": round(seq.num_frames / max(seconds, 1e-9), 1)}
-    print(f"refined {summary['frames']} frames ({summary['missing_frames_in']} missing) with object {name!r} "
-          f"({summary['category']}) in {seconds:.2f} s -> {args.out}")
+               "seconds": round(seconds, 3), "frames_per_s": round(seq.num_frames / max(seconds, 1e-9), 1),
+               "post_steps": opts.post_steps(out.objects[name].category)}
+    print(f"refined {summary['frames']} frames ({summary['missing_frames_in']} with a missing joint) with object "
+          f"{name!r} ({summary['category']}) in {seconds:.2f} s -> {args.out}; after the filter: "
+          f"{', '.join(summary['post_steps']) or 'nothing'}")
     if args.json:
         print(json.dumps(summary))
     return 0

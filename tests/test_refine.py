@@ -95,6 +95,8 @@ def test_identity_filter_reproduces_input_across_windows(tmp_path):
 
 
 def test_refine_sequence_and_cli(tmp_path, capsys):
+    import json
+
     from trumans.cli import console_main
 
     ck = _ckpt(tmp_path / "f.pt", zero=False)
@@ -108,7 +110,9 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     r = load_sequence(tmp_path / "r.npz")
     assert r.num_frames == 70 and r.fps == 30.0 and np.isfinite(r.joints).all() and r.rotations is not None
     assert set(r.objects) == {"box_0", "lamp"}
-    assert '"object": "box_0"' in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert '"object": "box_0"' in printed
+    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["body_drift", "foot_lock", "rest_pooling", "hand_link"]
     # same seed, same output
     filt = HOIFilter.load(ck)
     a, _ = filt.refine_sequence(s, options=RefineOptions(num_steps=2, eta=1.0, seed=3))
@@ -356,3 +360,12 @@ def test_foot_skate_counts_slides_over_the_truths_planted_runs():
     moving = Jc.copy()
     moving[:, :, 0] += 0.02 * np.arange(T)[:, None]  # 0.6 m/s: the truth never plants a foot
     assert np.isnan(_skate_cm(J, moving, 30.0))
+
+
+def test_post_steps_follow_the_options_and_the_category():
+    assert RefineOptions().post_steps("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge"]
+    assert RefineOptions().post_steps("cup") == ["body_drift", "foot_lock", "rest_pooling", "hand_link"]
+    assert RefineOptions(hinge=True).post_steps("cup")[-1] == "hinge"
+    assert RefineOptions(hinge=False, hand_link=False).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"]
+    assert RefineOptions(rest_pooling=False, hinge=True).post_steps("door") == ["body_drift", "foot_lock"]  # the hinge needs pooled rests
+    assert RefineOptions(body_drift=False, foot_lock=False, rest_pooling=False).post_steps("door") == []

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import label
 
+from trumans.ik.fit import rotation_between
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
 
@@ -67,20 +68,6 @@ def _corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
             out[take, k] = w[take, None] * (target - J[take, j])
             weight[take, k] = w[take]
     return out
-
-
-def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(N, 3) -> (N, 3, 3) the minimal rotations taking the directions of u onto those of v."""
-    u = u / np.linalg.norm(u, axis=-1, keepdims=True)
-    v = v / np.linalg.norm(v, axis=-1, keepdims=True)
-    axis = np.cross(u, v)
-    s = np.linalg.norm(axis, axis=-1)
-    c = np.clip((u * v).sum(-1), -1.0, 1.0)
-    K = np.zeros(u.shape[:-1] + (3, 3))
-    n = axis / np.maximum(s, 1e-12)[..., None]
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -n[..., 2], n[..., 1], -n[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    return np.eye(3) + s[..., None, None] * K + (1 - c)[..., None, None] * (K @ K)
 
 
 def _two_bone(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -148,7 +135,7 @@ def _turn_leg_rotations(rot6: np.ndarray, old: np.ndarray, new: np.ndarray) -> n
         parent_new = G[:, PARENTS[hip]]
         for j, child in ((hip, knee), (knee, ankle), (ankle, toe)):
             cur = np.einsum("tij,tj->ti", acc, old[:, child] - old[:, j])
-            acc = _rotation_between(cur, new[:, child] - new[:, j]) @ acc
+            acc = rotation_between(cur, new[:, child] - new[:, j]) @ acc
             G_new = acc @ G[:, j]
             out[:, j] = np.swapaxes(parent_new, -1, -2) @ G_new
             parent_new = G_new

@@ -238,3 +238,17 @@ def test_windows_and_blending():
     np.testing.assert_allclose(blend_windows(np.concatenate([sig[:10], np.zeros((54, 5))])[None], [0], 10), sig[:10])
     with pytest.raises(ValueError, match="do not cover"):
         blend_windows(pieces[:2], st[:2], 200)
+
+
+def test_corruption_reports_the_body_drift_it_added():
+    W = add_clean_imu(np.stack([frames_from_sequence(_clip(T=64, seed=k))[0] for k in range(4)]), 30.0)
+    # only the drifts left: no jitter, spikes, freezes or missing joints
+    cfg = CorruptionConfig(jitter_m=0.0, p_spike=0.0, joint_drift_m=0.0, p_joint_occlusion=0.0, p_dropout=0.0,
+                           p_freeze=0.0, position_scale=(0.5, 2.0))
+    parts: dict = {}
+    a = corrupt(W, 30.0, np.random.default_rng(5), cfg, parts=parts)
+    np.testing.assert_array_equal(a, corrupt(W, 30.0, np.random.default_rng(5), cfg))  # asking changes nothing
+    d = parts["body_drift"]
+    assert d.shape == (4, 64, 3) and np.abs(d).max() > 0.005
+    moved = (a - W)[..., JOINTS].reshape(4, 64, 24, 3)
+    np.testing.assert_allclose(moved, np.broadcast_to(d[:, :, None], moved.shape), atol=1e-6)  # every joint, alike

@@ -268,9 +268,11 @@ def test_eval_refine_command(tmp_path, capsys):
     for k in ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_savgol_mm", "accel_err_in", "accel_err_out", "accel_gt",
               "obj_t_err_in_cm", "obj_t_err_out_cm", "obj_rot_err_in_deg", "obj_rot_err_out_deg",
               "hand_obj_dist_cm", "frames_per_s", "frames_per_s_per_clip", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm",
-              "mpjpe_savgol_ra_mm", "obj_t_err_out_no_rest_cm", "obj_rot_err_out_no_rest_deg"):
+              "mpjpe_savgol_ra_mm", "obj_t_err_out_no_rest_cm", "obj_rot_err_out_no_rest_deg", "mpjpe_out_no_drift_mm",
+              "mpjpe_out_drift_oracle_mm"):
         assert np.isfinite(res[k]), k
     assert res["rest_pooling"] is True and res["hand_link"] is True and res["hinge"] is True and "obj_t_err_out_no_rest_cm" not in res["no_imu"]
+    assert "mpjpe_out_drift_oracle_mm" not in res["no_imu"]
     assert res["no_imu"]["imu_clips"] == 0 and res["drift"]["imu_clips"] == res["drift"]["clips"] > 0
     assert res["savgol_window"] % 2 == 1
     rc = console_main(["eval", "refine", str(ck), "--data", str(data), "--clip", "8"])

@@ -158,9 +158,11 @@ def _compose6d(R: np.ndarray, r6: np.ndarray, right: bool = False) -> np.ndarray
 
 
 def corrupt(frames: np.ndarray, fps: float, rng: np.random.Generator,
-            cfg: CorruptionConfig = CorruptionConfig()) -> np.ndarray:
+            cfg: CorruptionConfig = CorruptionConfig(), parts: dict | None = None) -> np.ndarray:
     """Clean frame vectors (B, L, 235) (world, IMU from ``add_clean_imu``) -> tracked-like frame
-    vectors (B, L, 235) with NaN = missing, by the model in the module docstring."""
+    vectors (B, L, 235) with NaN = missing, by the model in the module docstring. ``parts``: a dict
+    to receive known components for diagnosis: ``body_drift`` (B, L, 3) m, the whole-body drift
+    every joint got (severity-scaled). The result does not depend on it."""
     x = np.asarray(frames, dtype=np.float64)
     if x.ndim != 3 or x.shape[-1] != FRAME_DIM:
         raise ValueError(f"frames must be (B, L, {FRAME_DIM}), got {x.shape}")
@@ -172,7 +174,10 @@ def corrupt(frames: np.ndarray, fps: float, rng: np.random.Generator,
     scale = 1.0 if c.position_scale == (1.0, 1.0) else rng.uniform(*c.position_scale, (B, 1, 1, 1))  # severity per window
     noise = rng.normal(0.0, c.jitter_m, J.shape)
     spikes = (rng.random((B, L, NUM_JOINTS, 1)) < c.p_spike) * rng.normal(0.0, c.spike_m, J.shape)
-    drift = _smooth(rng, (B, L, 1, 3), c.drift_m, c.drift_frames) + _smooth(rng, (B, L, NUM_JOINTS, 3), c.joint_drift_m, c.drift_frames)
+    body_drift = _smooth(rng, (B, L, 1, 3), c.drift_m, c.drift_frames)
+    drift = body_drift + _smooth(rng, (B, L, NUM_JOINTS, 3), c.joint_drift_m, c.drift_frames)
+    if parts is not None:
+        parts["body_drift"] = (scale * body_drift)[:, :, 0]
     out[..., JOINTS] = (J + scale * (noise + spikes + drift)).reshape(B, L, -1)
     # rotations: axis-angle noise on every local rotation
     R6 = x[..., ROTATIONS].reshape(B, L, NUM_JOINTS, 6)

@@ -1,4 +1,4 @@
-"""Moved objects after the body (``sample.carry``, TRUMANS §4.2) on the shipped generator.
+"""Moved objects after the body (``trumans.sample.carry``, TRUMANS §4.2) on the shipped generator.
 
     python benchmarks/carry_objects.py --json            # three plans in the default room, seeds 0..2
     python benchmarks/carry_objects.py --smooth 0.1 1 10 # the smoothness weight's effect
@@ -7,7 +7,7 @@
 Plans (default room, procedural room 2): pick up bottle_0 from the cabinet, walk, put it on the
 table; open and close the door; open and close a drawer. For each plan and seed: the body is
 sampled (20 DDIM steps), the objects are moved (``object_tracks``) and the figures of
-``sample.carry_metrics`` are printed (mean over the seeds), with ``_static`` (objects left where
+``trumans.sample.carry_metrics`` are printed (mean over the seeds), with ``_static`` (objects left where
 they were, the output before this step) and ``_init`` (hand-driven, before the optimisation).
 """
 from __future__ import annotations
@@ -18,13 +18,13 @@ import time
 
 import numpy as np
 
-from sample.carry import CarryConfig, object_tracks
-from sample.carry_metrics import carry_figures
-from sample.cli import DEFAULT_CHECKPOINT
-from sample.plan import plan_from_dict, validate_plan
-from sample.rollout import sample_plan
-from sample.sampler import EpisodeSampler, SamplerConfig
-from sample.scene_input import load_sample_scene
+from trumans.sample.carry import CarryConfig, object_tracks
+from trumans.sample.carry_metrics import carry_figures
+from trumans.sample.cli import DEFAULT_CHECKPOINT
+from trumans.sample.plan import plan_from_dict, validate_plan
+from trumans.sample.rollout import sample_plan
+from trumans.sample.sampler import EpisodeSampler, SamplerConfig
+from trumans.sample.scene_input import load_sample_scene
 from trumans.model.checkpoint import load_checkpoint
 
 PLANS = {
@@ -64,7 +64,7 @@ def main() -> None:
                 secs.append(time.perf_counter() - tic)
                 rows.append(carry_figures(res.joints[0], tracks, its, inits, sc.scene, res.phases))
                 if args.out and seed == 0 and smooth == args.smooth[0] and on == modes[-1]:
-                    from sample.export import export
+                    from trumans.viz.export import export
                     from trumans.sequence import Sequence
                     seq = Sequence(joints=res.joints[0], fps=res.fps, actions=res.labels[0],
                                    action_names=list(res.vocabulary), scene=sc.source, objects=tracks)

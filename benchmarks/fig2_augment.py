@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from augment.core import augment_sequence
+from trumans.augment.core import augment_sequence
 from trumans.synth.cases import make_case
-from augment.variations import Variation
-from scenes.io import save_scene
+from trumans.augment.variations import Variation
+from trumans.scenes.io import save_scene
 from trumans.sequence import save_sequence
 from trumans.skeleton import JOINT_INDEX, bone_lengths
 from trumans.viz.cli import load_scene_view

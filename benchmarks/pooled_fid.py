@@ -2,7 +2,7 @@
 
 One seed's ~130 windows give a noisy Fréchet distance (the same sampler moves by ±10 % between
 seeds); pooling the seeds' windows compares samplers or models on a set several times larger, with
-the real values taken at the pooled size and action mix (``sample.eval_synthesis.fid_figures``).
+the real values taken at the pooled size and action mix (``trumans.sample.eval_synthesis.fid_figures``).
 
     python benchmarks/pooled_fid.py naive=out/naive_s0.npz,out/naive_s1.npz fast=out/fast_s0.npz,out/fast_s1.npz
 
@@ -21,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sample.eval_synthesis import _load_reference, fid_figures, read_windows, reference_windows  # noqa: E402
+from trumans.sample.eval_synthesis import _load_reference, fid_figures, read_windows, reference_windows  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--data", default=None, help="dataset whose test split is the reference (default: the shipped one)")
     a = p.parse_args(argv)
     if a.data is not None:
-        from trumans.model.motion_encoder import load_motion_encoder
+        from trumans.eval.motion_encoder import load_motion_encoder
 
         ref = reference_windows(load_motion_encoder(None), a.data)
     else:

@@ -1,4 +1,4 @@
-"""How fast procedural rooms are made (``scenes.procedural.make_room``): seconds per room.
+"""How fast procedural rooms are made (``trumans.scenes.procedural.make_room``): seconds per room.
 
     python benchmarks/procedural_rooms.py [--rooms N] [--first-seed S] [--json]
 
@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from scenes.procedural import make_room
+from trumans.scenes.procedural import make_room
 
 
 def main(argv: list[str] | None = None) -> int:

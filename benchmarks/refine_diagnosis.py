@@ -2,10 +2,10 @@
 
     python benchmarks/refine_diagnosis.py [CHECKPOINT] [--data DIR] [--clips N] [--steps S] [--json]
 
-For every component of ``trumans.hoi.corrupt.CorruptionConfig`` (everything else off, the IMU
+For every component of ``trumans.refine.corrupt.CorruptionConfig`` (everything else off, the IMU
 present and clean) it prints the input / output / Savitzky–Golay MPJPE, absolute and root-aligned
 (mm), and the object errors; then the speed of the batched refiner at 1, 2 and 5 DDIM steps on the
-default corruption. Figures come from ``sample.eval_refine`` (same clips, same metrics).
+default corruption. Figures come from ``trumans.refine.evaluate`` (same clips, same metrics).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from trumans.hoi.corrupt import CorruptionConfig  # noqa: E402
+from trumans.refine.corrupt import CorruptionConfig  # noqa: E402
 
 _OFF = CorruptionConfig(jitter_m=0.0, p_spike=0.0, drift_m=0.0, joint_drift_m=0.0, rot_noise_rad=0.0,
                         p_joint_occlusion=0.0, p_no_rotations=0.0, p_dropout=0.0, p_freeze=0.0, obj_jitter_m=0.0,
@@ -45,9 +45,9 @@ def components() -> dict[str, CorruptionConfig]:
 def main(argv: list[str] | None = None) -> int:
     import numpy as np
 
-    from sample.eval_refine import _clips, evaluate, tune_savgol
-    from sample.refine import HOIFilter, RefineOptions
-    from trumans.hoi.corrupt import corrupt
+    from trumans.refine.evaluate import _clips, evaluate, tune_savgol
+    from trumans.refine.pipeline import HOIFilter, RefineOptions
+    from trumans.refine.corrupt import corrupt
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("checkpoint", nargs="?", default=None)

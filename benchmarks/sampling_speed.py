@@ -17,14 +17,14 @@ import time
 import numpy as np
 import torch
 
-from sample.sampler import EpisodeSampler, Goal, SamplerConfig
-from sample.rollout import start_context
+from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
+from trumans.sample.rollout import start_context
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import FeatureLayout, Normalizer
 from trumans.model.nets import Denoiser
 from trumans.skeleton import REST_JOINTS
-from train.config import load_config
+from trumans.train.config import load_config
 
 VOCAB_SIZE = 24
 

@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, postprocess_kwargs  # noqa: E402
+from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, postprocess_kwargs  # noqa: E402
 
 
 def penetration_report(J: np.ndarray, sc, res, top: int = 8) -> dict:
@@ -49,7 +49,7 @@ def penetration_report(J: np.ndarray, sc, res, top: int = 8) -> dict:
 def skate_report(J: np.ndarray, fps: float) -> dict:
     """Foot skate of the benchmark's definition broken down by run length and foot speed."""
     from trumans.contacts.intervals import run_bounds
-    from sample.synthesis_metrics import _FEET, _FOOT_REST
+    from trumans.eval.synthesis_metrics import _FEET, _FOOT_REST
 
     feet = J[:, _FEET]
     contact = (feet[..., 2] - _FOOT_REST) < 0.05
@@ -84,12 +84,12 @@ def main() -> int:
 
     import torch
 
-    from sample.cli import DEFAULT_CHECKPOINT
-    from sample.eval_synthesis import EVAL_ROOM_SEEDS, _plans
-    from sample.rollout import sample_plan, start_pose
-    from sample.sampler import EpisodeSampler, SamplerConfig
-    from sample.scene_input import load_sample_scene
-    from sample.synthesis_metrics import motion_figures
+    from trumans.sample.cli import DEFAULT_CHECKPOINT
+    from trumans.sample.eval_synthesis import EVAL_ROOM_SEEDS, _plans
+    from trumans.sample.rollout import sample_plan, start_pose
+    from trumans.sample.sampler import EpisodeSampler, SamplerConfig
+    from trumans.sample.scene_input import load_sample_scene
+    from trumans.eval.synthesis_metrics import motion_figures
     from trumans.model.checkpoint import load_checkpoint
     from trumans.skeleton import offsets_from_joints
     from trumans.synth.posture import seat_clearance

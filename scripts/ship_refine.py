@@ -3,7 +3,7 @@
     python scripts/ship_refine.py runs/filter/checkpoint.pt --out models/refine.pt \
         --command "trumans train --task filter --data data/synth_v5 --out runs/filter --steps 3000"
 
-Keeps the EMA weights only, in float16 (``train.filter_task.export_checkpoint``; the fitted joint
+Keeps the EMA weights only, in float16 (``trumans.train.tasks.filter.export_checkpoint``; the fitted joint
 skip in ``extra['wiener']`` stays float32), no optimiser state, and records the training command.
 """
 from __future__ import annotations
@@ -13,8 +13,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-import trumans.hoi.filter  # noqa: F401  (registers the 'filter' checkpoint kind)
-from train.filter_task import export_checkpoint
+import trumans.refine.filter  # noqa: F401  (registers the 'filter' checkpoint kind)
+from trumans.train.tasks.filter import export_checkpoint
 from trumans.model.checkpoint import load_checkpoint, save_checkpoint
 
 

@@ -3,7 +3,7 @@
     python scripts/ship_synthesis_reference.py --data data/synth_v3 --out models/synthesis_reference.npz
 
 Stores, for the shipped motion encoder (or ``--encoder``), the features and window labels of the
-dataset's test split and of 3,000 seeded windows of its train split (``sample.eval_synthesis.
+dataset's test split and of 3,000 seeded windows of its train split (``trumans.sample.eval_synthesis.
 reference_windows``). Re-run it whenever the shipped motion encoder changes.
 """
 from __future__ import annotations
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sample.eval_synthesis import reference_windows
-from trumans.model.motion_encoder import load_motion_encoder
+from trumans.sample.eval_synthesis import reference_windows
+from trumans.eval.motion_encoder import load_motion_encoder
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,15 +1,15 @@
-"""Arm push-out of hands left in the scene (sample.arm_pushout)."""
+"""Arm push-out of hands left in the scene (trumans.sample.cleanup.arm_pushout)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
 
-from scenes.occupancy import OccupancyGrid
-from sample.arm_pushout import ArmPushConfig, arm_push, push_arms_out
-from sample.penetration_guidance import SceneSDF
-from sample.sampler import bone_lengths_of
-from sample.scene_pushout import push_radii
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.sample.cleanup.arm_pushout import ArmPushConfig, arm_push, push_arms_out
+from trumans.sample.guidance.penetration import SceneSDF
+from trumans.sample.sampler import bone_lengths_of
+from trumans.sample.cleanup.scene_pushout import push_radii
 
 from trumans.skeleton import JOINT_INDEX
 

@@ -1,9 +1,9 @@
-"""scenes.atomic.atomic_write (re-exported by trumans.sequence) and the scenes -> trumans direction."""
+"""trumans.scenes.atomic.atomic_write (re-exported by trumans.sequence) and the scenes -> trumans direction."""
 from pathlib import Path
 
 import pytest
 
-from scenes.atomic import atomic_write
+from trumans.scenes.atomic import atomic_write
 
 
 def test_atomic_write_replaces_or_leaves_nothing(tmp_path):

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from augment.core import augment_sequence, find_intervals, sequence_pose, AugmentConfig
+from trumans.augment.core import augment_sequence, find_intervals, sequence_pose, AugmentConfig
 from trumans.synth.cases import make_case
-from augment.variations import Variation, apply_variation, map_contact_points, normalized_coords
-from scenes.scene import Scene, SceneObject
+from trumans.augment.variations import Variation, apply_variation, map_contact_points, normalized_coords
+from trumans.scenes.scene import Scene, SceneObject
 from trumans.skeleton import JOINT_INDEX as J, bone_lengths
 
 FEET = [J["left_ankle"], J["right_ankle"], J["left_foot"], J["right_foot"]]
@@ -117,8 +117,8 @@ def test_find_intervals_groups_seat_contacts(sit):
 
 
 def test_rigid_hand_offsets_average_wrist_and_finger_on_shared_frames():
-    from augment.core import _rigid_hand_offsets
-    from augment.offsets import ContactInterval
+    from trumans.augment.core import _rigid_hand_offsets
+    from trumans.augment.offsets import ContactInterval
     from trumans.skeleton import JOINT_INDEX
     w, f = JOINT_INDEX["right_wrist"], JOINT_INDEX["right_index1"]
     iw = ContactInterval(w, "drawer", 2, 8)
@@ -139,8 +139,8 @@ def test_resting_legs_move_rigidly_with_the_lying_body():
     """Knees-up lying: pelvis, hips and both ankles touch the mattress, the knees do not. A
     footprint scale maps the ankles' points inwards; the resting body moves as one rigid piece,
     so the pelvis-ankle distances are kept (the legs cannot stretch)."""
-    from augment.core import _rigid_body_offsets
-    from augment.offsets import ContactInterval
+    from trumans.augment.core import _rigid_body_offsets
+    from trumans.augment.offsets import ContactInterval
     from trumans.skeleton import JOINT_INDEX
     T = 5
     names = ["pelvis", "left_hip", "right_hip", "left_ankle", "right_ankle"]

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from augment.offsets import (ContactInterval, Tracks, blend_tracks, contact_tracks, fade, handover,
+from trumans.augment.offsets import (ContactInterval, Tracks, blend_tracks, contact_tracks, fade, handover,
                              smooth_ratio)
 
 

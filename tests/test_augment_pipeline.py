@@ -5,10 +5,10 @@ import os
 import numpy as np
 import pytest
 
-from augment.pipeline import PipelineConfig, augment_dataset
+from trumans.augment.pipeline import PipelineConfig, augment_dataset
 from trumans.synth.cases import make_case
-from scenes.io import save_scene
-from scenes.scene import Scene, SceneObject
+from trumans.scenes.io import save_scene
+from trumans.scenes.scene import Scene, SceneObject
 from trumans.dataset import Dataset, write_index
 from trumans.sequence import save_sequence
 

@@ -222,7 +222,7 @@ def test_second_writer_is_refused_and_stale_lock_taken_over(data, tmp_path, caps
 # ----------------------------------------------------------------- augment resume and failures
 
 def test_augment_resume_follows_the_scene_and_retries_failures(data, tmp_path, capsys):
-    from augment.pipeline import PipelineConfig, SourcesFailed, augment_dataset
+    from trumans.augment.pipeline import PipelineConfig, SourcesFailed, augment_dataset
 
     d = _copy(data, tmp_path)
     out = tmp_path / "aug"
@@ -266,7 +266,7 @@ def test_augment_workers_capped_at_the_work(data, tmp_path, capsys):
 
 def _save_many(args):
     folder, k = args
-    from scenes.io import load_scene, save_scene
+    from trumans.scenes.io import load_scene, save_scene
 
     sc = load_scene(folder + ".src")
     for _ in range(k):
@@ -280,7 +280,7 @@ def test_concurrent_save_scene_never_fails(data, tmp_path):
     shutil.copytree(src, str(target) + ".src")
     with mp.get_context("fork").Pool(3) as pool:
         assert all(pool.map(_save_many, [(str(target), 12)] * 3))
-    from scenes.io import load_scene
+    from trumans.scenes.io import load_scene
 
     assert load_scene(target).objects.keys() == load_scene(src).objects.keys()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["room", "room.src"]  # no temp folders left

@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.bvh import DEFAULT_JOINT_MAP, Y_UP_FROM_Z_UP, import_bvh, map_joints, read_bvh, write_bvh
+from trumans.bvh import Y_UP_FROM_Z_UP, read_bvh, write_bvh
+from trumans.importers.bvh import import_bvh
+from trumans.importers.joint_maps import DEFAULT_JOINT_MAP, map_joints
 from trumans.rotations import axis_angle_to_matrix, sixd_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, forward_kinematics, heading, rest_offsets
 

@@ -1,4 +1,4 @@
-"""sample.carry: objects moved after the body (TRUMANS §4.2) within their degrees of freedom."""
+"""trumans.sample.carry: objects moved after the body (TRUMANS §4.2) within their degrees of freedom."""
 from __future__ import annotations
 
 import json
@@ -9,17 +9,18 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from sample.carry import CarryConfig, _dof_value, dof_limits, initial_motion, object_tracks, optimise_motion, \
+from trumans.track.objects import dof_limits
+from trumans.sample.carry import CarryConfig, _dof_value, initial_motion, object_tracks, optimise_motion, \
     plan_interactions
-from sample.carry_metrics import carry_figures
-from sample.carry_plan import GRASP_SPAN, OPEN_FRACTION, articulated_pose, surface_point
-from sample.controller import Phase, compile_plan
-from sample.export import export
-from sample.plan import plan_from_dict, validate_plan
-from scenes.procedural import make_room
-from scenes.walkability import walkable_map
-from scenes.occupancy import scene_occupancy
-from trumans.contacts.objects import rotation_about_axis
+from trumans.sample.carry_metrics import carry_figures
+from trumans.sample.carry_plan import GRASP_SPAN, OPEN_FRACTION, articulated_pose, surface_point
+from trumans.sample.controller import Phase, compile_plan
+from trumans.viz.export import export
+from trumans.sample.plan import plan_from_dict, validate_plan
+from trumans.scenes.procedural import make_room
+from trumans.scenes.walkability import walkable_map
+from trumans.scenes.occupancy import scene_occupancy
+from trumans.track.objects import rotation_about_axis
 from trumans.sequence import Sequence, load_sequence
 from trumans.skeleton import JOINT_INDEX
 
@@ -209,9 +210,9 @@ def test_bad_object_plans_fail_before_sampling(room, steps, match):
 
 
 def test_later_episodes_see_objects_where_the_plan_left_them(room):
-    from sample.carry_plan import planned_object_poses
-    from sample.controller import Controller
-    from scenes.scene_grids import SceneGrids
+    from trumans.sample.carry_plan import planned_object_poses
+    from trumans.sample.controller import Controller
+    from trumans.scenes.scene_grids import SceneGrids
 
     occ = scene_occupancy(room, None, voxel=0.05)
     plan = plan_from_dict({"start": [2.4, 2.4], "steps": [

@@ -156,7 +156,7 @@ def test_kinds_registry_required_fields_and_old_files(tmp_path: Path, monkeypatc
     lin = torch.nn.Linear(4, 2)
     contact = Checkpoint(kind="contact", model_config=TinyConfig(), model_state=lin.state_dict(), fps=30.0,
                          extra={"classes": 2})
-    monkeypatch.delitem(KINDS, "contact", raising=False)  # trumans.contacts.model_io registers the real one
+    monkeypatch.delitem(KINDS, "contact", raising=False)  # trumans.track.model_io registers the real one
     with pytest.raises(ValueError, match="no model builder is registered for 'contact'"):
         save_checkpoint(p, contact)
     monkeypatch.setitem(KINDS, "contact", KindSpec(config_from_dict=lambda d: TinyConfig(**d),

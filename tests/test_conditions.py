@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.local_grid import local_grids
-from scenes.occupancy import OccupancyGrid
-from scenes.scene_grids import SceneGrids
+from trumans.scenes.local_grid import local_grids
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.scenes.scene_grids import SceneGrids
 from trumans.model.conditions import (episode_condition, episode_scene_grids, subgoal_to_canonical,
                                       subgoal_to_world)
 from trumans.model.episodes import FeatureLayout, canonicalize

@@ -4,7 +4,7 @@ import pytest
 
 from trumans.actions import ActionInterval, intervals_from_labels, labels_from_intervals
 from trumans.contacts.intervals import JointContact, joint_contact_intervals, run_bounds, runs
-from trumans.metrics import foot_slides
+from trumans.eval.metrics import foot_slides
 
 
 def test_runs_closes_small_gaps_and_drops_short_runs():
@@ -67,8 +67,8 @@ def test_joint_centre_inside_vs_body_penetration():
     """joint_centre_inside_cm measures joint centres only; penetration_max_cm the body around them."""
     import trimesh
 
-    from scenes.scene import Scene, SceneObject
-    from trumans.metrics import joint_centre_inside_cm, penetration_depth, penetration_max_cm
+    from trumans.scenes.scene import Scene, SceneObject
+    from trumans.eval.metrics import joint_centre_inside_cm, penetration_depth, penetration_max_cm
 
     pose = np.eye(4)
     pose[:3, 3] = [2.0, 0.0, 0.4]

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 import torch
 
-from sample.interactions import contact_probabilities, interval_classes
-from train.contact_task import ContactTask, load_contact_data
-from trumans.contacts.model_io import load_contact_models, save_predictor
-from trumans.contacts.per_dof import DOFS, combine_dof_probabilities, dof_hand_labels, predict_dof_contacts
-from trumans.contacts.postprocess import contact_mask, contact_segments
-from trumans.contacts.predictor import CLASSES, ContactPredictor, ContactPredictorConfig, predict_contacts
+from trumans.track.interactions import contact_probabilities, interval_classes
+from trumans.train.tasks.contact import ContactTask, load_contact_data
+from trumans.track.model_io import load_contact_models, save_predictor
+from trumans.track.per_dof import DOFS, combine_dof_probabilities, dof_hand_labels, predict_dof_contacts
+from trumans.track.postprocess import contact_mask, contact_segments
+from trumans.track.predictor import CLASSES, ContactPredictor, ContactPredictorConfig, predict_contacts
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d
 
 TINY = ContactPredictorConfig(window=9, d_model=8, hidden=8, heads=2, layers=1, ff=8, dropout=0.0)
@@ -118,8 +118,8 @@ def test_checkpoint_routing_and_bad_inputs(tmp_path):
 def test_eval_and_refine_command_lines_take_per_dof_checkpoints(tmp_path, capsys):
     import json
 
-    from sample.eval_contacts import main as eval_main
-    from sample.interactions_cli import main as interactions_main
+    from trumans.track.evaluate import main as eval_main
+    from trumans.track.cli import main as interactions_main
     from trumans.dataset import Dataset
     from trumans.sequence import load_sequence
 
@@ -150,8 +150,8 @@ def test_eval_and_refine_command_lines_take_per_dof_checkpoints(tmp_path, capsys
 
 
 def test_per_dof_task_config_labels_and_checkpoint(tmp_path):
-    from train.loop import train
-    from trumans.contacts.model_io import load_predictor
+    from trumans.train.loop import train
+    from trumans.track.model_io import load_predictor
     from trumans.dataset import Dataset
 
     from test_contact_task import _tiny_dataset

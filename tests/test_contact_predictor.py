@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.contacts.model_io import load_predictor, save_predictor
-from trumans.contacts.predictor import (MIRROR_JOINTS, ContactPredictor, ContactPredictorConfig, mirror_rotations,
+from trumans.track.model_io import load_predictor, save_predictor
+from trumans.track.predictor import (MIRROR_JOINTS, ContactPredictor, ContactPredictorConfig, mirror_rotations,
                                         pose_windows, predict_contacts, window_indices)
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
 from trumans.skeleton import JOINT_NAMES, forward_kinematics

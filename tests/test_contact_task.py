@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import pytest
 
-from train.contact_task import ContactTask, ContactTaskConfig
-from train.tasks import make_task, task_names
-from trumans.contacts.model_io import load_predictor
-from trumans.contacts.predictor import ContactPredictorConfig
+from trumans.train.tasks.contact import ContactTask, ContactTaskConfig
+from trumans.train.tasks import make_task, task_names
+from trumans.track.model_io import load_predictor
+from trumans.track.predictor import ContactPredictorConfig
 
 
 def test_config_round_trip_and_errors(tmp_path):
@@ -26,7 +26,7 @@ def test_config_round_trip_and_errors(tmp_path):
 
 def _tiny_dataset(root):
     """Two toy clips (one train, one val) with rule contacts, in the dataset layout."""
-    from scenes.io import save_scene
+    from trumans.scenes.io import save_scene
     from trumans.contacts.rule import ContactScene, joint_contacts
     from trumans.dataset import content_hash, write_index
     from trumans.sequence import save_sequence
@@ -49,7 +49,7 @@ def _tiny_dataset(root):
 
 
 def test_a_few_steps_through_the_loop(tmp_path):
-    from train.loop import train
+    from trumans.train.loop import train
 
     data = _tiny_dataset(tmp_path / "data")
     task = ContactTask.from_config(None, overrides={"model": {"d_model": 8, "hidden": 8, "heads": 2, "layers": 1,

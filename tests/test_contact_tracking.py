@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trumans.contacts.objects import (free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
+from trumans.track.objects import (free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
                                       signed_angle, two_hand_motion)
 from trumans.contacts.intervals import runs
-from trumans.contacts.postprocess import PostprocessConfig, contact_mask, contact_segments, fill_gaps
-from trumans.contacts.scores import average_precision, binary_scores
-from trumans.contacts.trajectory import TrajectoryConfig, correct_trajectory, turning_angles
+from trumans.track.postprocess import PostprocessConfig, contact_mask, contact_segments, fill_gaps
+from trumans.track.scores import average_precision, binary_scores
+from trumans.track.trajectory import TrajectoryConfig, correct_trajectory, turning_angles
 
 
 def _mask(s: str) -> np.ndarray:

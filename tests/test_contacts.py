@@ -6,8 +6,8 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from scenes.distance import SceneDistance
-from scenes.scene import Scene, SceneObject
+from trumans.scenes.distance import SceneDistance
+from trumans.scenes.scene import Scene, SceneObject
 from trumans.contacts.rule import FLOOR_NAME, JOINT_RADIUS, ContactScene, joint_contacts, outward_directions
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS, forward_kinematics, rest_offsets
 
@@ -120,7 +120,7 @@ def test_open_mesh_keeps_its_contacts():
     """A non-watertight object (two faces missing) is still touched: its contacts are not dropped."""
     import trimesh
 
-    from scenes.scene import Scene, SceneObject
+    from trumans.scenes.scene import Scene, SceneObject
     from trumans.contacts.rule import ContactScene, joint_contacts
     from trumans.skeleton import REST_JOINTS
 

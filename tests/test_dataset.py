@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from scenes.occupancy import OccupancyGrid
+from trumans.scenes.occupancy import OccupancyGrid
 from trumans.dataset import INDEX_FILE, Dataset, content_hash, write_index
 from trumans.sequence import Sequence, save_sequence
 from trumans.skeleton import REST_JOINTS

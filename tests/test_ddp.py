@@ -1,4 +1,4 @@
-"""DDP: `torchrun --nproc_per_node 2 -m train` with gloo on CPU: the weights move, and the ranks agree."""
+"""DDP: `torchrun --nproc_per_node 2 -m trumans.train` with gloo on CPU: the weights move, and the ranks agree."""
 from __future__ import annotations
 
 import json
@@ -25,7 +25,7 @@ def test_two_process_gloo_weights_identical(tmp_path: Path) -> None:
     cfg.write_text(TINY_TOML)
     # this checkout's code, not an installed copy (the subprocess starts outside the repository)
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    cmd = [str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "train", "--config", str(cfg),
+    cmd = [str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "trumans.train", "--config", str(cfg),
            "--data", str(data), "--out", str(tmp_path / "run"), "--steps", "4", "--seed", "3",
            "--device", "cpu", "--threads", "1", "--no-progress", "--json"]
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
@@ -34,9 +34,9 @@ def test_two_process_gloo_weights_identical(tmp_path: Path) -> None:
     assert res["world_size"] == 2 and res["steps"] == 4
     assert res["ranks_in_sync"] is True  # every rank's weight digest equals rank 0's (all_gather)
     ck = load_checkpoint(tmp_path / "run" / "checkpoint.pt")
-    from train.config import load_config
-    from train.generator import GeneratorTask
-    from train.loop import initial_model, weights_digest
+    from trumans.train.config import load_config
+    from trumans.train.tasks.generator import GeneratorTask
+    from trumans.train.loop import initial_model, weights_digest
 
     model = ck.build_model(ema=False)
     assert weights_digest(model) == res["weights_sha256"]  # rank 0 saved the weights every rank holds

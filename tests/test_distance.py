@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes.distance import SceneDistance
+from trumans.scenes.distance import SceneDistance
 
 H = np.array([0.5, 0.3, 0.2])  # box half extents, m
 
@@ -94,7 +94,7 @@ def test_bad_inputs(scene):
 def test_degenerate_mesh_is_refused_not_silently_untouchable():
     import trimesh
 
-    from scenes.distance import SceneDistance
+    from trumans.scenes.distance import SceneDistance
 
     flat = trimesh.Trimesh(vertices=[[0, 0, 0], [1, 0, 0], [2, 0, 0]], faces=[[0, 1, 2]], process=False)
     with pytest.raises(ValueError, match="degenerate"):

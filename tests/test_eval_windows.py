@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sample.eval_synthesis import _load_reference, fid_figures, read_windows, write_windows
+from trumans.sample.eval_synthesis import _load_reference, fid_figures, read_windows, write_windows
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,4 @@
-"""sample.export: npz / bvh / gif / png / glb outputs that read back, and their errors."""
+"""trumans.viz.export: npz / bvh / gif / png / glb outputs that read back, and their errors."""
 from __future__ import annotations
 
 import importlib.util
@@ -11,11 +11,11 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from sample.export import FORMATS, export, export_paths, skeleton_motion
-from sample.glb import BONE_RADIUS, Z_UP_TO_Y_UP
-from scenes.io import save_scene
-from scenes.scene import Scene, SceneObject
-from trumans.bvh import import_bvh
+from trumans.viz.export import FORMATS, export, export_paths, skeleton_motion
+from trumans.viz.glb import BONE_RADIUS, Z_UP_TO_Y_UP
+from trumans.scenes.io import save_scene
+from trumans.scenes.scene import Scene, SceneObject
+from trumans.importers.bvh import import_bvh
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d
 from trumans.sequence import ObjectTrack, Sequence, load_sequence
 from trumans.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, children, forward_kinematics, rest_offsets

@@ -82,7 +82,7 @@ def test_kill_synth_then_resume(clean_synth, tmp_path):
 
 
 def test_kill_augment_then_resume(clean_synth, tmp_path):
-    from augment.pipeline import PipelineConfig, augment_dataset
+    from trumans.augment.pipeline import PipelineConfig, augment_dataset
 
     src, _ = clean_synth
     cfg = dict(data=str(src), variations=1, workers=1, kinds=("move",), splits=("train", "val"))

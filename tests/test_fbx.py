@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trumans.bvh import import_bvh
+from trumans.importers.bvh import import_bvh
 from trumans.importers.fbx import FBX_TICKS, import_fbx, joint_positions, read_fbx, up_axis_matrix
 from trumans.importers.fbx_nodes import parse_ascii, parse_binary, read_fbx_nodes
 from trumans.importers.joint_maps import detect_skeleton, floor_height, place_pelvis

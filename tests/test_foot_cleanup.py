@@ -1,11 +1,11 @@
-"""Foot cleanup of sampled episodes (sample.foot_cleanup): locks, floor, bone lengths, context."""
+"""Foot cleanup of sampled episodes (trumans.sample.cleanup.foot): locks, floor, bone lengths, context."""
 import numpy as np
 import pytest
 import torch
 
-from sample.foot_cleanup import LEGS, FootCleanupConfig, clean_feet, foot_contacts, support_foot, two_bone_positions
-from sample.sampler import bone_lengths_of
-from sample.synthesis_metrics import feet_skate_cm, floor_err_cm
+from trumans.sample.cleanup.foot import LEGS, FootCleanupConfig, clean_feet, foot_contacts, support_foot, two_bone_positions
+from trumans.sample.sampler import bone_lengths_of
+from trumans.eval.synthesis_metrics import feet_skate_cm, floor_err_cm
 from trumans.skeleton import rest_offsets, forward_kinematics
 
 FPS = 30.0
@@ -219,8 +219,8 @@ def test_out_of_scene_moves_feet_out_of_furniture_and_keeps_locks():
     """A planted foot 2 cm inside a box's front face moves out along -x until both ankle and toe clear
     their core radii; a lock's frames move together; a foot in the open is untouched; a free foot
     under the top goes up."""
-    from sample.foot_cleanup import out_of_scene
-    from sample.penetration_guidance import SceneSDF
+    from trumans.sample.cleanup.foot import out_of_scene
+    from trumans.sample.guidance.penetration import SceneSDF
     from test_penetration_guidance import _box_room
 
     sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4]
@@ -286,8 +286,8 @@ def test_a_lock_out_of_the_legs_reach_ends_its_contact_run():
 def test_knee_bent_into_a_wall_turns_outward_with_bone_lengths_kept():
     """A knee 3 cm inside a wall in front of the body turns about the hip-ankle axis until it is its
     core radius clear; hip and ankle stay, both bones keep their lengths; a knee in the open stays."""
-    from sample.foot_cleanup import knee_out_of_scene
-    from sample.penetration_guidance import SceneSDF
+    from trumans.sample.cleanup.foot import knee_out_of_scene
+    from trumans.sample.guidance.penetration import SceneSDF
     from test_penetration_guidance import _box_room
 
     sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4], z < 1

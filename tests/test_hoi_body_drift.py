@@ -1,9 +1,9 @@
-"""The whole-body drift seen by the planted feet (trumans.hoi.body_drift)."""
+"""The whole-body drift seen by the planted feet (trumans.refine.body_drift)."""
 import numpy as np
 import pytest
 
-from trumans.hoi.body_drift import FOOT_JOINTS, DriftConfig, estimate_body_drift, remove_body_drift, stance_mask
-from trumans.hoi.frame import FRAME_DIM, JOINTS
+from trumans.refine.body_drift import FOOT_JOINTS, DriftConfig, estimate_body_drift, remove_body_drift, stance_mask
+from trumans.refine.frame import FRAME_DIM, JOINTS
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS
 
 FPS = 30.0

@@ -1,10 +1,10 @@
-"""trumans.hoi.foot_lock: planted foot joints pinned, the legs following by IK, rotations kept consistent."""
+"""trumans.refine.foot_lock: planted foot joints pinned, the legs following by IK, rotations kept consistent."""
 import numpy as np
 import pytest
 
-from trumans.hoi.body_drift import DriftConfig, stance_mask
-from trumans.hoi.foot_lock import LockConfig, lock_feet
-from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_T, ROTATIONS
+from trumans.refine.body_drift import DriftConfig, stance_mask
+from trumans.refine.foot_lock import LockConfig, lock_feet
+from trumans.refine.frame import FRAME_DIM, JOINTS, OBJ_T, ROTATIONS
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
 from trumans.skeleton import JOINT_INDEX, forward_kinematics, rest_offsets
 

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.hoi import (COND_DIM, FRAME_DIM, CorruptionConfig, add_clean_imu, blend_windows, condition_features,
+from trumans.refine import (COND_DIM, FRAME_DIM, CorruptionConfig, add_clean_imu, blend_windows, condition_features,
                          corrupt, frames_from_sequence, from_frame, pack_frames, resample_frames,
                          sequence_from_frames, simulate_imu_acc, to_frame, unpack_frames, window_frame,
                          window_starts, window_weights)
-from trumans.hoi.frame import IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS
-from trumans.hoi.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_vel
+from trumans.refine.frame import IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS
+from trumans.refine.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_vel
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence, load_sequence, save_sequence
 from trumans.skeleton import forward_kinematics, rest_offsets

@@ -1,10 +1,10 @@
-"""trumans.hoi.object_hinge: a hinged object's translation from its rotation and one fitted hinge."""
+"""trumans.refine.object_hinge: a hinged object's translation from its rotation and one fitted hinge."""
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from trumans.hoi.frame import FRAME_DIM, OBJ_R, OBJ_T
-from trumans.hoi.object_hinge import HINGED_CATEGORIES, fit_hinge
+from trumans.refine.frame import FRAME_DIM, OBJ_R, OBJ_T
+from trumans.refine.object_hinge import HINGED_CATEGORIES, fit_hinge
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
 FPS = 30.0
@@ -73,7 +73,7 @@ def test_fit_hinge_leaves_an_object_that_hardly_turns_and_bad_inputs_fail():
 
 
 def test_hinged_categories_are_the_data_worlds_hinged_objects():
-    from scenes.furniture import door
+    from trumans.scenes.furniture import door
 
     d = door(np.random.default_rng(0), "door_0", wall_thickness=0.12)
     assert d.dof == "hinge" and d.category in HINGED_CATEGORIES

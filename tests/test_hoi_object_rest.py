@@ -1,10 +1,10 @@
-"""Object rests pooled over the whole rest (trumans.hoi.object_rest)."""
+"""Object rests pooled over the whole rest (trumans.refine.object_rest)."""
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from trumans.hoi.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
-from trumans.hoi.object_rest import RestConfig, held_mask, pool_rest, rest_mask
+from trumans.refine.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
+from trumans.refine.object_rest import RestConfig, held_mask, pool_rest, rest_mask
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
 from trumans.skeleton import JOINT_INDEX
 

@@ -1,12 +1,12 @@
-"""trumans.hoi.outliers: flipped object rotations found by their neighbours' vote."""
+"""trumans.refine.outliers: flipped object rotations found by their neighbours' vote."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from trumans.hoi.frame import FRAME_DIM, OBJ_R, OBJ_T
-from trumans.hoi.outliers import drop_object_flips, object_flip_labels, object_flip_mask, unflip_object
+from trumans.refine.frame import FRAME_DIM, OBJ_R, OBJ_T
+from trumans.refine.outliers import drop_object_flips, object_flip_labels, object_flip_mask, unflip_object
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
 
@@ -101,8 +101,8 @@ def test_bad_inputs():
 
 
 def test_frozen_frames_are_exact_repeats_and_become_missing():
-    from trumans.hoi.frame import IMU_R, JOINTS
-    from trumans.hoi.outliers import drop_frozen_frames, frozen_frame_mask
+    from trumans.refine.frame import IMU_R, JOINTS
+    from trumans.refine.outliers import drop_frozen_frames, frozen_frame_mask
 
     f = np.random.default_rng(1).normal(size=(20, FRAME_DIM)).astype(np.float32)
     f[6:9] = f[5]  # the tracker repeats frame 5 three times

@@ -1,12 +1,12 @@
-"""The filter's linear skip for joints (trumans.hoi.wiener): neighbourhoods, the closed-form fit on
+"""The filter's linear skip for joints (trumans.refine.wiener): neighbourhoods, the closed-form fit on
 known cases, translation equivariance, checkpoint round trip and errors."""
 import numpy as np
 import pytest
 import torch
 
-from trumans.hoi.filter import FilterModel, configure_skip, filter_denoiser_config, FilterNetConfig
-from trumans.hoi.frame import FRAME_DIM, JOINTS
-from trumans.hoi.wiener import JointWiener, fit_joint_wiener, neighbourhoods
+from trumans.refine.filter import FilterModel, configure_skip, filter_denoiser_config, FilterNetConfig
+from trumans.refine.frame import FRAME_DIM, JOINTS
+from trumans.refine.wiener import JointWiener, fit_joint_wiener, neighbourhoods
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import Normalizer

@@ -1,4 +1,4 @@
-"""sample.interactions: tracked doors and drawers stay within their range; a small object is
+"""trumans.track.interactions: tracked doors and drawers stay within their range; a small object is
 attached when the hand reaches its grasp point, furniture when the hand stops on it."""
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from sample.carry import _dof_value
-from sample.interactions import Interaction, _attach, _drive_one, attach_detach, clip_to_limits
-from sample.object_choice import ObjectQueries
-from scenes.procedural import make_room
-from scenes.scene import Scene, SceneObject
-from trumans.contacts.objects import rotation_about_axis
-from trumans.contacts.postprocess import ContactSegment
+from trumans.sample.carry import _dof_value
+from trumans.track.interactions import Interaction, _attach, _drive_one, attach_detach, clip_to_limits
+from trumans.track.object_choice import ObjectQueries
+from trumans.scenes.procedural import make_room
+from trumans.scenes.scene import Scene, SceneObject
+from trumans.track.objects import rotation_about_axis
+from trumans.track.postprocess import ContactSegment
 from trumans.skeleton import JOINT_INDEX
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sample.interactions import TrackerConfig, attach_detach, track
-from sample.object_choice import grasp_targets
-from sample.interactions_cli import main as interactions_main
-from trumans.contacts.labels import moving_intervals
-from trumans.contacts.model_io import DEFAULT_CHECKPOINT, load_predictor
+from trumans.track.interactions import TrackerConfig, attach_detach, track
+from trumans.track.object_choice import grasp_targets
+from trumans.track.cli import main as interactions_main
+from trumans.track.labels import moving_intervals
+from trumans.track.model_io import DEFAULT_CHECKPOINT, load_predictor
 from trumans.dataset import Dataset
 from trumans.sequence import Sequence, load_sequence, save_sequence
 

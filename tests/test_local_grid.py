@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes.local_grid import local_grids, local_points
-from scenes.occupancy import OccupancyGrid, compute_occupancy
+from trumans.scenes.local_grid import local_grids, local_points
+from trumans.scenes.occupancy import OccupancyGrid, compute_occupancy
 
 V = 0.02
 
@@ -113,10 +113,10 @@ def test_scene_grids_without_cached_occupancy_share_a_memo():
     from its cached grid, and scene variations reuse the voxelised static part and object meshes."""
     import trimesh
 
-    from scenes import furniture
-    from scenes.occupancy import scene_occupancy
-    from scenes.scene import Scene
-    from scenes.scene_grids import SceneGrids
+    from trumans.scenes import furniture
+    from trumans.scenes.occupancy import scene_occupancy
+    from trumans.scenes.scene import Scene
+    from trumans.scenes.scene_grids import SceneGrids
 
     rng = np.random.default_rng(0)
     floor = trimesh.creation.box((3.0, 3.0, 0.1))

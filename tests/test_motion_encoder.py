@@ -1,4 +1,4 @@
-"""trumans.model.motion_encoder: windows, FID / diversity / accuracy, the network, the shipped weights."""
+"""trumans.eval.motion_encoder: windows, FID / diversity / accuracy, the network, the shipped weights."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.model.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
+from trumans.eval.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
                                           MotionEncoderNet, action_acc, diversity, dominant_action, fid,
                                           like_sample, load_motion_encoder, matched_weights, motion_windows,
                                           split_features)
-from trumans.bvh import import_bvh
+from trumans.importers.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
 from trumans.synth.cases import make_case
@@ -193,7 +193,7 @@ def test_bad_checkpoints_are_refused(tmp_path):
 
 
 def test_shipped_encoder_loads_and_recognises_actions():
-    assert DEFAULT_MOTION_ENCODER.is_file(), "models/motion_encoder.pt is missing (python -m train.motion_encoder)"
+    assert DEFAULT_MOTION_ENCODER.is_file(), "models/motion_encoder.pt is missing (python -m trumans.train.tasks.motion_encoder)"
     assert DEFAULT_MOTION_ENCODER.stat().st_size < 3 * 2**20
     enc = load_motion_encoder()
     assert len(enc.vocabulary) == enc.cfg.num_actions and "walk" in enc.vocabulary

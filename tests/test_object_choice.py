@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from sample.object_choice import ObjectQueries, choose_free_object, object_candidates, release_support_gap
-from scenes.scene import Scene, SceneObject
+from trumans.track.object_choice import ObjectQueries, choose_free_object, object_candidates, release_support_gap
+from trumans.scenes.scene import Scene, SceneObject
 
 
 def _at(x: float, y: float, z: float) -> np.ndarray:

@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes import Scene, SceneObject
-from scenes import occupancy as occmod
-from scenes.occupancy import OccupancyGrid, compute_occupancy, scene_occupancy
+from trumans.scenes import Scene, SceneObject
+from trumans.scenes import occupancy as occmod
+from trumans.scenes.occupancy import OccupancyGrid, compute_occupancy, scene_occupancy
 
 V = 0.02
 BOUNDS = np.array([[-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]])

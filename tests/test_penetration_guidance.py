@@ -1,14 +1,14 @@
-"""Scene-penetration guidance (sample.penetration_guidance and its use in sample.sampler)."""
+"""Scene-penetration guidance (trumans.sample.guidance.penetration and its use in trumans.sample.sampler)."""
 from __future__ import annotations
 
 import numpy as np
 import torch
 
-from sample.penetration_guidance import SceneSDF, penetration_loss
-from sample.rollout import start_context
-from sample.sampler import EpisodeSampler, Goal, SamplerConfig
-from scenes.occupancy import OccupancyGrid
-from scenes.scene_grids import SceneGrids
+from trumans.sample.guidance.penetration import SceneSDF, penetration_loss
+from trumans.sample.rollout import start_context
+from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.scenes.scene_grids import SceneGrids
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 
 from test_sample_rollout import VOCAB, tiny_checkpoint

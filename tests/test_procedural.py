@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes import furniture as F
-from scenes.procedural import (
+from trumans.scenes import furniture as F
+from trumans.scenes.procedural import (
     _overlap,
     approach_points,
     floor_footprints,
@@ -347,9 +347,9 @@ def test_with_occupancy_walkability_and_io(tmp_path):
     """Cross-check with the scene tools: every approach point is walkable on the ray-cast
     occupancy grid (body radius 0.12 m) and a path leads there from the door; the room survives
     a save/load round trip with watertight meshes and identical meta."""
-    from scenes.io import load_scene, save_scene
-    from scenes.occupancy import scene_occupancy
-    from scenes.walkability import plan_path, walkable_map
+    from trumans.scenes.io import load_scene, save_scene
+    from trumans.scenes.occupancy import scene_occupancy
+    from trumans.scenes.walkability import plan_path, walkable_map
 
     for s in (0, 1):
         sc = make_room(s)

@@ -1,14 +1,14 @@
-"""Reach cleanup (sample.reach_cleanup): the arm onto its hand target, lean, blend, schedule, errors."""
+"""Reach cleanup (trumans.sample.cleanup.reach): the arm onto its hand target, lean, blend, schedule, errors."""
 import argparse
 
 import numpy as np
 import pytest
 
-from sample.controller import Controller, Phase
-from sample.reach_cleanup import (ARMS, ReachCleanupConfig, clean_reach, lean_angle, reach_schedule,
+from trumans.sample.controller import Controller, Phase
+from trumans.sample.cleanup.reach import (ARMS, ReachCleanupConfig, clean_reach, lean_angle, reach_schedule,
                                   release_weights, tilt_limit)
-from sample.sampler import bone_lengths_of
-from sample.sampling_args import add_postprocess_arguments, postprocess_kwargs
+from trumans.sample.sampler import bone_lengths_of
+from trumans.sample.sampling_args import add_postprocess_arguments, postprocess_kwargs
 from trumans.rotations import rodrigues
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS, SUBTREE
 
@@ -203,13 +203,13 @@ def test_no_reach_cleanup_flag():
 def test_rollout_reaches_the_hand_goal_or_stretches_toward_it(goal, reached):
     from test_sample_rollout import tiny_checkpoint
 
-    from sample.plan import plan_from_dict
-    from sample.rollout import sample_plan
-    from sample.sampler import EpisodeSampler, SamplerConfig
-    from scenes.occupancy import OccupancyGrid
-    from scenes.scene import Scene
-    from scenes.scene_grids import SceneGrids
-    from scenes.walkability import walkable_map
+    from trumans.sample.plan import plan_from_dict
+    from trumans.sample.rollout import sample_plan
+    from trumans.sample.sampler import EpisodeSampler, SamplerConfig
+    from trumans.scenes.occupancy import OccupancyGrid
+    from trumans.scenes.scene import Scene
+    from trumans.scenes.scene_grids import SceneGrids
+    from trumans.scenes.walkability import walkable_map
 
     grid = np.zeros((120, 120, 120), dtype=bool)
     grid[:, :, :5] = True  # floor

@@ -187,7 +187,7 @@ def test_put_down_by_the_other_hand_takes_it_over_where_the_palms_meet():
 def test_removing_a_blocking_piece_removes_its_parts_and_what_stands_on_them():
     import trimesh
 
-    from scenes.scene import Scene, SceneObject
+    from trumans.scenes.scene import Scene, SceneObject
     from trumans.synth.real_place import _remove
 
     box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))

@@ -4,10 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.io import load_scene
-from scenes.occupancy import scene_occupancy
-from scenes.scene import Scene
-from scenes.walkability import walkable_map
+from trumans.scenes.io import load_scene
+from trumans.scenes.occupancy import scene_occupancy
+from trumans.scenes.scene import Scene
+from trumans.scenes.walkability import walkable_map
 from trumans.dataset import Dataset
 from trumans.mocap_corpus import HELD_OUT_SUBJECTS, load_corpus
 from trumans.motion_labels import MOTION_STATES
@@ -153,7 +153,7 @@ def test_realism_source_filter(built, capsys):
     import json
 
     from trumans.cli import console_main
-    from trumans.realism_cli import load_clips
+    from trumans.eval.realism_cli import load_clips
 
     out, s = built
     index = json.loads((out / "index.json").read_text())

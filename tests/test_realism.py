@@ -1,4 +1,4 @@
-"""trumans.motion_labels, trumans.mocap_corpus and trumans.realism: states, the shipped corpus, statistics."""
+"""trumans.motion_labels, trumans.mocap_corpus and trumans.eval.realism: states, the shipped corpus, statistics."""
 import json
 from pathlib import Path
 
@@ -8,7 +8,7 @@ import pytest
 from trumans.mocap_corpus import (CORPUS_PATH, HELD_OUT_SUBJECTS, convert_clip, decode_joints,
                                   drop_tpose_frame, encode_joints, load_corpus, write_corpus)
 from trumans.motion_labels import MOTION_STATES, label_states, segments
-from trumans.realism import STATISTICS, clip_statistics, compare, reference_range
+from trumans.eval.realism import STATISTICS, clip_statistics, compare, reference_range
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import REST_JOINTS
 

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 import torch
 
-from sample.eval_refine import _clip_figures, tune_savgol
-from sample.refine import HOIFilter, RefineOptions
-from trumans.hoi import FRAME_DIM, add_clean_imu, frames_from_sequence
-from trumans.hoi.data import FilterWindows, window_objects
-from trumans.hoi.filter import FilterModel, FilterNetConfig, category_indices, filter_denoiser_config
-from trumans.hoi.frame import IMU_FLAG, JOINTS, OBJ_T, ROTATIONS
+from trumans.refine.evaluate import _clip_figures, tune_savgol
+from trumans.refine.pipeline import HOIFilter, RefineOptions
+from trumans.refine import FRAME_DIM, add_clean_imu, frames_from_sequence
+from trumans.refine.data import FilterWindows, window_objects
+from trumans.refine.filter import FilterModel, FilterNetConfig, category_indices, filter_denoiser_config
+from trumans.refine.frame import IMU_FLAG, JOINTS, OBJ_T, ROTATIONS
 from trumans.model.checkpoint import Checkpoint, save_checkpoint
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import Normalizer
@@ -174,9 +174,9 @@ def _dataset(root):
 
 
 def test_filter_task_trains_through_the_loop(tmp_path):
-    from train.filter_task import FilterTask, _phase_weights
-    from train.loop import train
-    from train.tasks import make_task
+    from trumans.train.tasks.filter import FilterTask, _phase_weights
+    from trumans.train.loop import train
+    from trumans.train.tasks import make_task
 
     data = _dataset(tmp_path / "data")
     task = make_task("filter", overrides={"net": NET.to_dict(), "diffusion": DIFF.to_dict(),
@@ -206,7 +206,7 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     assert train(ft, data, tmp_path / "ft2", steps=2, progress=False, init=tmp_path / "run" / "checkpoint.pt").steps == 2
     with pytest.raises(ValueError, match="not in this data's vocabulary"):
         ft.train_data.only(["chair"])
-    from train.filter_task import real_motion_windows
+    from trumans.train.tasks.filter import real_motion_windows
     real = real_motion_windows(16, 30.0, stride=200)  # the corpus's train split, joints only
     assert real.shape[1:] == (16, FRAME_DIM) and np.isfinite(real[..., JOINTS]).all() and np.isnan(real[..., OBJ_T]).all()
     b = task.batch(0, 0, 1)
@@ -280,7 +280,7 @@ def test_eval_refine_command(tmp_path, capsys):
 
 
 def test_smooth_time():
-    from trumans.hoi.filter import smooth_time
+    from trumans.refine.filter import smooth_time
 
     t = torch.arange(40, dtype=torch.float64)
     lin = torch.stack([t, 2 * t + 1], -1)[None]  # (1, 40, 2)
@@ -313,7 +313,7 @@ def test_refine_many_equals_one_by_one(tmp_path):
 
 
 def test_root_aligned_mpjpe_ignores_a_body_translation_and_real_clips_are_body_only():
-    from sample.eval_refine import _real_clips, _root_aligned
+    from trumans.refine.evaluate import _real_clips, _root_aligned
 
     rng = np.random.default_rng(0)
     Jc = rng.normal(size=(20, 24, 3))
@@ -334,7 +334,7 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
     """Flips are turned back at the input's rate: resampling 45 -> 30 fps never blends a flipped frame
     with an unflipped one (halfway between R and R S_z the 6D average has no first column, so its
     orthonormalisation is arbitrary)."""
-    from trumans.hoi.frame import OBJ_R
+    from trumans.refine.frame import OBJ_R
     from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
     filt = HOIFilter.load(_ckpt(tmp_path / "f.pt"))
@@ -348,8 +348,8 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
 
 
 def test_foot_skate_counts_slides_over_the_truths_planted_runs():
-    from sample.eval_refine import _skate_cm
-    from trumans.hoi.body_drift import FOOT_JOINTS
+    from trumans.refine.evaluate import _skate_cm
+    from trumans.refine.body_drift import FOOT_JOINTS
 
     T = 20
     Jc = np.zeros((T, 24, 3))

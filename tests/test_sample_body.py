@@ -1,16 +1,16 @@
-"""Sampling with a given body (`trumans sample --body SEQ.npz[:FRAME]`, sample.rollout.body_pose)."""
+"""Sampling with a given body (`trumans sample --body SEQ.npz[:FRAME]`, trumans.sample.rollout.body_pose)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from test_sample_rollout import open_room, tiny_checkpoint  # noqa: F401 - the fixture is used by name
 
-from sample.cli import body_frame
-from sample.plan import plan_from_dict
-from sample.rollout import body_pose, sample_plan, stream
-from sample.sampler import EpisodeSampler, SamplerConfig, bone_lengths_of
-from sample.support_lift import lowest_foot_height
-from scenes.scene_grids import SceneGrids
+from trumans.sample.cli import body_frame
+from trumans.sample.plan import plan_from_dict
+from trumans.sample.rollout import body_pose, sample_plan, stream
+from trumans.sample.sampler import EpisodeSampler, SamplerConfig, bone_lengths_of
+from trumans.sample.cleanup.support_lift import lowest_foot_height
+from trumans.scenes.scene_grids import SceneGrids
 from trumans.sequence import Sequence, save_sequence
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS, SUBTREE, heading
 

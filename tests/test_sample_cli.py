@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from sample.cli import steps_from_flags
+from trumans.sample.cli import steps_from_flags
 from trumans.cli import console_main
 from trumans.model.checkpoint import save_checkpoint
 from trumans.sequence import load_sequence

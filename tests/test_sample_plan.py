@@ -1,4 +1,4 @@
-"""sample.plan (parsing, validation) and sample.controller (phases, closed-loop episode controls)."""
+"""trumans.sample.plan (parsing, validation) and trumans.sample.controller (phases, closed-loop episode controls)."""
 from __future__ import annotations
 
 import json
@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
-from sample.controller import TURN_FREE_MARGIN_M, Controller, Phase, compile_plan, free_margin, sit_down_subgoal
-from sample.plan import Step, load_plan, plan_from_dict, validate_plan
-from scenes import furniture
-from scenes.occupancy import scene_occupancy
-from scenes.scene import Scene
-from scenes.walkability import walkable_map
+from trumans.sample.controller import TURN_FREE_MARGIN_M, Controller, Phase, compile_plan, free_margin, sit_down_subgoal
+from trumans.sample.plan import Step, load_plan, plan_from_dict, validate_plan
+from trumans.scenes import furniture
+from trumans.scenes.occupancy import scene_occupancy
+from trumans.scenes.scene import Scene
+from trumans.scenes.walkability import walkable_map
 
 VOCAB = ["stand", "walk", "sit_down", "sit", "stand_up", "drink", "reach", "lie_down", "lie", "get_up"]
 
@@ -259,7 +259,7 @@ def test_a_phase_done_in_place_waits_for_the_walk_before_it_to_end(kind, actions
 def _corner_map() -> tuple:
     """A 4 x 4 m walk map (5 cm cells) with a blocked 2 x 2 m block in its corner x, y > 1 m
     (a table the path turns around), and an L-shaped path along its two sides, 0.2 m off it."""
-    from scenes.walkability import WalkMap
+    from trumans.scenes.walkability import WalkMap
 
     xy = np.stack(np.meshgrid(np.arange(-1.0, 3.0, 0.05), np.arange(-1.0, 3.0, 0.05), indexing="ij"), -1)
     walkable = ~((xy[..., 0] > 1.0) & (xy[..., 1] > 1.0))
@@ -268,7 +268,7 @@ def _corner_map() -> tuple:
 
 
 def test_line_of_sight_arc_pulls_a_subgoal_past_a_corner_back_into_view():
-    from sample.controller import line_of_sight_arc, off_walkable
+    from trumans.sample.controller import line_of_sight_arc, off_walkable
 
     wm, path = _corner_map()
     off, cum = off_walkable(wm), np.array([0.0, 2.1, 4.2])
@@ -306,7 +306,7 @@ def test_controller_with_walkmap_does_not_aim_across_a_corner():
 
 def off_line_within(wm, line: np.ndarray, slack: float) -> bool:
     """Every point of ``line`` (N, 2) lies within ``slack`` m of walkable floor."""
-    from sample.controller import off_walkable
+    from trumans.sample.controller import off_walkable
 
     idx = np.clip(wm.index(line), 0, np.asarray(wm.walkable.shape) - 1)
     return bool((off_walkable(wm)[idx[:, 0], idx[:, 1]] <= slack + 1e-9).all())

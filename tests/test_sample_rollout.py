@@ -1,4 +1,4 @@
-"""sample.sampler / sample.rollout mechanics on a tiny untrained generator: masks honoured at the
+"""trumans.sample.sampler / trumans.sample.rollout mechanics on a tiny untrained generator: masks honoured at the
 episode ends, bone lengths kept, precomputed conditions equal to the naive sampler, streaming
 order and the incremental latency schedule. (Motion quality is the synthesis benchmark's job.)"""
 from __future__ import annotations
@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 import torch
 
-from sample.controller import Phase
-from sample.plan import plan_from_dict
-from sample.rollout import INCREMENTAL_SCHEDULE, sample_plan, start_context, stream
-from sample.sampler import EpisodeSampler, Goal, SamplerConfig, bone_lengths_of, project_bones
-from scenes.occupancy import OccupancyGrid
-from scenes.scene import Scene
-from scenes.scene_grids import SceneGrids
-from scenes.walkability import walkable_map
+from trumans.sample.controller import Phase
+from trumans.sample.plan import plan_from_dict
+from trumans.sample.rollout import INCREMENTAL_SCHEDULE, sample_plan, start_context, stream
+from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig, bone_lengths_of, project_bones
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.scenes.scene import Scene
+from trumans.scenes.scene_grids import SceneGrids
+from trumans.scenes.walkability import walkable_map
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import FeatureLayout, Normalizer
@@ -124,7 +124,7 @@ def test_stream_incremental_schedule_and_new_plans(open_room):
 def test_external_mesh_as_scene_is_cached_and_sampled(tmp_path):
     import trimesh
 
-    from sample.scene_input import load_sample_scene
+    from trumans.sample.scene_input import load_sample_scene
 
     floor = trimesh.creation.box((4.0, 3.0, 0.1))
     floor.apply_translation([2.0, 1.5, -0.05])

@@ -102,9 +102,9 @@ def test_contacts_with_the_fitted_scene():
 
 
 def test_fitted_legs_are_disjoint_bodies_and_avoid_the_body():
-    """Legs share no vertex with the top (else the inside test of scenes.distance sees one open
+    """Legs share no vertex with the top (else the inside test of trumans.scenes.distance sees one open
     body and calls points beside a leg inside); a leg on a joint's path is left out."""
-    from scenes.distance import SceneDistance
+    from trumans.scenes.distance import SceneDistance
     from trumans.scene_fit import LEG_CLEAR_M, SEAT_LEG_M, box_object
 
     seat = box_object("s", "seat", 1.0, 2.0, 0.3, 0.4, 0.38, 0.45, {}, legs=True)

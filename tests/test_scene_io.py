@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes import Scene, SceneObject
-from scenes.io import Y_UP_TO_Z_UP, import_mesh, load_scene, save_scene
-from scenes.occupancy import scene_occupancy
+from trumans.scenes import Scene, SceneObject
+from trumans.scenes.io import Y_UP_TO_Z_UP, import_mesh, load_scene, save_scene
+from trumans.scenes.occupancy import scene_occupancy
 
 
 def make_scene() -> Scene:

@@ -1,15 +1,15 @@
-"""Post-episode push-out of the body from the scene (sample.scene_pushout) and its place in the rollout."""
+"""Post-episode push-out of the body from the scene (trumans.sample.cleanup.scene_pushout) and its place in the rollout."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
 
-from scenes.occupancy import OccupancyGrid
-from sample.foot_cleanup import LEGS, clean_feet
-from sample.penetration_guidance import SceneSDF
-from sample.sampler import bone_lengths_of
-from sample.scene_pushout import PushOutConfig, push_out, push_radii, seam_spline_basis
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.sample.cleanup.foot import LEGS, clean_feet
+from trumans.sample.guidance.penetration import SceneSDF
+from trumans.sample.sampler import bone_lengths_of
+from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out, push_radii, seam_spline_basis
 
 from trumans.skeleton import JOINT_INDEX
 

@@ -1,9 +1,9 @@
-"""Seam blending (sample.seams): the new frames continue the context's velocity, then the network's."""
+"""Seam blending (trumans.sample.cleanup.seam): the new frames continue the context's velocity, then the network's."""
 import numpy as np
 import pytest
 
-from sample.seams import blend_seam, seam_weights
-from sample.synthesis_metrics import transition_jerk_ratio
+from trumans.sample.cleanup.seam import blend_seam, seam_weights
+from trumans.eval.synthesis_metrics import transition_jerk_ratio
 
 
 def test_weights_fall_smoothly_from_one_to_zero():

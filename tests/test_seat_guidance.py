@@ -1,14 +1,14 @@
-"""Seated pelvis height guidance (sample.seat_guidance + Goal.pelvis_z in sample.sampler)."""
+"""Seated pelvis height guidance (trumans.sample.guidance.seat + Goal.pelvis_z in trumans.sample.sampler)."""
 from __future__ import annotations
 
 import numpy as np
 import torch
 
-from sample.controller import Phase
-from sample.rollout import start_context
-from sample.sampler import EpisodeSampler, Goal, SamplerConfig
-from sample.seat_guidance import seated_heights
-from scenes.scene_grids import SceneGrids
+from trumans.sample.controller import Phase
+from trumans.sample.rollout import start_context
+from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
+from trumans.sample.guidance.seat import seated_heights
+from trumans.scenes.scene_grids import SceneGrids
 from trumans.skeleton import JOINT_INDEX
 
 from test_sample_rollout import VOCAB, open_room, tiny_checkpoint  # noqa: F401 (fixture)
@@ -46,7 +46,7 @@ def test_sit_offset_rests_the_seat_joints_on_the_seat():
     from trumans.skeleton import SEAT, forward_kinematics, rest_offsets
     from trumans.synth.posture import seat_clearance, seated_state
 
-    from sample.rollout import sit_offset
+    from trumans.body import sit_offset
 
     for scale in (0.9, 1.0, 1.1):
         off = rest_offsets(scale)

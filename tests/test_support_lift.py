@@ -1,9 +1,9 @@
-"""Support lift (sample.support_lift): weights from the action labels, the body raised onto its feet."""
+"""Support lift (trumans.sample.cleanup.support_lift): weights from the action labels, the body raised onto its feet."""
 import numpy as np
 import pytest
 
-from sample.foot_cleanup import FOOT_REST
-from sample.support_lift import lift_onto_feet, lowest_foot_height, support_weights
+from trumans.sample.cleanup.foot import FOOT_REST
+from trumans.sample.cleanup.support_lift import lift_onto_feet, lowest_foot_height, support_weights
 from trumans.skeleton import JOINT_INDEX
 
 VOCAB = ["walk", "stand", "sit_down", "sit", "stand_up", "lie", "drink"]
@@ -75,7 +75,7 @@ def test_bad_inputs_raise():
 def test_no_support_lift_flag():
     import argparse
 
-    from sample.sampling_args import add_postprocess_arguments, postprocess_kwargs
+    from trumans.sample.sampling_args import add_postprocess_arguments, postprocess_kwargs
 
     p = argparse.ArgumentParser()
     add_postprocess_arguments(p)

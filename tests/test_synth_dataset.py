@@ -9,7 +9,7 @@ import pytest
 from trumans.cli import main
 from trumans.dataset import Dataset
 from trumans.skeleton import bone_lengths, forward_kinematics, rest_offsets
-from trumans import metrics
+from trumans.eval import metrics
 from trumans.synth.build import SynthConfig, build_dataset, split_rooms
 from trumans.synth.vocab import SYNTH_ACTIONS
 

@@ -4,7 +4,7 @@ import pytest
 
 from scipy.signal import find_peaks
 
-from trumans.realism import _knee_angle, clip_statistics
+from trumans.eval.realism import _knee_angle, clip_statistics
 from trumans.skeleton import JOINT_INDEX, rest_offsets
 from trumans.synth.locomotion import walk
 

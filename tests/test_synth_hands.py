@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes.scene import SceneObject
+from trumans.scenes.scene import SceneObject
 from trumans.skeleton import JOINT_INDEX, bone_lengths, rest_offsets
 from trumans.contacts.rule import JOINT_RADIUS
 from trumans.synth import hands, locomotion, posture
@@ -48,7 +48,7 @@ def door() -> SceneObject:
     leaf = trimesh.creation.box(bounds=[[-th / 2, -w / 2, 0], [th / 2, w / 2, hgt]])
     yh = -(w / 2 - 0.08)
     lever = trimesh.creation.box(bounds=[[th / 2, yh - 0.06, 0.988], [th / 2 + 0.06, yh + 0.06, 1.012]])
-    # Opens into the person's side (+x), as scenes.furniture.door: hinge on the +x face at +y.
+    # Opens into the person's side (+x), as trumans.scenes.furniture.door: hinge on the +x face at +y.
     meta = {"handle": [th / 2 + 0.045, yh, 1.0], "max_angle": 1.4, "open_sign": 1.0, "width": w}
     return SceneObject("door_0", "door", trimesh.util.concatenate([leaf, lever]), dof="hinge",
                        hinge_point=np.array([th / 2, w / 2, 0.0]), axis=np.array([0.0, 0.0, 1.0]),

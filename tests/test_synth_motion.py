@@ -198,7 +198,7 @@ def test_feet_do_not_slide_while_touching_the_floor(scale, seed):
     only once the toe is clear of the floor: the foot joint does not slide while it is within the
     contact band (the builder's floor contact), in walks and in turns in place."""
     from trumans.contacts.rule import CONTACT_THRESHOLD, JOINT_RADIUS
-    from trumans.metrics import foot_slides
+    from trumans.eval.metrics import foot_slides
 
     rng = np.random.default_rng(seed)
     off = rest_offsets(scale)

@@ -4,13 +4,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes.occupancy import scene_occupancy
-from scenes.procedural import make_room
-from scenes.io import save_scene
+from trumans.scenes.occupancy import scene_occupancy
+from trumans.scenes.procedural import make_room
+from trumans.scenes.io import save_scene
 from trumans.contacts.rule import CONTACT_THRESHOLD, JOINT_RADIUS, contact_rule
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import forward_kinematics
-from trumans import metrics
+from trumans.eval import metrics
 from trumans.synth import lying, posture
 from trumans.synth.locomotion import foot_places
 from trumans.synth.activities import ACTIVITIES

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from trumans.motion_labels import body_features
-from trumans.realism import clip_statistics
+from trumans.eval.realism import clip_statistics
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import bone_lengths, forward_kinematics, rest_offsets
 from trumans.synth import lying, posture

@@ -12,8 +12,8 @@ import pytest
 import torch
 
 from test_train import TINY_TOML, make_tiny_dataset
-from train.config import GeneratorConfig, TrainSection, build_config, load_config
-from train.tasks import TASKS, TaskLoss, make_task, register_task
+from trumans.train.config import GeneratorConfig, TrainSection, build_config, load_config
+from trumans.train.tasks import TASKS, TaskLoss, make_task, register_task
 from trumans.model.checkpoint import KINDS, Checkpoint, KindSpec, load_checkpoint
 from trumans.model.nets import DenoiserConfig
 
@@ -168,7 +168,7 @@ class RegressionTask:
 
 
 def test_a_second_task_trains_and_resumes_exactly(tmp_path: Path, monkeypatch) -> None:
-    from train.loop import train
+    from trumans.train.loop import train
 
     monkeypatch.setitem(KINDS, "contact", KindSpec(config_from_dict=lambda d: LinearConfig(**d),
                                                    build=lambda c: torch.nn.Linear(c.width, 1, bias=False)))
@@ -191,7 +191,7 @@ def test_a_second_task_trains_and_resumes_exactly(tmp_path: Path, monkeypatch) -
 
 
 def test_generator_with_cosine_v_and_refused_resumes(tmp_path: Path) -> None:
-    from train.loop import train
+    from trumans.train.loop import train
 
     data = make_tiny_dataset(tmp_path / "data", num_seqs=3, frames=90)
     p = tmp_path / "t.toml"
@@ -223,7 +223,7 @@ class DivergingTask(RegressionTask):
 
 
 def test_a_diverging_run_stops_with_a_clear_error_and_keeps_its_checkpoint(tmp_path: Path, monkeypatch) -> None:
-    from train.loop import train
+    from trumans.train.loop import train
 
     monkeypatch.setitem(KINDS, "contact", KindSpec(config_from_dict=lambda d: LinearConfig(**d),
                                                    build=lambda c: torch.nn.Linear(c.width, 1, bias=False)))

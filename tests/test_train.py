@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from scenes.occupancy import OccupancyGrid
+from trumans.scenes.occupancy import OccupancyGrid
 from trumans.actions import ActionInterval, labels_from_intervals
 from trumans.dataset import content_hash, write_index
 from trumans.rotations import axis_angle_to_matrix
@@ -95,7 +95,7 @@ def tiny(tmp_path_factory):
 
 
 def test_config_loading_and_errors(tmp_path: Path) -> None:
-    from train.config import builtin_configs, load_config
+    from trumans.train.config import builtin_configs, load_config
 
     assert {"cpu-small", "paper"} <= set(builtin_configs())
     paper = load_config("paper")
@@ -122,9 +122,9 @@ def test_config_loading_and_errors(tmp_path: Path) -> None:
 
 
 def test_episodes_from_dataset(tiny) -> None:
-    from scenes.local_grid import local_grids
-    from train.config import load_config
-    from train.data import BatchStream, build_episodes, load_episodes
+    from trumans.scenes.local_grid import local_grids
+    from trumans.train.config import load_config
+    from trumans.train.data import BatchStream, build_episodes, load_episodes
     from trumans.dataset import Dataset
     from trumans.model.episodes import Normalizer, canonical_frame
     from trumans.resample import resample_sequence
@@ -170,8 +170,8 @@ def test_episodes_from_dataset(tiny) -> None:
 
 
 def test_pooled_batches_hold_each_pool_share_and_walk_each_pool_once_per_epoch(tiny) -> None:
-    from train.config import load_config
-    from train.data import BatchStream, build_episodes
+    from trumans.train.config import load_config
+    from trumans.train.data import BatchStream, build_episodes
     from trumans.dataset import Dataset
     from trumans.model.episodes import Normalizer
 
@@ -199,8 +199,8 @@ def test_pooled_batches_hold_each_pool_share_and_walk_each_pool_once_per_epoch(t
 
 
 def test_resume_equals_uninterrupted_run(tiny, tmp_path: Path) -> None:
-    from train.config import load_config
-    from train.loop import train
+    from trumans.train.config import load_config
+    from trumans.train.loop import train
     from trumans.model.checkpoint import load_checkpoint
 
     root, cfg_path = tiny
@@ -254,10 +254,10 @@ def test_cli_train_json_and_eval(tiny, tmp_path: Path, capsys) -> None:
 def test_scene_grids_place_dynamic_objects_at_episode_start() -> None:
     import trimesh
 
-    from scenes.local_grid import local_grids
-    from scenes.occupancy import scene_occupancy
-    from scenes.scene import Scene, SceneObject
-    from scenes.scene_grids import SceneGrids
+    from trumans.scenes.local_grid import local_grids
+    from trumans.scenes.occupancy import scene_occupancy
+    from trumans.scenes.scene import Scene, SceneObject
+    from trumans.scenes.scene_grids import SceneGrids
 
     wall = trimesh.creation.box((0.2, 3.0, 2.0), trimesh.transformations.translation_matrix([1.5, 0, 1.0]))
     pose = trimesh.transformations.translation_matrix([0.3, 0.0, 0.25])
@@ -282,8 +282,8 @@ def test_scene_grids_place_dynamic_objects_at_episode_start() -> None:
 
 
 def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: Path) -> None:
-    from train.config import load_config
-    from train.loop import train
+    from trumans.train.config import load_config
+    from trumans.train.loop import train
     from trumans.model.checkpoint import load_checkpoint
 
     root, cfg_path = tiny
@@ -313,8 +313,8 @@ def test_augmented_data_joins_train_split_and_ablation_drops_it(tiny, tmp_path: 
 
 
 def test_run_folder_has_one_writer_and_sweeps_killed_temp_files(tiny, tmp_path: Path) -> None:
-    from train.config import load_config
-    from train.loop import train
+    from trumans.train.config import load_config
+    from trumans.train.loop import train
     from trumans.io_lock import FolderLock, FolderLocked
 
     root, cfg_path = tiny

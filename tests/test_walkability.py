@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes.occupancy import OccupancyGrid, compute_occupancy
-from scenes.walkability import NoPathError, WalkMap, nearest_walkable, plan_path, walkable_map
+from trumans.scenes.occupancy import OccupancyGrid, compute_occupancy
+from trumans.scenes.walkability import NoPathError, WalkMap, nearest_walkable, plan_path, walkable_map
 
 V = 0.02
 

@@ -13,7 +13,7 @@ import math
 import shutil
 from pathlib import Path, PurePosixPath
 
-from scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
+from trumans.scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 
 from .sequence import Sequence, atomic_write, load_sequence
 
@@ -189,8 +189,8 @@ class Dataset:
         return OccupancyGrid.load(self.scene_dir(scene_id) / OCCUPANCY_FILE)
 
     def scene(self, scene_id: str):
-        """The ``scenes.Scene`` of ``scene_id`` (meshes + objects), read from its folder."""
-        from scenes.io import load_scene
+        """The ``trumans.scenes.Scene`` of ``scene_id`` (meshes + objects), read from its folder."""
+        from trumans.scenes.io import load_scene
 
         return load_scene(self.scene_dir(scene_id))
 

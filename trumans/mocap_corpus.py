@@ -20,11 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from .motion_labels import MOTION_STATES
+from trumans.paths import DATA_DIR
 
 __all__ = ["CORPUS_PATH", "QUANTUM_M", "HELD_OUT_SUBJECTS", "MocapClip", "encode_joints", "decode_joints",
            "write_corpus", "load_corpus", "drop_tpose_frame"]
 
-CORPUS_PATH = Path(__file__).resolve().parents[1] / "data" / "mocap" / "cmu_corpus.npz"
+CORPUS_PATH = DATA_DIR / "mocap" / "cmu_corpus.npz"
 QUANTUM_M = 1e-4
 HELD_OUT_SUBJECTS = ("08", "86", "111", "114", "132")  # walking, sitting down / up, lying: evaluation only
 

@@ -1,7 +1,7 @@
 """Scenes fitted to real motion: a seat under every seated pelvis, a bed under a raised lying body,
 a table under a resting hand (``fit_tables``).
 
-Seats stand on the floor (category "seat", ``scenes.furniture`` frame conventions: origin at the
+Seats stand on the floor (category "seat", ``trumans.scenes.furniture`` frame conventions: origin at the
 footprint centre on the floor, +x = the direction the sitter faces). From the seated run of
 frames (``trumans.motion_labels``): the facing direction is the mean horizontal thigh direction;
 the seat top is ``SEAT_BELOW_HIP_M`` under the hip joints (their ``SEAT_HIP_PERCENTILE``-th
@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from scenes.furniture import GAP, yaw_pose
-from scenes.scene import Scene, SceneObject
+from trumans.scenes.furniture import GAP, yaw_pose
+from trumans.scenes.scene import Scene, SceneObject
 
 from .motion_labels import MOTION_STATES, segments
 from .skeleton import JOINT_INDEX as J
@@ -58,7 +58,7 @@ def box_object(name: str, category: str, x: float, y: float, yaw: float, depth: 
     """A box (depth, width, height) m standing on the floor; with ``legs`` a top of ``SEAT_TOP_M``
     on four ``SEAT_LEG_M`` square legs at its corners (feet tucked under a stool stay free), the
     legs ``GAP`` under the top (disjoint parts that share no vertex stay watertight bodies for the
-    inside tests of ``scenes.distance``; touching ones merge into one open body that is not). A leg
+    inside tests of ``trumans.scenes.distance``; touching ones merge into one open body that is not). A leg
     within ``LEG_CLEAR_M`` of a point of ``avoid`` (N, 3) world m (the body's joints) is left out
     (meta "legs" counts the rest)."""
     pose = yaw_pose(x, y, yaw)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.atomic import atomic_write  # the one implementation; re-exported here
+from trumans.scenes.atomic import atomic_write  # the one implementation; re-exported here
 
 from .skeleton import NUM_JOINTS
 

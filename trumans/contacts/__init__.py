@@ -1,9 +1,5 @@
-"""Contacts between the body and the scene.
+"""The TRUMANS contact rule between the body and the scene (TRUMANS §3.3, appendix B.5).
 
-``rule`` the TRUMANS joint contact rule; ``intervals`` per-frame runs / intervals, half-open
-``[start, end)``; iReplica's interaction tracking (§4): ``predictor`` the per-hand contact
-transformer, ``per_dof`` one such model per dof class instead of the class head, ``labels`` its
-training labels, ``model_io`` its checkpoints, ``postprocess``
-thresholds / gap filling / contact segments, ``trajectory`` the bending-energy root correction,
-``objects`` object motion driven by the hands, ``scores`` AP and friends.
+``rule`` the joint contact rule (signed distances of body points to the scene's objects);
+``intervals`` per-joint contact intervals, half-open ``[start, end)``.
 """

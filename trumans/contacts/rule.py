@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from scenes.distance import DistanceResult, SceneDistance
-from scenes.scene import Scene
+from trumans.scenes.distance import DistanceResult, SceneDistance
+from trumans.scenes.scene import Scene
 
 from trumans.rotations import unit
 from trumans.skeleton import INDEX1, JOINT_INDEX, KNEES, NUM_JOINTS, SEAT, WRISTS

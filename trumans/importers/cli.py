@@ -133,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
         named = [(f"trumans_{i:05d}", s) for i, s in enumerate(seqs)]
         grids, name = rel.scenes, f"trumans-import:{Path(args.src[0]).name}"
     else:
-        from trumans.bvh import import_bvh
+        from trumans.importers.bvh import import_bvh
         from trumans.importers.fbx import import_fbx
 
         joint_map = _read_joint_map(args.joint_map)

@@ -322,7 +322,7 @@ def import_fbx(path: str | Path, joint_map: dict[str, str] | None = None, skelet
 
     The curves are sampled at the file's keying rate (24 for the CMU FBX library) from the first to
     the last key, then resampled to ``fps`` when given. joint_map / skeleton / feet_on_floor as in
-    ``trumans.bvh.import_bvh``; unit_scale: metres per file unit (default: from the file's
+    ``trumans.importers.bvh.import_bvh``; unit_scale: metres per file unit (default: from the file's
     UnitScaleFactor, centimetres per unit). Rotations are fitted (``trumans.ik.fit``)."""
     from .joint_maps import place_on_floor, retarget_joints, sequence_from_joints
 

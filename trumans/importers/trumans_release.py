@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.occupancy import OccupancyGrid
+from trumans.scenes.occupancy import OccupancyGrid
 from trumans.sequence import ObjectTrack, Sequence
 
 __all__ = ["Y_UP_TO_Z_UP", "TrumansRelease", "read_release", "release_grid_to_z_up", "RELEASE_GRID_BOUNDS"]

@@ -97,7 +97,7 @@ def episode_scene_grids(grids, cond: EpisodeCondition, object_poses: dict[str, n
     """The scene condition (TRUMANS §4.3): (B, n, n, n) bool local grids (axes forward, left, up;
     True = occupied) around each episode's subgoal, turned to its first frame's heading.
 
-    grids: a ``scenes.scene_grids.SceneGrids`` (static occupancy + dynamic objects); cond: B
+    grids: a ``trumans.scenes.scene_grids.SceneGrids`` (static occupancy + dynamic objects); cond: B
     episodes (origin (B, 3)); object_poses: name -> (B, 4, 4) world-from-object poses at each
     episode's first frame (objects not given sit at their scene pose)."""
     if np.ndim(cond.yaw) != 1:

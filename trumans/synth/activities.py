@@ -7,7 +7,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from scenes.scene import Scene
+from trumans.scenes.scene import Scene
 
 from . import activity_furniture as furniture
 from . import activity_objects as objects

@@ -24,7 +24,7 @@ def _approach_point(ctx: RoomContext, st: TakeState, name: str, target: np.ndarr
     if sup is None or "surface_size" not in sup.meta:
         return approach(obj, st.poses.get(name, obj.pose))
     pose = st.poses.get(sup.name, sup.pose)
-    # Surfaces face +x (scenes.furniture): stand 0.28 m in front of the front edge, facing -x.
+    # Surfaces face +x (trumans.scenes.furniture): stand 0.28 m in front of the front edge, facing -x.
     a = world_point(pose, [0.5 * float(sup.meta["surface_size"][0]) + 0.28, 0.0])[:2]
     yaw = yaw_of(pose) + np.pi
     along = pose[:2, 1]  # the support's local y axis (its front edge direction) in the world

@@ -22,7 +22,7 @@ import numpy as np
 
 from trumans.dataset import SPLITS, DatasetWriter
 from trumans.sequence import atomic_write, save_sequence
-from trumans import metrics
+from trumans.eval import metrics
 from trumans.workers import worker_pool
 from .vocab import SYNTH_ACTIONS
 
@@ -125,9 +125,9 @@ def _room_seed(seed: int, index: int) -> int:
 def _build_room(args: tuple[SynthConfig, int]) -> dict:
     """Generate one room and its takes; returns the room record (also written to rooms/<id>.json)."""
     cfg, index = args
-    from scenes.io import save_scene
-    from scenes.occupancy import scene_occupancy
-    from scenes.procedural import make_room
+    from trumans.scenes.io import save_scene
+    from trumans.scenes.occupancy import scene_occupancy
+    from trumans.scenes.procedural import make_room
 
     from .script import script_room
 
@@ -218,7 +218,7 @@ def build_dataset(cfg: SynthConfig, progress: bool = True, overwrite: bool = Fal
 
     Summary: sequences, frames, hours, rooms, action_frames (per action), frames_per_s (frames
     generated in this run per wall-clock second), bone_length_dev_mm, foot_skate_cm,
-    penetration_max_cm, grasp_dist_cm (see ``trumans.metrics``), splits, categories,
+    penetration_max_cm, grasp_dist_cm (see ``trumans.eval.metrics``), splits, categories,
     activities (per scripted activity: performed / skipped as infeasible), hash."""
     from tqdm import tqdm
 

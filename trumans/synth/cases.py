@@ -1,7 +1,7 @@
 """Small synthetic interaction clips with exact contacts, for the augmentation tests and benchmark.
 
 Each case is a (Sequence, Scene) pair at 30 fps built from keyframe poses (trumans.synth.poses),
-procedural furniture (scenes.furniture) and analytic limb IK, with both feet planted on the
+procedural furniture (trumans.scenes.furniture) and analytic limb IK, with both feet planted on the
 floor whenever the person stands or sits. Kinds (CASE_KINDS): ``sit`` (sit down on a chair, sit,
 stand up), ``lie`` (lying on a bed, arms moving), ``hand`` (one hand placed on a table and lifted
 again), ``two_hands`` (both hands on a table), ``successive`` (right hand on the table, then the
@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from scenes import furniture
-from scenes.scene import Scene
+from trumans.scenes import furniture
+from trumans.scenes.scene import Scene
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, yaw_matrix
 from trumans.sequence import Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics, rest_offsets

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.walkability import NoPathError, nearest_walkable, plan_path
+from trumans.scenes.walkability import NoPathError, nearest_walkable, plan_path
 
 from . import hands, locomotion
 from .legs import wrap_angle

@@ -17,9 +17,9 @@ from __future__ import annotations
 import numpy as np
 
 from trumans.actions import ActionInterval
+from trumans.body import leg_scale as _leg_scale, seat_clearance
 from trumans.rotations import euler_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX
-from trumans.ik.limb import limb_reach
 from .legs import foot_places, pelvis_height_limit, solve_legs, standing_state
 from .motion import Motion
 from .poses import POSES, ease, pose, slerp_poses
@@ -34,15 +34,6 @@ __all__ = [
     "sit",
     "stand_up",
 ]
-
-def _leg_scale(offsets: np.ndarray) -> float:
-    return limb_reach(offsets, "left_leg")[1] / 0.784
-
-
-def seat_clearance(offsets: np.ndarray) -> float:
-    """Height (m) of the pelvis joint above a seat/bed surface it rests on (0.095 m x leg scale)."""
-    return 0.095 * _leg_scale(np.asarray(offsets, dtype=np.float64))
-
 
 def _vec3(x: np.ndarray, name: str) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)

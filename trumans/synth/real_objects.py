@@ -13,7 +13,7 @@ to the clip's end. A clip described as carrying with no reach down whose palms s
 ``BOX_MIN_SPAN_M`` or more and steadily (``STEADY_SPAN_M``) apart, above ``CARRY_ABOVE_M``, on
 ``CARRY_SHARE`` of its frames carries a box from its first frame (``carried_from_start``).
 
-The object: one hand -> a bottle (``scenes.furniture.small_object``) gripped from the side, its
+The object: one hand -> a bottle (``trumans.scenes.furniture.small_object``) gripped from the side, its
 grasp point ``PALM_GAP`` from the palm away from the body; two hands -> a box (category "box")
 between the palms, ``PALM_GAP`` inside each, reaching ``BOX_BEHIND_M`` behind the palms' line,
 held at ``GRIP_SHARE`` of its height. It stands on the floor, or on a fitted support (a "table"
@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from scenes.furniture import small_object, yaw_pose
-from scenes.scene import SceneObject
+from trumans.scenes.furniture import small_object, yaw_pose
+from trumans.scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
 from trumans.motion_labels import segments

@@ -1,7 +1,7 @@
 """Place a real mocap clip in a procedural room whose furniture leaves its walked path free.
 
 The clip is turned by a yaw and moved on the floor; the room is made around it (a procedural
-room of ``scenes.procedural.make_room`` whose size holds the clip's pelvis path plus
+room of ``trumans.scenes.procedural.make_room`` whose size holds the clip's pelvis path plus
 ``BODY_RADIUS`` and its fitted seats / beds, ``trumans.scene_fit``). A placement is accepted when
 every pelvis position keeps ``BODY_RADIUS`` and every joint ``LIMB_CLEARANCE`` from the walls and
 from every procedural floor footprint, and the fitted furniture keeps ``MARGIN`` from the procedural footprints and
@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from scenes.procedural import approach_points, floor_footprints, make_room
-from scenes.scene import Scene, SceneObject
+from trumans.scenes.procedural import approach_points, floor_footprints, make_room
+from trumans.scenes.scene import Scene, SceneObject
 
 from trumans.rotations import yaw_matrix
 from trumans.scene_fit import fit_scene
@@ -32,7 +32,7 @@ __all__ = ["BODY_RADIUS", "MARGIN", "ATTEMPTS", "Placement", "place_clip", "quad
 
 BODY_RADIUS = 0.25  # m, the pelvis path's clearance from walls and procedural furniture
 LIMB_CLEARANCE = 0.05  # m, every joint's clearance from walls and procedural furniture
-MARGIN = 0.08  # m, clearance between a fitted and a procedural footprint (scenes.procedural.MARGIN)
+MARGIN = 0.08  # m, clearance between a fitted and a procedural footprint (trumans.scenes.procedural.MARGIN)
 ATTEMPTS = 6
 MAX_ROOM_SIDE = 20.0  # m, make_room's largest side
 SAMPLE_M = 0.05  # m, spacing of the points that sample a fitted footprint

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trumans import metrics
+from trumans.eval import metrics
 from trumans.actions import ActionInterval, labels_from_intervals
 from trumans.contacts.intervals import runs
 from trumans.contacts.rule import CONTACT_THRESHOLD, ContactScene, contact_rule
@@ -149,8 +149,8 @@ def build_real_room(out: Path, clip: MocapClip, seed: int, key: str) -> dict:
     """Write the room and the take of one real clip under ``out``; returns the room record (the same
     fields as a procedural room's, ``trumans.synth.build``), also written to ``rooms/<id>.json``.
     A clip that fits no room gives a record with ``skipped`` and no sequences."""
-    from scenes.io import save_scene
-    from scenes.occupancy import scene_occupancy
+    from trumans.scenes.io import save_scene
+    from trumans.scenes.occupancy import scene_occupancy
 
     t0 = time.perf_counter()
     rid = real_room_id(clip)

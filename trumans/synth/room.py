@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.occupancy import OccupancyGrid
-from scenes.scene import Scene
-from scenes.walkability import WalkMap, walkable_map
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.scenes.scene import Scene
+from trumans.scenes.walkability import WalkMap, walkable_map
 
 from trumans.contacts.rule import ContactScene, contact_rule
 from trumans.skeleton import JOINT_NAMES, forward_kinematics

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.occupancy import OccupancyGrid
-from scenes.scene import Scene
+from trumans.scenes.occupancy import OccupancyGrid
+from trumans.scenes.scene import Scene
 
 from . import hands
 from .activities import ACTIVITIES, candidates

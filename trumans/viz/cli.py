@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
+from trumans.scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 from trumans.argtypes import positive_int
 from trumans.dataset import INDEX_FILE, load_index
 from trumans.sequence import load_sequence
@@ -17,7 +17,7 @@ from trumans.sequence import load_sequence
 from .render import SceneView, render_animation, render_topdown
 
 if TYPE_CHECKING:
-    from scenes.scene import Scene
+    from trumans.scenes.scene import Scene
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -52,7 +52,7 @@ def find_scene_dir(seq_path: Path, scene_field: str, explicit: str | None) -> Pa
 
 
 def scene_view(sc: Scene) -> SceneView:
-    """What the renderer draws of a ``scenes.Scene``: static meshes and non-dynamic objects in world
+    """What the renderer draws of a ``trumans.scenes.Scene``: static meshes and non-dynamic objects in world
     frame, dynamic objects' meshes in their own frame (posed by the sequence); no grid."""
     static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values() if not o.dynamic]
     dynamic = {name: o.mesh for name, o in sc.objects.items() if o.dynamic}
@@ -65,7 +65,7 @@ def load_scene_view(folder: Path | None) -> SceneView | None:
         return None
     static, dynamic = [], {}
     if (folder / "scene.json").is_file():
-        from scenes.io import load_scene
+        from trumans.scenes.io import load_scene
 
         view = scene_view(load_scene(folder))
         static, dynamic = view.static, view.dynamic

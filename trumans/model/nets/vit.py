@@ -1,7 +1,7 @@
 """The local scene perceiver (TRUMANS §4.3, Fig. 3d): a ViT over a local occupancy grid.
 
 Input: ``(B, n, n, n)`` bool local grids, axes (forward, left, up), True = occupied (from
-``scenes.local_grid.local_grids``). The up axis becomes image channels (one per height slice),
+``trumans.scenes.local_grid.local_grids``). The up axis becomes image channels (one per height slice),
 the ground plane is cut into ``patch x patch`` patches (Dosovitskiy et al. 2021), a class token
 plus learned position embeddings go through a transformer encoder, and the class token's output
 is projected to one scene embedding ``(B, out_dim)``.

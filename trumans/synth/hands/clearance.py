@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.scene import SceneObject
+from trumans.scenes.scene import SceneObject
 
 from trumans.contacts.rule import JOINT_RADIUS
 from trumans.skeleton import ELBOWS, INDEX1, JOINT_NAMES, NUM_JOINTS, WRISTS, forward_kinematics

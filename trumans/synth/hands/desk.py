@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.scene import SceneObject
+from trumans.scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
 from trumans.rotations import yaw_matrix

@@ -1,4 +1,4 @@
-"""Doors (hinge) that open towards the person (``scenes.furniture.door``): ``door_stance`` plans
+"""Doors (hinge) that open towards the person (``trumans.scenes.furniture.door``): ``door_stance`` plans
 where to take the handle and how far to step back; ``open_door`` / ``close_door`` build their own
 base (stand, step back / forwards with the hand on the handle, stand). Conventions (palm point,
 hand frame, grasp flags on the wrist joint) are those of ``hands.core``.
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from scenes.scene import SceneObject
+from trumans.scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
 from trumans.rotations import rodrigues, unit, yaw_matrix
@@ -53,7 +53,7 @@ def _door_hand(door: SceneObject, poses: np.ndarray, side: Side) -> tuple[np.nda
 
 @dataclass
 class DoorStance:
-    """How a person works a door that opens towards them (``scenes.furniture.door``): standing at
+    """How a person works a door that opens towards them (``trumans.scenes.furniture.door``): standing at
     pelvis xy ``pos`` (2,) facing ``yaw`` (rad), the ``side`` hand takes the closed door's handle
     and the person steps straight back (keeping the heading) to ``open_pos`` (2,) while pulling the
     door open by ``reach`` (rad); the opening grows in proportion to the distance walked back

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.scene import SceneObject
+from trumans.scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
 from trumans.rotations import unit, yaw_matrix

@@ -9,7 +9,7 @@ from typing import Literal
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from scenes.scene import SceneObject
+from trumans.scenes.scene import SceneObject
 
 from trumans.actions import ActionInterval
 from trumans.skeleton import forward_kinematics

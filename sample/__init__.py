@@ -1,1 +1,0 @@
-"""sample package (see DESIGN.md)."""

@@ -1,8 +1,0 @@
-"""Training: the task protocol and registry, the generator task, configs, data, the loop, DDP;
-`trumans train` / `python -m train`."""
-from .config import GeneratorConfig, TrainConfig, load_config
-from .loop import TrainResult, train
-from .tasks import Task, TaskLoss, make_task, register_task, task_names
-
-__all__ = ["GeneratorConfig", "TrainConfig", "load_config", "TrainResult", "train", "Task", "TaskLoss", "make_task",
-           "register_task", "task_names"]

@@ -1,0 +1,61 @@
+"""`trumans augment`: contact-preserving CCD-IK augmentation of a dataset (see trumans.augment.pipeline)."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from trumans.argtypes import float_in, fraction, int_in, nonneg_int, positive_float
+from trumans.contacts.rule import HOLD_THRESHOLD
+
+from trumans.augment.pipeline import MAX_VARIATIONS, SOURCES, PipelineConfig, SourcesFailed, augment_dataset
+from trumans.augment.variations import KINDS
+
+__all__ = ["add_arguments", "run"]
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", required=True, help="source dataset folder (index.json + sequences + scenes)")
+    p.add_argument("--out", required=True, help="output dataset folder (new, empty, or this command's own: re-running "
+                                                "with the same settings resumes where it stopped; one writer at a time)")
+    p.add_argument("--overwrite", action="store_true", help="replace the dataset or other run already in --out")
+    p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS), default=2,
+                   help=f"variations per touched object, 1..{MAX_VARIATIONS} (default 2, as the paper)")
+    p.add_argument("--splits", nargs="+", default=["train"], help="source splits to augment (default: train)")
+    p.add_argument("--source", choices=list(SOURCES), default="all",
+                   help="which takes of a `trumans data synth` dataset to augment: the real (mocap) takes its index lists "
+                        "under 'real', the procedural ones, or all (default)")
+    p.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS), help="variation kinds to draw from")
+    p.add_argument("--window", type=positive_float, default=1.0, help="offset fade window W in seconds (default 1 s = 30 frames at 30 fps)")
+    p.add_argument("--threshold", type=float_in(0.0, 1.0, lo_open=True), default=HOLD_THRESHOLD,
+                   help=f"hold joints within this distance beyond the body surface, m (default {HOLD_THRESHOLD})")
+    p.add_argument("--max-unreachable", type=fraction, default=0.1,
+                   help="redraw a variation whose IK leaves more than this fraction of its contact frames "
+                        "unreachable; skip it after 4 draws (default 0.1; 1.0 keeps every draw)")
+    p.add_argument("--occupancy", action="store_true", help="also cache each new scene's occupancy grid")
+    p.add_argument("--workers", type=nonneg_int, default=0,
+                   help="worker processes (default 0: CPU count; never more than the sequences to do)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same outputs)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = PipelineConfig(data=args.data, out=args.out, variations=args.variations, seed=args.seed,
+                         splits=tuple(args.splits), kinds=tuple(args.kinds), workers=args.workers,
+                         occupancy=args.occupancy, window_s=args.window, threshold=args.threshold,
+                         max_unreachable=args.max_unreachable, source=args.source)
+    try:
+        summary = augment_dataset(cfg, progress=not args.json, overwrite=args.overwrite)
+    except SourcesFailed as e:  # print what was done, then fail with the one error line
+        _print(e.summary, args.json)
+        raise
+    _print(summary, args.json)
+    return 0
+
+
+def _print(summary: dict, as_json: bool) -> None:
+    summary = {k: v for k, v in summary.items() if k != "config"}
+    if as_json:
+        print(json.dumps(summary))
+    else:
+        for k, v in summary.items():
+            print(f"{k:>20}: {v}")

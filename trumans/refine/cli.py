@@ -1,0 +1,106 @@
+"""`trumans refine tracked.npz --out refined.npz [--category C]`: the HOI filter (I'm-HOI §3.2).
+
+With ``--interactions`` the command is the contact-driven tracker instead (iReplica): it dispatches
+to ``trumans.track.cli.run(args)`` (args.input, --out, --seed, --json are shared); that module
+adds its own options through ``add_interaction_arguments(group)``, called here with an argument
+group when the module exists.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import time
+
+__all__ = ["add_arguments", "run", "main"]
+
+
+def _interactions_module():
+    try:
+        return importlib.import_module("trumans.track.cli")
+    except ModuleNotFoundError as e:
+        if e.name in ("trumans.track.cli",):
+            return None
+        raise
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", metavar="tracked.npz",
+                   help="tracked sequence .npz (DESIGN.md format; NaN marks missing frames/joints)")
+    p.add_argument("--out", required=True, help="refined sequence .npz (same frames and fps)")
+    p.add_argument("--category", default=None,
+                   help="object category (default: the object's own); must be one the filter knows")
+    p.add_argument("--object", default=None, help="object to refine with the human (default: the only one, "
+                                                  "else the one that moves most); others pass through")
+    p.add_argument("--checkpoint", default=None, help="filter checkpoint (default: the shipped models/refine.pt)")
+    p.add_argument("--steps", type=int, default=2, help="DDIM sampling steps (default 2; 1, 2 and 5 give the same errors, benchmarks/refine_diagnosis.py)")
+    p.add_argument("--mode", choices=("noise", "sdedit"), default="noise",
+                   help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
+    p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
+    p.add_argument("--seed", type=int, default=0, help="sampling seed")
+    p.add_argument("--no-rest-pooling", action="store_true",
+                   help="keep the filter's object pose in every frame (default: one pose per rest of the object, "
+                        "pooled over the whole rest; trumans.refine.object_rest)")
+    p.add_argument("--no-hand-link", action="store_true",
+                   help="pool each rest of the object on its own (default: a move held rigidly by a wrist follows "
+                        "the wrist and ties the rests on either side; trumans.refine.object_rest)")
+    hinge = p.add_mutually_exclusive_group()
+    hinge.add_argument("--hinge", dest="hinge", action="store_const", const=True, default=None,
+                       help="the object turns about one fixed hinge: fit it to the whole sequence after rest pooling (default: for "
+                            "hinged categories, door; trumans.refine.object_hinge)")
+    hinge.add_argument("--no-hinge", dest="hinge", action="store_const", const=False,
+                       help="no hinge fit, whatever the category")
+    p.add_argument("--no-foot-lock", action="store_true",
+                   help="keep the filter's feet (default: each planted foot joint is held at one point per stance, "
+                        "the legs following by IK; trumans.refine.foot_lock)")
+    p.add_argument("--no-drift-correction", action="store_true",
+                   help="keep the filter's body position (default: the whole-body drift's changes seen by the "
+                        "planted feet are removed; trumans.refine.body_drift)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+    p.add_argument("--interactions", action="store_true",
+                   help="contact-driven interaction tracking (iReplica) instead of the filter")
+    mod = _interactions_module()
+    if mod is not None and hasattr(mod, "add_interaction_arguments"):
+        mod.add_interaction_arguments(p.add_argument_group("interactions mode (--interactions)"))
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.interactions:
+        mod = _interactions_module()
+        if mod is None:
+            raise ValueError("--interactions (the iReplica tracker) is not built yet in this checkout; "
+                             "run without it for the HOI filter")
+        return int(mod.run(args) or 0)
+    from trumans.sequence import load_sequence, save_sequence
+
+    from trumans.refine.pipeline import HOIFilter, RefineOptions
+
+    opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
+                         rest_pooling=not args.no_rest_pooling, hand_link=not args.no_hand_link,
+                         body_drift=not args.no_drift_correction, hinge=args.hinge,
+                         foot_lock=not args.no_foot_lock)
+    seq = load_sequence(args.input, allow_missing=True)
+    filt = HOIFilter.load(args.checkpoint)
+    t0 = time.perf_counter()
+    out, name = filt.refine_sequence(seq, category=args.category, object_name=args.object, options=opts)
+    seconds = time.perf_counter() - t0
+    save_sequence(out, args.out)
+    import numpy as np
+
+    summary = {"out": str(args.out), "frames": seq.num_frames, "fps": seq.fps, "object": name,
+               "category": out.objects[name].category,
+               "missing_frames_in": int(np.isnan(seq.joints).any(axis=(1, 2)).sum()),
+               "seconds": round(seconds, 3), "frames_per_s": round(seq.num_frames / max(seconds, 1e-9), 1),
+               "post_steps": opts.post_steps(out.objects[name].category)}
+    print(f"refined {summary['frames']} frames ({summary['missing_frames_in']} with a missing joint) with object "
+          f"{name!r} ({summary['category']}) in {seconds:.2f} s -> {args.out}; after the filter: "
+          f"{', '.join(summary['post_steps']) or 'nothing'}")
+    if args.json:
+        print(json.dumps(summary))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="trumans refine", description="refine a tracked HOI sequence with the diffusion filter")
+    add_arguments(p)
+    return run(p.parse_args(argv))

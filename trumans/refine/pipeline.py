@@ -1,0 +1,191 @@
+"""Refining tracked human-object sequences with the HOI filter (I'm-HOI §3.2) at any length.
+
+The tracked sequence (NaN = missing) is resampled to the filter's fps, cut into windows of ``L``
+frames overlapping by ``overlap`` (``trumans.refine.windows``; a short one is padded with missing
+frames), each window is put in its own canonical frame computed from the tracked input, denoised
+as a batch, turned back to the world, blended across the overlaps, and resampled back to the
+input's frames. Sampling starts from noise conditioned on the tracked input (the paper) or,
+with ``mode="sdedit"``, from the tracked input noised to ``strength`` (Meng et al. 2022).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+
+from trumans.refine.body_drift import remove_body_drift
+from trumans.refine.filter import FilterModel, category_indices, configure_skip, prepare_windows, sample_x0
+from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
+                               orthonormalize_6d, resample_frames, sequence_from_frames)
+from trumans.refine.object_rest import RestConfig, pool_rest
+from trumans.refine.foot_lock import lock_feet
+from trumans.refine.object_hinge import HINGED_CATEGORIES, fit_hinge
+from trumans.refine.outliers import drop_frozen_frames, drop_object_flips, unflip_object
+from trumans.refine.windows import blend_windows, window_starts
+from trumans.model.checkpoint import Checkpoint, load_checkpoint
+from trumans.sequence import Sequence
+from trumans.paths import MODELS_DIR
+
+__all__ = ["RefineOptions", "HOIFilter", "DEFAULT_CHECKPOINT"]
+
+DEFAULT_CHECKPOINT = MODELS_DIR / "refine.pt"
+Mode = Literal["noise", "sdedit"]
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """num_steps: DDIM steps; mode: 'noise' (the paper) or 'sdedit'; strength: SDEdit's noise level
+    in (0, 1]; eta: DDIM stochasticity (0 = deterministic given the seed); batch: windows per
+    network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames as
+    missing, turn object rotations flipped by π about an own axis back (read from the whole sequence) and
+    treat other rotations that flip and back within a second as missing, before filtering
+    (``trumans.refine.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
+    after filtering (``trumans.refine.object_rest``); hand_link: with rest pooling, moves held rigidly by a
+    wrist follow it and tie the rests on either side (``RestConfig.hand_link``); body_drift: remove the whole-body drift's
+    changes seen by the planted feet after filtering (``trumans.refine.body_drift``); hinge: with rest pooling, turn
+    the object about one hinge fitted to the whole sequence (``trumans.refine.object_hinge``; None = for the
+    hinged categories, ``HINGED_CATEGORIES``); foot_lock: hold each planted foot joint at one point
+    per stance, the legs following by IK (``trumans.refine.foot_lock``)."""
+
+    num_steps: int = 2
+    mode: Mode = "noise"
+    strength: float = 0.5
+    eta: float = 0.0
+    batch: int = 256
+    seed: int = 0
+    drop_failures: bool = True
+    rest_pooling: bool = True
+    hand_link: bool = True
+    body_drift: bool = True
+    hinge: bool | None = None
+    foot_lock: bool = True
+
+    def post_steps(self, category: str) -> list[str]:
+        """The steps after the network these options run for an object of ``category``, in order."""
+        steps = ["body_drift"] if self.body_drift else []
+        steps += ["foot_lock"] if self.foot_lock else []
+        if self.rest_pooling:
+            steps += ["rest_pooling"] + (["hand_link"] if self.hand_link else [])
+            steps += ["hinge"] if self.hinge or (self.hinge is None and category in HINGED_CATEGORIES) else []
+        return steps
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("noise", "sdedit"):
+            raise ValueError(f"mode must be 'noise' or 'sdedit', got {self.mode!r}")
+        if self.num_steps < 1 or self.batch < 1:
+            raise ValueError(f"num_steps and batch must be >= 1, got {self.num_steps}, {self.batch}")
+        if not 0 < self.strength <= 1:
+            raise ValueError(f"strength must be in (0, 1], got {self.strength}")
+
+
+class HOIFilter:
+    """A loaded filter checkpoint: ``refine_frames`` on frame vectors, ``refine_sequence`` on a Sequence."""
+
+    def __init__(self, ckpt: Checkpoint) -> None:
+        self.ckpt = ckpt
+        self.model: FilterModel = configure_skip(ckpt.build_model(), ckpt)
+        self.diffusion = ckpt.build_diffusion()
+        self.normalizer = ckpt.normalizer
+        self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]
+        self.window, self.overlap, self.fps = int(ckpt.L_epi), int(ckpt.k), float(ckpt.fps)
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> "HOIFilter":
+        """Load ``path`` (default: the shipped ``models/refine.pt``)."""
+        return cls(load_checkpoint(DEFAULT_CHECKPOINT if path is None else path, kind="filter"))
+
+    def refine_frames(self, frames: np.ndarray, fps: float, category: str,
+                      options: RefineOptions = RefineOptions()) -> np.ndarray:
+        """Tracked world frame vectors (T, 235) at ``fps`` (NaN = missing) -> refined (T, 235)."""
+        return self.refine_many([frames], [fps], [category], options)[0]
+
+    def refine_many(self, frames: list[np.ndarray], fps: list[float], categories: list[str],
+                    options: RefineOptions = RefineOptions()) -> list[np.ndarray]:
+        """Several tracked sequences at once: every window of every sequence goes through the network
+        in batches of ``options.batch`` (one forward per DDIM step and batch, not per window). Each
+        sequence's starting noise is drawn from its own generator seeded with ``options.seed``, so
+        with ``eta = 0`` a sequence's result does not depend on its batch mates.
+        frames[i]: (T_i, 235) world frame vectors at fps[i] (NaN = missing) -> [(T_i, 235)]."""
+        if not len(frames) == len(fps) == len(categories):
+            raise ValueError(f"need one fps and category per sequence, got {len(frames)} / {len(fps)} / {len(categories)}")
+        if not frames:
+            return []
+        cats = category_indices(list(categories), self.categories)
+        parts = [self._windows(f, r, options.drop_failures) for f, r in zip(frames, fps)]
+        L = self.window
+        cond = torch.cat([p["inp"].cond for p in parts])
+        category = torch.from_numpy(np.concatenate([np.full(len(p["starts"]), c) for p, c in zip(parts, cats)]))
+        noise = torch.cat([torch.randn((len(p["starts"]), L, FRAME_DIM), generator=torch.Generator().manual_seed(int(options.seed)))
+                           for p in parts])
+        gen = torch.Generator().manual_seed(int(options.seed))
+        x0 = torch.empty_like(noise)
+        for s in range(0, len(cond), options.batch):
+            sl = slice(s, s + options.batch)
+            start = cond[sl, :, :FRAME_DIM].clone() if options.mode == "sdedit" else None  # tracked, gaps interpolated
+            x0[sl] = sample_x0(self.model, self.diffusion, cond[sl], category[sl], num_steps=options.num_steps,
+                               eta=options.eta, generator=gen, start=start, noise=noise[sl],
+                               strength=options.strength if options.mode == "sdedit" else 1.0)
+        out = self.normalizer.denormalize(x0.numpy())
+        results, i = [], 0
+        for p, r, c in zip(parts, fps, categories):
+            n = len(p["starts"])
+            world = from_frame(out[i:i + n], p["inp"].origin, p["inp"].yaw)
+            i += n
+            blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
+            blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
+            steps = options.post_steps(c)  # the same list `trumans refine` reports
+            if "body_drift" in steps:
+                blended = remove_body_drift(blended, self.fps)
+            if "foot_lock" in steps:  # after the drift fit, which reads the same stances as drift
+                blended = lock_feet(blended, self.fps)
+            if "rest_pooling" in steps:  # after the body drift: moves follow the corrected wrists
+                blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link="hand_link" in steps))
+            if "hinge" in steps:
+                blended = fit_hinge(blended, p["tracked"])
+            results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
+        return results
+
+    def _windows(self, frames: np.ndarray, fps: float, drop_failures: bool = True) -> dict:
+        """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T,
+        the network inputs (``prepare_windows``) and the tracked frames at that rate (``tracked``);
+        ``drop_failures``: frozen frames -> missing, flipped object rotations turned back (or missing)."""
+        f = np.asarray(frames, dtype=np.float32)
+        if f.ndim != 2 or f.shape[1] != FRAME_DIM:
+            raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
+        T = f.shape[0]
+        if T < 2:
+            raise ValueError(f"a tracked sequence needs at least 2 frames, got {T}")
+        if not np.isfinite(fps) or fps <= 0:
+            raise ValueError(f"fps must be a positive number, got {fps}")
+        if drop_failures:  # at the input's rate: resampling would blur exact repeats and blend flipped with unflipped
+            f = unflip_object(drop_frozen_frames(f))
+        # model frames from time 0 over the whole duration (the last may end just past it)
+        g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
+        if drop_failures:
+            g = drop_object_flips(g, self.fps)  # what the whole-sequence reading left: short runs outvoted by their neighbours
+        Tm, L = g.shape[0], self.window
+        starts = window_starts(Tm, L, self.overlap)
+        padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])
+        padded[Tm:, IMU_R] = padded[Tm:, IMU_A] = padded[Tm:, IMU_FLAG] = 0.0  # padding: no IMU either
+        idx = starts[:, None] + np.arange(L)[None]
+        inp = prepare_windows(padded[idx], self.normalizer, filled_world=fill_missing(padded)[idx])
+        return {"starts": starts, "Tm": Tm, "T": T, "inp": inp, "tracked": g}
+
+    def refine_sequence(self, seq: Sequence, category: str | None = None, object_name: str | None = None,
+                        options: RefineOptions = RefineOptions()) -> tuple[Sequence, str]:
+        """Refine ``seq`` (joints, optional rotations, one object's pose and optional IMU; NaN =
+        missing) -> (refined Sequence with the same frames and fps, the object's name). The object's
+        category is ``category`` or its own; other fields and objects are passed through."""
+        frames, name = frames_from_sequence(seq, object_name)
+        cat = category or seq.objects[name].category
+        if not cat:
+            raise ValueError(f"object {name!r} has no category; pass --category (one of {self.categories})")
+        refined = self.refine_frames(frames, seq.fps, cat, options)
+        out = sequence_from_frames(refined, seq.fps, name, cat, template=seq, imu=False)
+        out.objects[name].imu_rot, out.objects[name].imu_acc = seq.objects[name].imu_rot, seq.objects[name].imu_acc
+        out.allow_missing = False
+        out.validate()
+        return out, name

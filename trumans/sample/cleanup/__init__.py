@@ -1,0 +1,1 @@
+"""The steps that change the body after the network (the sampler's cleanup)."""

@@ -1,0 +1,284 @@
+"""Long motions: a plan rolled out episode by episode, as a batch or as a stream (TRUMANS §4.1, §5.4).
+
+``sample_plan`` runs the closed-loop controller (``trumans.sample.controller``) and the episode sampler
+(``trumans.sample.sampler``) until the plan is done and returns every frame. ``stream`` is the real-time
+form: a Python generator that yields new frames as soon as they are made and accepts a new plan
+at any time through ``send``; after a new plan it commits 2, then 4, then 8 new frames per
+episode before going back to full episodes (the paper's incremental schedule, §5.4), so the body
+reacts after one short episode instead of a full one.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Generator
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from trumans.body import sit_offset
+from trumans.model.checkpoint import Checkpoint
+from trumans.skeleton import JOINT_INDEX, heading as body_heading
+
+from trumans.sample.carry_plan import planned_object_poses
+from trumans.sample.controller import Controller, Phase, compile_plan
+from trumans.sample.cleanup.foot import clean_feet
+from trumans.sample.plan import Plan
+from trumans.sample.cleanup.arm_pushout import push_arms_out
+from trumans.sample.cleanup.reach import clean_reach
+from trumans.sample.sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
+from trumans.sample.cleanup.scene_pushout import push_out
+from trumans.sample.cleanup.seam import blend_seam
+from trumans.sample.guidance.seat import seated_heights
+from trumans.sample.cleanup.support_lift import lift_onto_feet, support_weights
+
+__all__ = ["SampleResult", "start_pose", "body_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
+
+PELVIS = JOINT_INDEX["pelvis"]
+INCREMENTAL_SCHEDULE: tuple[int, ...] = (2, 4, 8)
+
+
+@dataclass
+class SampleResult:
+    """joints: (B, T, 24, 3) world m at ``fps``; labels: (B, T, N_A) action labels used; phase:
+    (B, T) index into ``phases`` (-1 = before the first / after the last); episodes: count;
+    seconds: wall-clock time spent sampling episodes (s)."""
+
+    joints: np.ndarray
+    labels: np.ndarray
+    phase: np.ndarray
+    phases: list[Phase]
+    fps: float
+    vocabulary: list[str]
+    episodes: int
+    seconds: float
+    episode_starts: list[int] = field(default_factory=list)
+    goals: list[tuple[int, int, str, np.ndarray]] = field(default_factory=list)  # (frame, sample, joint, point)
+    raw_bone_cv: float = float("nan")  # bone-length std/mean of the network's output before projection
+    sit_offset: float = 0.171  # pelvis height above a seat surface for this body, m (``sit_offset``)
+
+    @property
+    def seconds_per_episode(self) -> float:
+        return self.seconds / max(self.episodes, 1)
+
+    @property
+    def realtime_factor(self) -> float:
+        """Seconds of motion made per second of sampling."""
+        return (self.joints.shape[1] / self.fps) / max(self.seconds, 1e-9)
+
+
+def start_pose(ckpt: Checkpoint) -> np.ndarray:
+    """(24, 3) standing pose in the canonical frame (pelvis at x = y = 0, facing +x): the
+    checkpoint's ``meta['start_pose']``, else the training data's mean pose."""
+    if "start_pose" in ckpt.meta:
+        p = np.asarray(ckpt.meta["start_pose"], dtype=np.float32)
+        if p.shape != (24, 3) or not np.isfinite(p).all():
+            raise ValueError(f"checkpoint meta start_pose must be finite (24, 3), got {p.shape}")
+        return p
+    mean = ckpt.normalizer.mean[: 24 * 3].reshape(24, 3).copy()
+    mean[:, :2] -= mean[PELVIS, :2]
+    return mean
+
+
+def body_pose(frame: np.ndarray, what: str = "the body frame") -> np.ndarray:
+    """A body to sample with from one standing frame (24, 3) world m, z up -> (24, 3) canonical
+    (pelvis at x = y = 0, facing +x) with its lowest foot joint at its rest height; the sampler keeps
+    its bone lengths. Raises ValueError naming ``what`` unless the frame is finite and stands: both
+    legs at least 85 % straight (hip to ankle against thigh + shin) and the trunk within 30 degrees
+    of vertical."""
+    from trumans.model.motion_stats import canonical_pose
+    from trumans.skeleton import NUM_JOINTS
+
+    from trumans.sample.cleanup.support_lift import lowest_foot_height
+
+    f = np.asarray(frame, dtype=np.float64)
+    if f.shape != (NUM_JOINTS, 3) or not np.isfinite(f).all():
+        raise ValueError(f"{what} must be finite joints (24, 3), got shape {f.shape}"
+                         + ("" if f.shape != (NUM_JOINTS, 3) else " with NaN / inf"))
+    L = bone_lengths_of(f)
+    for side in ("left", "right"):
+        hip, knee, ankle = (JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle"))
+        if np.linalg.norm(f[ankle] - f[hip]) < 0.85 * (L[knee] + L[ankle]):
+            raise ValueError(f"{what} does not stand (the {side} knee is bent); give a standing frame (PATH:FRAME)")
+    trunk = f[JOINT_INDEX["neck"]] - f[PELVIS]
+    if trunk[2] < np.cos(np.radians(30.0)) * np.linalg.norm(trunk):
+        raise ValueError(f"{what} does not stand (the trunk leans more than 30 degrees); give a standing frame "
+                         f"(PATH:FRAME)")
+    p = canonical_pose(f[None])[0]
+    p[:, 2] -= lowest_foot_height(p)
+    return p.astype(np.float32)
+
+
+def start_context(ckpt: Checkpoint, xy: np.ndarray, heading: float, batch: int = 1,
+                  pose: np.ndarray | None = None) -> np.ndarray:
+    """(B, k, 24, 3) world: the start pose (``pose`` (24, 3) canonical, default the checkpoint's
+    ``start_pose``) standing still at floor point xy facing ``heading``."""
+    p = (start_pose(ckpt) if pose is None else np.asarray(pose)).astype(np.float64)
+    c, s = np.cos(heading), np.sin(heading)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    w = p @ R.T + np.array([xy[0], xy[1], 0.0])
+    return np.broadcast_to(w.astype(np.float32), (batch, ckpt.k, 24, 3)).copy()
+
+
+def _speed(ckpt: Checkpoint) -> float:
+    return float(ckpt.meta.get("walk_speed", 1.0))
+
+
+def _seconds(ckpt: Checkpoint) -> dict[str, float]:
+    return {str(k): float(v) for k, v in dict(ckpt.meta.get("action_seconds", {})).items()}
+
+
+@dataclass
+class _Episode:
+    new: np.ndarray  # (B, L - k, 24, 3) world
+    labels: np.ndarray  # (B, L, N_A)
+    phase: np.ndarray  # (B, L)
+    goals: list[Goal]
+    raw_cv: float
+
+
+def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
+          lengths: np.ndarray, generator: torch.Generator | None, seat_offset: float) -> _Episode:
+    """One episode for every sample, projected onto the bone ``lengths``; ``seat_offset``: the
+    body's pelvis height above a seat surface (``sit_offset``), m."""
+    moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
+    ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
+    off = seat_offset if sampler.config.seat_guidance else 0.0
+    seat = [seated_heights(c.phases, ctl.phases, off, sampler.k) if sampler.config.seat_guidance else ()
+            for c, ctl in zip(ctrls, controllers)]
+    goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading, pelvis_z=z) if c.hand_goal is None else
+             Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide, pelvis_z=z) for c, z in zip(ctrls, seat)]
+    labels = np.stack([c.labels for c in ctrls])
+    world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
+    bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
+    raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
+    if sampler.config.seam_blend > 0:
+        world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
+    world = project_bones(world, lengths)
+    if sampler.config.support_lift:  # the network's legs come out shorter: back onto the feet, not onto bent knees
+        world = lift_onto_feet(world, support_weights(labels, list(sampler.ckpt.vocabulary)), sampler.k)
+    # dynamic objects count where they stand until the plan moves one (then the static scene only)
+    sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
+    if sampler.config.scene_pushout and sdf is not None:  # before the feet: they re-lock after it
+        world = push_out(world, sdf, sampler.k)
+    weight = np.stack([c.reach_weight for c in ctrls])  # (B, L, 2) from the plan's hand phases (controller)
+    if sampler.config.arm_pushout and sdf is not None:  # a hand still in: arm IK, except where the plan reaches
+        world = push_arms_out(world, lengths, sdf, sampler.k, keep=weight > 0)
+    if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
+        world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k,
+                           sdf=sdf if sampler.config.scene_pushout else None)
+    if sampler.config.reach_cleanup and (weight > 0).any():  # the acting arm onto its hand target
+        world = clean_reach(world, lengths, np.stack([c.reach_target for c in ctrls]), weight, sampler.k)
+    return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
+
+
+def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,
+                seed: int = 0, max_seconds: float = 600.0, progress: bool = False,
+                start_xy: np.ndarray | None = None, max_episodes: int | None = None,
+                body: np.ndarray | None = None) -> SampleResult:
+    """Roll ``plan`` out in ``scene`` for ``num_samples`` variations (one batch); see the module doc.
+    ``body``: a standing frame (24, 3) world m whose body to use (``body_pose``; default the
+    checkpoint's ``start_pose``).
+
+    Raises ValueError when the plan is not done after ``max_seconds`` of motion; ``max_episodes``
+    instead stops quietly after that many episodes (timing runs)."""
+    from tqdm import tqdm
+
+    if num_samples < 1:
+        raise ValueError(f"num_samples must be >= 1, got {num_samples}")
+    xy = np.asarray(plan.start if plan.start is not None else start_xy, dtype=np.float64)
+    heading = float(plan.heading) if plan.heading is not None else 0.0
+    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
+                          heading=heading)
+    controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
+                   for _ in range(num_samples)]
+    pose = start_pose(ckpt) if body is None else body_pose(body, "body")
+    context = start_context(ckpt, xy, heading, num_samples, pose)
+    lengths = bone_lengths_of(context[0, 0].astype(np.float64))
+    sampler.hip_width = float(np.linalg.norm(context[0, 0, JOINT_INDEX["left_hip"], :2]
+                                             - context[0, 0, JOINT_INDEX["right_hip"], :2]))
+    N_A = len(ckpt.vocabulary)
+    stand = np.zeros((ckpt.k, N_A), np.float32)
+    if "stand" in ckpt.vocabulary:
+        stand[:, ckpt.vocabulary.index("stand")] = 1.5
+    frames, labels, phase = [context], [np.broadcast_to(stand, (num_samples,) + stand.shape)], \
+        [np.full((num_samples, ckpt.k), -1)]
+    g = torch.Generator().manual_seed(int(seed))
+    seat = sit_offset(pose)
+    limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
+    t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
+    bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
+    while not all(c.done for c in controllers) and (max_episodes is None or episodes < max_episodes):
+        if episodes >= limit:
+            raise ValueError(f"the plan did not finish within {max_seconds:.0f} s of motion; the body does not "
+                             f"reach its goals - check the plan or raise --max-seconds")
+        tic = time.perf_counter()
+        starts.append(sum(f.shape[1] for f in frames) - ckpt.k)
+        ep = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g, seat)
+        t0 += time.perf_counter() - tic
+        frames.append(ep.new)
+        labels.append(ep.labels[:, ckpt.k:])
+        phase.append(ep.phase[:, ckpt.k:])
+        end = starts[-1] + ckpt.L_epi - 1
+        for b, gl in enumerate(ep.goals):
+            f = end if gl.joint == "pelvis" else starts[-1] + gl.frame % ckpt.L_epi
+            goals.append((f, b, gl.joint, np.asarray(gl.point)))
+        cvs.append(ep.raw_cv)
+        episodes += 1
+        bar.update(1)
+    bar.close()
+    return SampleResult(np.concatenate(frames, 1), np.concatenate(labels, 1), np.concatenate(phase, 1), phases,
+                        ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts, goals,
+                        float(np.median(cvs)) if cvs else float("nan"), seat)
+
+
+def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, seed: int = 0,
+           schedule: tuple[int, ...] = INCREMENTAL_SCHEDULE, body: np.ndarray | None = None
+           ) -> Generator[np.ndarray, Plan | None, None]:
+    """Yield (n, 24, 3) world frames as they are made, forever; ``send(plan)`` switches to a new
+    plan from where the body is. After a (new) plan the first episodes commit ``schedule`` new
+    frames each (2, 4, 8), then full episodes of L - k frames. When the plan is done the body
+    stands (or holds its posture) where it is. ``body``: as in ``sample_plan``."""
+    k, L = ckpt.k, ckpt.L_epi
+    if any(not 1 <= n <= L - k for n in schedule):
+        raise ValueError(f"schedule entries must be in [1, {L - k}], got {schedule}")
+    xy = np.asarray(plan.start if plan.start is not None else (0.0, 0.0), dtype=np.float64)
+    pose = start_pose(ckpt) if body is None else body_pose(body, "body")
+    context = start_context(ckpt, xy, float(plan.heading or 0.0), 1, pose)
+    lengths = bone_lengths_of(context[0, 0].astype(np.float64))
+    prev = np.zeros((1, k, len(ckpt.vocabulary)), np.float32)
+    g = torch.Generator().manual_seed(int(seed))
+    seat = sit_offset(pose)
+
+    def controller_for(p: Plan, at: np.ndarray, facing: float) -> Controller:
+        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
+                                       heading=facing), ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
+
+    ctrl = controller_for(plan, xy, float(plan.heading or 0.0))
+    todo = list(schedule)
+    while True:
+        n = todo.pop(0) if todo else L - k
+        if ctrl.done:  # hold: an empty plan keeps the last posture label
+            ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
+        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, list(ctrl.releases))
+        ep = _step(sampler, [ctrl], context, prev, lengths, g, seat)
+        new, lab = ep.new, ep.labels
+        if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
+            ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, ctrl.releases = snapshot
+            _advance(ctrl, n, context[0, -1, PELVIS, :2])
+        out = new[:, :n]
+        context = np.concatenate([context, out], 1)[:, -k:]
+        prev = lab[:, k:k + n][:, -k:] if n >= k else np.concatenate([prev, lab[:, k:k + n]], 1)[:, -k:]
+        sent = yield out[0]
+        if sent is not None:
+            ctrl = controller_for(sent, context[0, -1, PELVIS, :2].astype(np.float64), float(body_heading(context[0, -1])))
+            todo = list(schedule)
+
+
+def _advance(ctrl: Controller, n: int, pelvis_xy: np.ndarray) -> None:
+    """Advance a rewound controller by n frames (the committed part of an episode)."""
+    L, k = ctrl.L, ctrl.k
+    saved = ctrl.L
+    ctrl.L = k + n
+    ctrl.next(pelvis_xy, np.zeros((k, len(ctrl.vocab)), np.float32))
+    ctrl.L = saved

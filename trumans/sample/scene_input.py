@@ -1,0 +1,88 @@
+"""The scene a motion is sampled in: a scene folder, a single mesh file, or the default room.
+
+``load_sample_scene`` returns the scene, its occupancy grid (cached: ``occupancy.npz`` in a scene
+folder, ``<mesh>.occupancy.npz`` beside a mesh file when that folder is writable), the walkable
+floor map, and the dynamic-object local grids the sampler queries.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from trumans.scenes.io import import_mesh, load_scene
+from trumans.scenes.occupancy import OccupancyGrid, scene_occupancy
+from trumans.scenes.procedural import make_room
+from trumans.scenes.scene import Scene
+from trumans.scenes.scene_grids import SceneGrids
+from trumans.scenes.walkability import WalkMap, nearest_walkable, walkable_map
+
+__all__ = ["SampleScene", "load_sample_scene", "DEFAULT_ROOM_SEED"]
+
+DEFAULT_ROOM_SEED = 2  # the default room: a procedural room with a chair, a sofa, a bed, a table and cups
+
+
+@dataclass
+class SampleScene:
+    scene: Scene
+    occupancy: OccupancyGrid
+    walkmap: WalkMap
+    grids: SceneGrids
+    source: str
+
+    def free_point(self) -> np.ndarray:
+        """(2,) a walkable floor point near the room's centre, m."""
+        b = self.scene.bounds()
+        return nearest_walkable(self.walkmap, 0.5 * (b[0, :2] + b[1, :2]))
+
+
+def _writable(folder: Path) -> bool:
+    return folder.is_dir() and os.access(folder, os.W_OK)
+
+
+def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", default_seed: int = DEFAULT_ROOM_SEED,
+                      cache_dir: str | Path | None = None) -> SampleScene:
+    """spec: None / 'default' (the default procedural room), 'room:SEED' (another procedural room),
+    a scene folder (scene.json), or a mesh file trimesh reads (a scan or room model; ``up`` 'y'
+    converts a y-up file). Raises FileNotFoundError / ValueError naming the problem."""
+    if spec in (None, "", "default") or (isinstance(spec, str) and spec.startswith("room:")):
+        seed = default_seed if spec in (None, "", "default") else _seed(spec)
+        scene = make_room(seed)
+        folder = Path(cache_dir) / scene.name if cache_dir is not None else None
+        if folder is not None:
+            folder.mkdir(parents=True, exist_ok=True)
+        occ = scene_occupancy(scene, folder, voxel=voxel)
+        source = f"procedural room {seed}"
+    else:
+        path = Path(spec)
+        if path.is_dir():
+            if not (path / "scene.json").is_file():
+                raise FileNotFoundError(f"scene folder {path} has no scene.json; give a scene folder written by "
+                                        f"trumans (trumans.scenes.io.save_scene), a mesh file, or 'default'")
+            scene = load_scene(path)
+            occ = scene_occupancy(scene, path if _writable(path) else None, voxel=voxel)
+        elif path.is_file():
+            mesh = import_mesh(path, up=up)
+            scene = Scene(name=path.stem, static={"mesh": mesh})
+            cache = path.parent / f"{path.stem}.occupancy" if _writable(path.parent) else None
+            if cache is not None:
+                cache.mkdir(exist_ok=True)
+            occ = scene_occupancy(scene, cache, voxel=voxel)
+        else:
+            raise FileNotFoundError(f"scene {spec} does not exist; give a scene folder, a mesh file (.obj .ply .glb "
+                                    f"...) or 'default'")
+        source = str(path)
+    wm = walkable_map(occ)
+    if not wm.walkable.any():
+        raise ValueError(f"scene {source} has no walkable floor (no free area at z = 0 that a person fits in); "
+                         f"is the mesh z-up (use --up y for a y-up file) and in metres?")
+    return SampleScene(scene, occ, wm, SceneGrids(occ, scene), source)
+
+
+def _seed(spec: str) -> int:
+    try:
+        return int(spec.split(":", 1)[1])
+    except ValueError:
+        raise ValueError(f"scene {spec!r}: write room:SEED with an integer seed, e.g. room:3") from None

@@ -1,0 +1,81 @@
+"""`trumans train` / `python -m trumans.train`: train a task (default: the generator) from a config.
+
+Bad input (unknown task, config or ablation, bad values, missing data) raises ValueError /
+FileNotFoundError; the console script prints it as the one line ``trumans: error: ...`` (exit 2).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+
+__all__ = ["add_arguments", "run", "main"]
+
+DEVICES = ("cpu", "cuda")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--task", default="generator",
+                   help="what to train: a registered task (generator; the filter and contact tasks register theirs)")
+    p.add_argument("--config", default=None,
+                   help="built-in config of the task (generator: cpu-small (default), paper; contact: slide, hinge, free = one model per dof class) or a TOML file")
+    p.add_argument("--data", required=True, help="dataset folder (with index.json)")
+    p.add_argument("--out", required=True, help="run folder: checkpoint.pt, loss.png, cache/")
+    p.add_argument("--augmented", action="append", default=[], metavar="DIR",
+                   help="augmented dataset folder (`trumans augment` output) added to the train split; repeatable")
+    p.add_argument("--steps", type=int, default=None, help="total optimisation steps (default: the config's)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.add_argument("--init", default=None, metavar="CHECKPOINT",
+                   help="fine-tune: start from this checkpoint's weights and normalisation (same task and model; "
+                        "its data or other data with the same action vocabulary), fresh optimiser")
+    p.add_argument("--seed", type=int, default=0, help="random seed (data order, noise, init)")
+    p.add_argument("--ablate", action="append", default=[], metavar="NAME",
+                   help="switch off a part (generator: progress (indicator), scene / action (condition), "
+                        "augmented (data)); repeatable")
+    p.add_argument("--time-limit", type=float, default=None, help="stop after this many seconds (overrides config)")
+    p.add_argument("--device", default=None, help="cpu or cuda (default: cuda if available)")
+    p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from trumans.train.loop import train
+    from trumans.train.tasks import make_task
+
+    if args.threads is not None:
+        if args.threads < 1:
+            raise ValueError(f"--threads must be >= 1, got {args.threads}")
+        torch.set_num_threads(args.threads)
+    if args.steps is not None and args.steps < 0:
+        raise ValueError(f"--steps must be >= 0, got {args.steps}")
+    if args.device is not None and args.device not in DEVICES:
+        raise ValueError(f"--device must be one of {list(DEVICES)}, got {args.device!r}")
+    over: dict[str, dict] = {}
+    if args.time_limit is not None:
+        if not (math.isfinite(args.time_limit) and args.time_limit >= 0):
+            raise ValueError(f"--time-limit must be >= 0 seconds (0 = none), got {args.time_limit}")
+        over["train"] = {"time_limit_s": float(args.time_limit)}
+    task = make_task(args.task, args.config, overrides=over, ablate=args.ablate)
+    res = train(task, args.data, args.out, steps=args.steps, resume=args.resume, seed=args.seed,
+                progress=not args.no_progress, device=args.device, augmented_dirs=args.augmented, init=args.init)
+    if int(os.environ.get("RANK", "0")) != 0:
+        return 0
+    print(f"{res.steps} steps, {res.samples_per_s:.1f} samples/s, train loss {res.train_loss:.4f}, "
+          f"val loss {res.val_loss:.4f} (zero baseline {res.val_loss_zero_baseline:.4f}, ratio {res.val_ratio:.3f}); "
+          f"checkpoint {res.checkpoint}")
+    if args.json:
+        print(json.dumps(res.to_dict()))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`python -m trumans.train ARGS` (also under torchrun) = `trumans train ARGS`, errors on the same channel."""
+    import sys
+
+    from trumans.cli import console_main
+
+    return console_main(["train", *(sys.argv[1:] if argv is None else argv)])

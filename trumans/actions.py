@@ -1,6 +1,6 @@
 """Frame-wise multi-hot action labels with the progress indicator (TRUMANS §4.3).
 
-Label convention (DESIGN.md): ``(T, N_A)`` float; 0 where an action is off, ``1 + progress``
+Label convention (docs/conventions.md): ``(T, N_A)`` float; 0 where an action is off, ``1 + progress``
 while it runs, progress going linearly 0 -> 1 from the action's first to its last frame.
 The vocabulary is a list of names stored with data and checkpoints; order is never assumed.
 """

@@ -1,9 +1,9 @@
-"""The ``trumans`` console script: one subcommand per job (DESIGN.md "Command surface").
+"""The ``trumans`` console script: one subcommand per job (docs/conventions.md "Command behaviour").
 
 Each subcommand lives in the package that owns it, as a module with
-``add_arguments(parser: argparse.ArgumentParser) -> None`` and ``run(args) -> int``.
-Modules are imported lazily, so ``trumans`` itself never imports train/sample/augment at
-import time. A command whose module is not built yet says so and exits with status 2.
+``add_arguments(parser: argparse.ArgumentParser) -> None`` and ``run(args) -> int``; ``COMMANDS``
+is the one table of them. Modules are imported when the parser is built, so ``import trumans``
+never imports the jobs.
 
 Errors (``console_main``), one channel for every command:
 - expected failures (bad arguments, missing or corrupt files, bad values, a locked output folder,
@@ -20,32 +20,23 @@ import importlib
 import os
 import sys
 
-# (command path, module, one-line help, issue that builds it)
-COMMANDS: list[tuple[tuple[str, ...], str, str, str]] = [
-    (("data", "synth"), "trumans.synth.cli", "build the embedded synthetic HSI dataset", "#2"),
-    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release, BVH or FBX data into the dataset format", "#2"),
-    (("augment",), "trumans.augment.cli", "contact-preserving CCD-IK augmentation of a dataset", "#3"),
-    (("train",), "trumans.train.cli", "train the generator (or filter / contact model) from a config", "#4"),
-    (("sample",), "trumans.sample.cli", "sample a long motion in a scene from a plan", "sampling issue"),
-    (("refine",), "trumans.refine.cli", "refine a tracked HOI sequence with the diffusion filter", "HOI-filter issue"),
-    (("view",), "trumans.viz.cli", "render a sequence to GIF/MP4 and a top-down PNG", "#2"),
-    (("eval", "synthesis"), "trumans.sample.eval_synthesis", "synthesis benchmark figures", "sampling issue"),
-    (("eval", "augment"), "trumans.augment.evaluate", "augmentation benchmark figures", "#3"),
-    (("eval", "train"), "trumans.train.evaluate", "recompute a checkpoint's validation loss", "#4"),
-    (("eval", "refine"), "trumans.refine.evaluate", "HOI-filter benchmark figures", "HOI-filter issue"),
-    (("eval", "contacts"), "trumans.track.evaluate", "contact-prediction benchmark figures", "tracker issue"),
-    (("eval", "realism"), "trumans.eval.realism_cli", "realism statistics of a dataset against real mocap", "#9"),
-    (("eval", "local-query"), "trumans.scenes.bench_local_query", "local occupancy query benchmark", "#2"),
+# (command path, module, one-line help)
+COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
+    (("data", "synth"), "trumans.synth.cli", "build the embedded synthetic HSI dataset"),
+    (("data", "import"), "trumans.importers.cli", "import TRUMANS-release, BVH or FBX data into the dataset format"),
+    (("augment",), "trumans.augment.cli", "contact-preserving CCD-IK augmentation of a dataset"),
+    (("train",), "trumans.train.cli", "train the generator (or filter / contact model) from a config"),
+    (("sample",), "trumans.sample.cli", "sample a long motion in a scene from a plan"),
+    (("refine",), "trumans.refine.cli", "refine a tracked HOI sequence with the diffusion filter"),
+    (("view",), "trumans.viz.cli", "render a sequence to GIF/MP4 and a top-down PNG"),
+    (("eval", "synthesis"), "trumans.sample.eval_synthesis", "synthesis benchmark figures"),
+    (("eval", "augment"), "trumans.augment.evaluate", "augmentation benchmark figures"),
+    (("eval", "train"), "trumans.train.evaluate", "recompute a checkpoint's validation loss"),
+    (("eval", "refine"), "trumans.refine.evaluate", "HOI-filter benchmark figures"),
+    (("eval", "contacts"), "trumans.track.evaluate", "contact-prediction benchmark figures"),
+    (("eval", "realism"), "trumans.eval.realism_cli", "realism statistics of a dataset against real mocap"),
+    (("eval", "local-query"), "trumans.scenes.bench_local_query", "local occupancy query benchmark"),
 ]
-
-
-def _load(module: str):
-    try:
-        return importlib.import_module(module)
-    except ModuleNotFoundError as e:
-        if e.name and (module == e.name or module.startswith(e.name + ".")):
-            return None  # the command's own module does not exist yet
-        raise
 
 
 class UsageError(ValueError):
@@ -67,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"trumans {__version__}")
     groups: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="command", metavar="COMMAND")}
     group_parsers: dict[tuple[str, ...], argparse.ArgumentParser] = {}
-    for path, module, help_, issue in COMMANDS:
+    for path, module, help_ in COMMANDS:
         for depth in range(1, len(path)):
             key = path[:depth]
             if key not in groups:
@@ -75,24 +66,13 @@ def build_parser() -> argparse.ArgumentParser:
                 group_parsers[key] = gp
                 groups[key] = gp.add_subparsers(dest="_".join(key) + "_command", metavar="SUBCOMMAND")
         sub = groups[path[:-1]].add_parser(path[-1], help=help_, description=help_)
-        mod = _load(module)
-        if mod is None:
-            sub.set_defaults(_run=_not_built(" ".join(path), issue))
-        else:
-            mod.add_arguments(sub)
-            sub.set_defaults(_run=mod.run)
+        mod = importlib.import_module(module)
+        mod.add_arguments(sub)
+        sub.set_defaults(_run=mod.run)
     for key, gp in group_parsers.items():
         gp.set_defaults(_run=_usage(gp))
     parser.set_defaults(_run=_usage(parser))
     return parser
-
-
-def _not_built(name: str, issue: str):
-    def run(args) -> int:
-        print(f"trumans: error: `trumans {name}` is not built yet (tracked in {issue}); "
-              f"see `trumans --help` for the commands that are", file=sys.stderr)
-        return 2
-    return run
 
 
 def _usage(p: argparse.ArgumentParser):

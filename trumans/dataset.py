@@ -1,4 +1,4 @@
-"""Dataset folders (DESIGN.md "Files"): sequences + scenes + ``index.json``.
+"""Dataset folders (docs/conventions.md "File formats"): sequences + scenes + ``index.json``.
 
 ``index.json`` holds ``name``, ``version``, ``seed``, ``fps``, ``vocabulary`` (action names),
 ``splits`` (``train``/``val``/``test`` -> sequence paths relative to the root), ``scenes``

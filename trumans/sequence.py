@@ -1,4 +1,4 @@
-"""The sequence file format (DESIGN.md "Files"): one ``.npz`` per clip, read without pickle.
+"""The sequence file format (docs/conventions.md "File formats"): one ``.npz`` per clip, read without pickle.
 
 Keys: ``joints (T,24,3) float32`` (m, z-up world), ``fps ()``, optional ``rotations (T,24,6)``
 (6D local, root first) and ``root_pos (T,3)``, ``actions (T,N_A)`` + ``action_names (N_A,)``,

@@ -1,6 +1,6 @@
 """Augment a dataset: every interactable object a sequence touches -> N variations (TRUMANS §3.3).
 
-Output folder (a dataset in the DESIGN.md format, so training can read it alone or next to the
+Output folder (a dataset in the docs/conventions.md format, so training can read it alone or next to the
 original): ``sequences/<stem>__<object>_v<k>.npz``, ``scenes/<scene id>/`` (the changed scene),
 ``records/<stem>.json`` (one per source sequence, written last: its presence with a matching key
 marks the sequence done, so an interrupted run resumes), ``manifest.json`` (what changed: source,

@@ -1,4 +1,4 @@
-"""Reader for the TRUMANS release layout (DESIGN.md "Dataset"), mapped to trumans types.
+"""Reader for the TRUMANS release layout (docs/conventions.md "File formats / Dataset"), mapped to trumans types.
 
 Release layout (one folder, all frames of all sequences concatenated, 30 fps, y-up, metres):
 - ``human_joints.npy``  (N, 24, 3) joint positions, SMPL-X body joints 0-21 + two hand joints, y up;
@@ -23,13 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from trumans.scenes.io import Y_UP_TO_Z_UP  # the one y-up -> z-up turn, shared with mesh import
 from trumans.scenes.occupancy import OccupancyGrid
 from trumans.sequence import ObjectTrack, Sequence
 
 __all__ = ["Y_UP_TO_Z_UP", "TrumansRelease", "read_release", "release_grid_to_z_up", "RELEASE_GRID_BOUNDS"]
 
-# Column-vector rotation taking y-up coordinates to z-up ones: (x, y, z) -> (x, -z, y).
-Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 RELEASE_GRID_BOUNDS = np.array([[-3.0, 0.0, -4.0], [3.0, 2.0, 4.0]])  # y-up min / max corners, m
 RELEASE_GRID_SHAPE = (300, 100, 400)
 RELEASE_FPS = 30.0

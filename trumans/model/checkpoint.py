@@ -1,4 +1,4 @@
-"""Checkpoint files (``.pt``, DESIGN.md "Files"): weights plus everything needed to use them.
+"""Checkpoint files (``.pt``, docs/conventions.md "File formats"): weights plus everything needed to use them.
 
 A checkpoint is a plain dict of tensors / str / int / float / lists / dicts, written atomically
 with ``torch.save`` and read with ``torch.load(weights_only=True)`` (never executes code):

@@ -1,7 +1,7 @@
 """Episodes: fixed-length motion windows in their canonical frame, the feature layout, normalisation.
 
 TRUMANS §4.1: motion is generated in episodes of ``L_epi`` frames (10 fps, 16 frames by default).
-Canonical frame (DESIGN.md): the first frame's pelvis at x = y = 0 (height kept) and its heading
+Canonical frame (docs/conventions.md): the first frame's pelvis at x = y = 0 (height kept) and its heading
 along +x. ``canonicalize`` / ``uncanonicalize`` are exact inverses.
 
 Feature layout (owned here): per frame, the 24 joints' canonical positions ``(24 * 3)`` in joint

@@ -14,7 +14,7 @@ On the filtered joints at the filter's rate:
   ``speed_m_s`` (speed smoothed over ``smooth_s``), in runs of at least ``min_stance_s``;
 - drift (``estimate_body_drift``): a piecewise-linear curve d(t) (knots every ``knot_s``) fitted by
   least squares to the stance frames, each stance's own unknown position eliminated (the foot minus
-  its stance mean = d minus its stance mean). With ``flat_floor`` (DESIGN: the floor is z = 0
+  its stance mean = d minus its stance mean). With ``flat_floor`` (conventions: the floor is z = 0
   everywhere) a foot joint stands at one height in all its floor stances (those within
   ``floor_band_m`` of its lowest; a higher one is on a step or a bed and keeps its own), so for
   the vertical part only that one height is eliminated and stances far apart in time are tied
@@ -33,13 +33,12 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.ndimage import label, uniform_filter1d
 
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
+from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS
 
 from trumans.refine.frame import FRAME_DIM, JOINTS
 
-__all__ = ["DriftConfig", "FOOT_JOINTS", "stance_mask", "estimate_body_drift", "remove_body_drift"]
+__all__ = ["DriftConfig", "stance_mask", "estimate_body_drift", "remove_body_drift"]
 
-FOOT_JOINTS = tuple(JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot"))
 
 
 @dataclass(frozen=True)
@@ -122,7 +121,7 @@ def estimate_body_drift(joints: np.ndarray, fps: float, cfg: DriftConfig = Drift
     # the height, its joint's one height over the whole sequence; a stance higher than the joint's
     # lowest by more than floor_band_m stands on something else (a step, a bed) and keeps its own
     height_group = stance
-    if cfg.flat_floor:  # DESIGN: the floor is z = 0 everywhere
+    if cfg.flat_floor:  # conventions: the floor is z = 0 everywhere
         level = np.zeros(stance.max() + 1)
         np.add.at(level, stance, foot[:, 2])
         level /= np.maximum(np.bincount(stance), 1)

@@ -2,31 +2,22 @@
 
 With ``--interactions`` the command is the contact-driven tracker instead (iReplica): it dispatches
 to ``trumans.track.cli.run(args)`` (args.input, --out, --seed, --json are shared); that module
-adds its own options through ``add_interaction_arguments(group)``, called here with an argument
-group when the module exists.
+adds its own options through ``add_interaction_arguments(group)``.
 """
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import time
+
+from trumans.track import cli as track_cli
 
 __all__ = ["add_arguments", "run", "main"]
 
 
-def _interactions_module():
-    try:
-        return importlib.import_module("trumans.track.cli")
-    except ModuleNotFoundError as e:
-        if e.name in ("trumans.track.cli",):
-            return None
-        raise
-
-
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("input", metavar="tracked.npz",
-                   help="tracked sequence .npz (DESIGN.md format; NaN marks missing frames/joints)")
+                   help="tracked sequence .npz (the sequence format of the README; NaN marks missing frames/joints)")
     p.add_argument("--out", required=True, help="refined sequence .npz (same frames and fps)")
     p.add_argument("--category", default=None,
                    help="object category (default: the object's own); must be one the filter knows")
@@ -59,18 +50,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.add_argument("--interactions", action="store_true",
                    help="contact-driven interaction tracking (iReplica) instead of the filter")
-    mod = _interactions_module()
-    if mod is not None and hasattr(mod, "add_interaction_arguments"):
-        mod.add_interaction_arguments(p.add_argument_group("interactions mode (--interactions)"))
+    track_cli.add_interaction_arguments(p.add_argument_group("interactions mode (--interactions)"))
 
 
 def run(args: argparse.Namespace) -> int:
     if args.interactions:
-        mod = _interactions_module()
-        if mod is None:
-            raise ValueError("--interactions (the iReplica tracker) is not built yet in this checkout; "
-                             "run without it for the HOI filter")
-        return int(mod.run(args) or 0)
+        return int(track_cli.run(args) or 0)
     from trumans.sequence import load_sequence, save_sequence
 
     from trumans.refine.pipeline import HOIFilter, RefineOptions

@@ -1,6 +1,6 @@
 """Scene folders (``scene.json`` + mesh files) and mesh import with y-up -> z-up conversion.
 
-Folder layout (DESIGN.md "Files / Scene")::
+Folder layout (docs/conventions.md "File formats / Scene")::
 
     scene.json          {"format": "trumans-scene", "version": 1, "name", "meta",
                          "static": [{"name", "mesh"}],

@@ -26,7 +26,7 @@ __all__ = ["OccupancyGrid", "compute_occupancy", "scene_occupancy", "OCCUPANCY_F
 
 OCCUPANCY_FILE = "occupancy.npz"
 _CACHE_VERSION = "occ-v1"
-DEFAULT_VOXEL = 0.02  # m, the voxel of cached scene grids (DESIGN.md)
+DEFAULT_VOXEL = 0.02  # m, the voxel of cached scene grids (docs/conventions.md)
 _CHUNK = 1 << 20  # voxel centres per ray-casting call (~12 MB of float32 points)
 
 

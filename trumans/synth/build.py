@@ -1,6 +1,6 @@
 """Build the embedded synthetic HSI dataset: procedural rooms x scripted takes, in parallel over rooms.
 
-Layout written under ``out`` (DESIGN.md "Files"):
+Layout written under ``out`` (docs/conventions.md "File formats"):
 ``scenes/<room>/`` (scene.json + meshes + occupancy.npz), ``sequences/<room>_<take>.npz``,
 ``rooms/<room>.json`` (per-room record, written last: its presence with a matching key marks the
 room complete, so an interrupted build resumes), ``index.json`` and ``summary.json``.

@@ -19,7 +19,7 @@ between the palms, ``PALM_GAP`` inside each, reaching ``BOX_BEHIND_M`` behind th
 held at ``GRIP_SHARE`` of its height. It stands on the floor, or on a fitted support (a "table"
 box on legs) when its bottom would be ``SUPPORT_MIN_M`` or more above the floor.
 
-Pose track (T, 4, 4) world-from-object (DESIGN.md): static before the pick-up, rigid with the
+Pose track (T, 4, 4) world-from-object (docs/conventions.md): static before the pick-up, rigid with the
 holding frame while carried (one hand: the wrist's global rotation at the palm point, the
 ``hands.core`` convention; two hands: origin at the palms' midpoint, y from the right palm to the
 left one, z up), static after the put-down (the carried pose at release set upright on the floor

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from trumans.refine.body_drift import FOOT_JOINTS, DriftConfig, estimate_body_drift, remove_body_drift, stance_mask
+from trumans.skeleton import FOOT_JOINTS
+from trumans.refine.body_drift import DriftConfig, estimate_body_drift, remove_body_drift, stance_mask
 from trumans.refine.frame import FRAME_DIM, JOINTS
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS
 

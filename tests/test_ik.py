@@ -4,7 +4,8 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from trumans.ik.fit import fit_error, fit_rotations, kabsch, offsets_from_joints, rotation_between
+from trumans.ik.fit import fit_error, fit_rotations, kabsch, offsets_from_joints
+from trumans.rotations import least_rotation
 from trumans.ik.rescale import leg_length, retarget, scale_offsets
 from trumans.rotations import axis_angle_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, bone_lengths, forward_kinematics, rest_offsets
@@ -70,14 +71,14 @@ def test_refinement_reduces_error_on_inconsistent_joints():
     assert e1["max"] < 0.1
 
 
-def test_kabsch_and_rotation_between_analytic():
+def test_kabsch_and_least_rotation_analytic():
     Rt = Rotation.random(10, random_state=0).as_matrix()
     a = np.random.default_rng(0).normal(size=(10, 5, 3))
     b = np.einsum("tij,tnj->tni", Rt, a)
     np.testing.assert_allclose(kabsch(a, b), Rt, atol=1e-9)
     u = np.array([[1.0, 0, 0], [0, 0, 2.0], [1.0, 0, 0], [0, 0, 0]])
     v = np.array([[0.0, 3.0, 0], [0, 0, 1.0], [-1.0, 0, 0], [1.0, 0, 0]])
-    Rb = rotation_between(u, v)
+    Rb = least_rotation(u, v)
     np.testing.assert_allclose(Rb[0], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
     np.testing.assert_allclose(Rb[1], np.eye(3), atol=1e-12)
     np.testing.assert_allclose(Rb[2] @ u[2], v[2], atol=1e-12)  # opposite vectors: a half turn

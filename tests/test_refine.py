@@ -349,7 +349,7 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
 
 def test_foot_skate_counts_slides_over_the_truths_planted_runs():
     from trumans.refine.evaluate import _skate_cm
-    from trumans.refine.body_drift import FOOT_JOINTS
+    from trumans.skeleton import FOOT_JOINTS
 
     T = 20
     Jc = np.zeros((T, 24, 3))

@@ -139,11 +139,24 @@ def rodrigues(axis: np.ndarray | torch.Tensor, angle: np.ndarray | torch.Tensor 
 
 
 def least_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) the least rotation turning direction a (..., 3) into direction b (identity where
-    they are parallel; undefined axis where opposite)."""
+    """(..., 3, 3) the least rotation turning direction a (..., 3) into direction b (..., 3).
+
+    Parallel directions or a zero vector give the identity; opposite directions a half turn about
+    an axis perpendicular to a."""
+    a, b = np.broadcast_arrays(np.asarray(a), np.asarray(b))
+    degenerate = (np.linalg.norm(a, axis=-1) < 1e-9) | (np.linalg.norm(b, axis=-1) < 1e-9)
     a, b = unit(a), unit(b)
     c = np.cross(a, b)
-    return rodrigues(c, np.arctan2(np.linalg.norm(c, axis=-1), (a * b).sum(-1)))
+    cos = (a * b).sum(-1)
+    R = rodrigues(c, np.arctan2(np.linalg.norm(c, axis=-1), cos))
+    anti = (cos < -1.0 + 1e-9) & ~degenerate
+    if anti.any():  # half turn about any axis n perpendicular to a: R = 2 n n^T - I
+        aa = a[anti]
+        helper = np.where(np.abs(aa[:, :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+        n = unit(np.cross(aa, helper))
+        R[anti] = 2 * n[:, :, None] * n[:, None, :] - np.eye(3)
+    R[degenerate] = np.eye(3)
+    return R
 
 
 def matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The 24-joint skeleton (SMPL-X body joints 0-21 + left/right index1), rest pose and forward kinematics.
 
-Conventions (see DESIGN.md): metres, z up, floor at z = 0. In the rest pose (all local rotations
+Conventions (see docs/conventions.md): metres, z up, floor at z = 0. In the rest pose (all local rotations
 identity) the body stands upright facing +x, its left side towards +y, feet on the floor.
 ``offsets[j]`` is joint j's rest position relative to its parent, expressed in the parent's frame.
 FK: ``G[j] = G[parent] @ R_local[j]``, ``p[j] = p[parent] + G[parent] @ offsets[j]``; the root's
@@ -22,7 +22,8 @@ __all__ = [
     "forward_kinematics",
     "heading",
     "children",
-    "HIPS", "KNEES", "ANKLES", "FEET", "SHOULDERS", "ELBOWS", "WRISTS", "INDEX1", "SEAT", "SPINE", "TORSO",
+    "HIPS", "KNEES", "ANKLES", "FEET", "SHOULDERS", "ELBOWS", "WRISTS", "INDEX1", "FOOT_JOINTS", "FOOT_REST_HEIGHT",
+    "HAND_JOINTS", "LEG_CHAINS", "SEAT", "SPINE", "TORSO",
     "LIMB_CHAINS",
     "HINGE_AXES",
     "DEPTH",
@@ -91,6 +92,13 @@ SHOULDERS: tuple[int, int] = _idx("left_shoulder", "right_shoulder")
 ELBOWS: tuple[int, int] = _idx("left_elbow", "right_elbow")
 WRISTS: tuple[int, int] = _idx("left_wrist", "right_wrist")
 INDEX1: tuple[int, int] = _idx("left_index1", "right_index1")  # index-finger base, one per hand
+FOOT_JOINTS: tuple[int, ...] = (*ANKLES, *FEET)  # what stands on the floor: left/right ankle, left/right toe base
+# Resting heights (m) above the floor of FOOT_JOINTS on a standing body: ankle 0.08, toe base 0.04.
+FOOT_REST_HEIGHT: np.ndarray = np.array([0.08, 0.08, 0.04, 0.04])
+HAND_JOINTS: tuple[int, ...] = (*WRISTS, *INDEX1)  # left/right wrist, left/right index1
+# Each leg's chain (hip, knee, ankle, toe base), left then right.
+LEG_CHAINS: tuple[tuple[int, int, int, int], ...] = tuple(
+    _idx(f"{s}_hip", f"{s}_knee", f"{s}_ankle", f"{s}_foot") for s in ("left", "right"))
 SEAT: tuple[int, ...] = _idx("pelvis", "left_hip", "right_hip")  # what rests on a seat
 SPINE: tuple[int, ...] = _idx("spine1", "spine2", "spine3")
 # The rigid trunk: pelvis, hips, spine, neck, head, collars and shoulders.

@@ -21,13 +21,12 @@ import numpy as np
 
 from trumans.contacts.rule import ContactScene, joint_contacts
 from trumans.eval.metrics import foot_skate_cm
-from trumans.skeleton import JOINT_INDEX, PARENTS
+from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT, JOINT_INDEX, PARENTS
 
 __all__ = ["goal_errors_cm", "penetration_cm", "floor_err_cm", "contact_score", "bone_length_cv",
            "transition_jerk_ratio", "feet_skate_cm", "seat_height_errors_cm", "motion_figures"]
 
-_FEET = [JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot")]
-_FOOT_REST = np.array([0.08, 0.08, 0.04, 0.04])  # resting heights of ankle / foot joints above the floor, m
+_FEET = list(FOOT_JOINTS)
 _HIPS = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
 
 
@@ -54,7 +53,7 @@ def penetration_cm(joints: np.ndarray, contact_scene: ContactScene) -> tuple[flo
 
 def _lowest_foot(joints: np.ndarray) -> np.ndarray:
     """(T,) height of the lowest foot joint above its resting height, m."""
-    return (joints[:, _FEET, 2] - _FOOT_REST).min(axis=1)
+    return (joints[:, _FEET, 2] - FOOT_REST_HEIGHT).min(axis=1)
 
 
 def floor_err_cm(joints: np.ndarray) -> tuple[float, float]:
@@ -65,7 +64,7 @@ def floor_err_cm(joints: np.ndarray) -> tuple[float, float]:
 
 def contact_score(joints: np.ndarray, fps: float, height: float = 0.05, speed: float = 0.10) -> float:
     """Share of frames where a foot supports the body (see module doc)."""
-    h = joints[:, _FEET, 2] - _FOOT_REST  # (T, 4)
+    h = joints[:, _FEET, 2] - FOOT_REST_HEIGHT  # (T, 4)
     v = np.zeros_like(h)
     v[1:] = np.linalg.norm(np.diff(joints[:, _FEET, :2], axis=0), axis=-1) * fps
     ok = (np.abs(h) < height) & (v < speed)
@@ -75,7 +74,7 @@ def contact_score(joints: np.ndarray, fps: float, height: float = 0.05, speed: f
 def feet_skate_cm(joints: np.ndarray) -> float:
     """Foot skate with floor contact = foot joint within 5 cm of its resting height."""
     feet = joints[:, _FEET]
-    contact = (feet[..., 2] - _FOOT_REST) < 0.05
+    contact = (feet[..., 2] - FOOT_REST_HEIGHT) < 0.05
     return foot_skate_cm(feet, contact)
 
 

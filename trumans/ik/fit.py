@@ -22,40 +22,17 @@ import logging
 import numpy as np
 import torch
 
-from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix, skew, unit
+from trumans.rotations import axis_angle_to_matrix, least_rotation, matrix_to_6d, sixd_to_matrix, unit
 from trumans.skeleton import (HINGE_AXES, NUM_JOINTS, PARENTS, children, forward_kinematics, global_to_local,
                               offsets_from_joints, offsets_from_pose)
 
 # offsets_from_joints lives in trumans.skeleton; re-exported here, where it was first defined
-__all__ = ["fit_rotations", "offsets_from_joints", "fit_error", "kabsch", "rotation_between"]
+__all__ = ["fit_rotations", "offsets_from_joints", "fit_error", "kabsch"]
 
 log = logging.getLogger(__name__)
 
 _CHILDREN = [children(j) for j in range(NUM_JOINTS)]
 _BEND_LO, _BEND_HI = 0.05, 0.25  # sin(bend angle) below which the limb plane is ignored / fully trusted
-
-
-def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking direction u to direction v: (..., 3), (..., 3) -> (..., 3, 3).
-
-    Zero vectors give the identity; opposite vectors a half turn about an axis perpendicular to u."""
-    u, v = np.broadcast_arrays(np.asarray(u, np.float64), np.asarray(v, np.float64))
-    nu, nv = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
-    a, b = unit(u), unit(v)
-    c = (a * b).sum(-1)
-    K = skew(np.cross(a, b))
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    denom = np.maximum(1.0 + c, 1e-12)[..., None, None]
-    R = eye + K + K @ K / denom
-    anti = c < -1.0 + 1e-9
-    if anti.any():  # half turn about any axis n perpendicular to a: R = 2 n n^T - I
-        aa = a[anti]
-        helper = np.where(np.abs(aa[:, :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
-        n = unit(np.cross(aa, helper))
-        R[anti] = 2 * n[:, :, None] * n[:, None, :] - np.eye(3)
-    degenerate = (nu < 1e-9) | (nv < 1e-9)
-    R[degenerate] = np.eye(3)
-    return R
 
 
 def kabsch(a: np.ndarray, b: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
@@ -89,7 +66,7 @@ def _analytic(P: np.ndarray, off: np.ndarray) -> np.ndarray:
         elif len(kids) == 1:
             c = kids[0]
             b1 = P[:, c] - P[:, j]
-            Gj = rotation_between(Gp @ off[c], b1) @ Gp
+            Gj = least_rotation(Gp @ off[c], b1) @ Gp
             gk = _CHILDREN[c]
             if c in HINGE_AXES and len(gk) == 1 and np.linalg.norm(off[c]) > 1e-9:
                 Gj = _hinge_twist(Gj, off[c], off[gk[0]], HINGE_AXES[c], b1, P[:, gk[0]] - P[:, c])

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.skeleton import ANKLES, FEET, KNEES, NUM_JOINTS, forward_kinematics
+from trumans.skeleton import ANKLES, FOOT_JOINTS, KNEES, NUM_JOINTS, forward_kinematics
 
 __all__ = ["retarget", "scale_offsets", "leg_length"]
 
 _LEG = [*KNEES, *ANKLES]  # the thigh and shin bones end at these joints
-_FEET = [*ANKLES, *FEET]
+_FEET = list(FOOT_JOINTS)
 
 
 def _check_offsets(off: np.ndarray, name: str) -> np.ndarray:

@@ -24,7 +24,7 @@ import numpy as np
 from trumans.ik.fit import fit_error, fit_rotations
 from trumans.rotations import matrix_to_6d
 from trumans.sequence import Sequence
-from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, REST_JOINTS
+from trumans.skeleton import FOOT_JOINTS, JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, REST_JOINTS
 
 __all__ = ["DEFAULT_JOINT_MAP", "SKELETON_MAPS", "KNOWN_UNITS", "map_joints", "detect_skeleton", "retarget_joints",
            "guess_unit_scale", "sequence_from_joints", "floor_height", "place_on_floor", "place_pelvis"]
@@ -269,7 +269,6 @@ def sequence_from_joints(joints: np.ndarray, fps: float, target_fps: float | Non
                     root_pos=root.astype(np.float32), extra=extra)
 
 
-_FOOT_JOINTS = [JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot")]
 _REST_FOOT_Z = float(REST_JOINTS[[JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"]], 2].mean())
 FLOOR_TOLERANCE_M = 0.10  # feet further than this from standing on z = 0 are reported
 
@@ -277,7 +276,7 @@ FLOOR_TOLERANCE_M = 0.10  # feet further than this from standing on z = 0 are re
 def floor_height(joints: np.ndarray) -> float:
     """Where the motion's floor is (m): the 5th percentile over frames of the lowest foot joint
     (ankles, toe bases), minus the rest pose's toe-base height, so a body standing on z = 0 gives 0."""
-    low = np.asarray(joints)[:, _FOOT_JOINTS, 2].min(axis=1)
+    low = np.asarray(joints)[:, list(FOOT_JOINTS), 2].min(axis=1)
     return float(np.percentile(low, 5) - _REST_FOOT_Z)
 
 

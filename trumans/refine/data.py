@@ -23,11 +23,11 @@ from trumans.ik.fit import offsets_from_joints
 from trumans.resample import resample_sequence
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import Sequence
-from trumans.skeleton import JOINT_INDEX
+from trumans.skeleton import WRISTS
 
 __all__ = ["FilterWindows", "load_filter_windows", "window_objects"]
 
-_WRISTS = [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"]]
+_WRISTS = list(WRISTS)
 _MOVE_MIN_M = 0.02
 _M_PER_RAD = 0.5
 

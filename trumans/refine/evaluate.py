@@ -45,10 +45,11 @@ from pathlib import Path
 import numpy as np
 
 from trumans.refine.filter import category_indices
+from trumans.skeleton import FOOT_JOINTS, HAND_JOINTS
 
 __all__ = ["add_arguments", "run", "evaluate", "tune_savgol"]
 
-_HANDS = [20, 21, 22, 23]  # wrists and index1
+_HANDS = list(HAND_JOINTS)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -165,13 +166,12 @@ def _mean_finite(values: list[float]) -> float:
 def _skate_cm(J: np.ndarray, Jc: np.ndarray, fps: float) -> float:
     """Mean horizontal slide (cm) of the foot joints of J (T, 24, 3) over the truth Jc's planted runs
     (foot joint under 0.1 m/s and within 5 cm of its lowest in the clip); NaN without a run."""
-    from trumans.refine.body_drift import FOOT_JOINTS
     from trumans.eval.metrics import foot_slides
 
-    feet = Jc[:, FOOT_JOINTS]
+    feet = Jc[:, list(FOOT_JOINTS)]
     speed = np.linalg.norm(np.gradient(feet[..., :2], axis=0), axis=-1) * fps
     planted = (speed < 0.1) & (feet[..., 2] - feet[..., 2].min(0) < 0.05)
-    s = foot_slides(J[:, FOOT_JOINTS], planted)
+    s = foot_slides(J[:, list(FOOT_JOINTS)], planted)
     return float(100 * s.mean()) if len(s) else float("nan")
 
 

@@ -21,17 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import label
 
-from trumans.ik.fit import rotation_between
-from trumans.rotations import matrix_to_6d, sixd_to_matrix
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
+from trumans.rotations import least_rotation, matrix_to_6d, sixd_to_matrix
+from trumans.skeleton import FOOT_JOINTS, LEG_CHAINS, NUM_JOINTS, PARENTS
 
-from trumans.refine.body_drift import FOOT_JOINTS, DriftConfig, stance_mask
+from trumans.refine.body_drift import DriftConfig, stance_mask
 from trumans.refine.frame import FRAME_DIM, JOINTS, ROTATIONS
 
 __all__ = ["LockConfig", "lock_feet"]
 
-_LEGS = tuple((JOINT_INDEX[f"{s}_hip"], JOINT_INDEX[f"{s}_knee"], JOINT_INDEX[f"{s}_ankle"], JOINT_INDEX[f"{s}_foot"])
-              for s in ("left", "right"))
 
 
 @dataclass(frozen=True)
@@ -103,7 +100,7 @@ def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig())
         return f.astype(frames.dtype)
     delta = _corrections(J, planted, config.fade_s * fps)
     new = J.copy()
-    for side, (hip, knee, ankle, toe) in enumerate(_LEGS):
+    for side, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
         d_ankle, d_toe = delta[:, side], delta[:, 2 + side]  # FOOT_JOINTS: left/right ankle, left/right foot
         touched = (np.abs(d_ankle).sum(-1) > 0) | (np.abs(d_toe).sum(-1) > 0)
         if not touched.any():
@@ -130,12 +127,12 @@ def _turn_leg_rotations(rot6: np.ndarray, old: np.ndarray, new: np.ndarray) -> n
     for j in range(1, NUM_JOINTS):
         G[:, j] = G[:, PARENTS[j]] @ L[:, j]
     out = L.copy()
-    for hip, knee, ankle, toe in _LEGS:
+    for hip, knee, ankle, toe in LEG_CHAINS:
         acc = np.broadcast_to(np.eye(3), L[:, 0].shape)  # world turn the joints above have applied
         parent_new = G[:, PARENTS[hip]]
         for j, child in ((hip, knee), (knee, ankle), (ankle, toe)):
             cur = np.einsum("tij,tj->ti", acc, old[:, child] - old[:, j])
-            acc = rotation_between(cur, new[:, child] - new[:, j]) @ acc
+            acc = least_rotation(cur, new[:, child] - new[:, j]) @ acc
             G_new = acc @ G[:, j]
             out[:, j] = np.swapaxes(parent_new, -1, -2) @ G_new
             parent_new = G_new

@@ -43,13 +43,13 @@ from scipy.spatial.transform import Rotation
 from trumans.contacts.intervals import runs
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
+from trumans.skeleton import NUM_JOINTS, WRISTS
 
 from trumans.refine.frame import FRAME_DIM, JOINTS, OBJ_R, OBJ_T
 
 __all__ = ["RestConfig", "rest_mask", "held_mask", "pool_rest"]
 
-_WRISTS = [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"]]
+_WRISTS = list(WRISTS)
 
 
 @dataclass(frozen=True)

@@ -348,7 +348,7 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
 
 
 def test_foot_skate_counts_slides_over_the_truths_planted_runs():
-    from trumans.refine.evaluate import _skate_cm
+    from trumans.eval.metrics import foot_skate_planted_cm
     from trumans.skeleton import FOOT_JOINTS
 
     T = 20
@@ -357,11 +357,11 @@ def test_foot_skate_counts_slides_over_the_truths_planted_runs():
     Jc[:, FOOT_JOINTS, 2] = 0.05  # four foot joints standing still: one planted run each
     J = Jc.copy()
     J[:, FOOT_JOINTS[0], 0] += 0.01 * np.arange(T)  # the output's left ankle slides 1 cm per frame
-    assert _skate_cm(Jc, Jc, 30.0) == 0.0
-    assert abs(_skate_cm(J, Jc, 30.0) - 100 * 0.19 / 4) < 1e-9  # 19 cm on one run of four
+    assert foot_skate_planted_cm(Jc, Jc, 30.0) == 0.0
+    assert abs(foot_skate_planted_cm(J, Jc, 30.0) - 100 * 0.19 / 4) < 1e-9  # 19 cm on one run of four
     moving = Jc.copy()
     moving[:, :, 0] += 0.02 * np.arange(T)[:, None]  # 0.6 m/s: the truth never plants a foot
-    assert np.isnan(_skate_cm(J, moving, 30.0))
+    assert np.isnan(foot_skate_planted_cm(J, moving, 30.0))
 
 
 def test_post_steps_follow_the_options_and_the_category():

@@ -14,7 +14,7 @@ from trumans.synth.build import SynthConfig, build_dataset, split_rooms
 from trumans.synth.vocab import SYNTH_ACTIONS
 
 KEYS = ("sequences", "frames", "hours", "rooms", "action_frames", "frames_per_s", "bone_length_dev_mm",
-        "foot_skate_cm", "penetration_max_cm", "grasp_dist_cm")
+        "foot_skate_per_step_cm", "penetration_max_cm", "grasp_dist_cm")
 
 
 @pytest.fixture(scope="module")

@@ -16,12 +16,13 @@ from trumans.scenes.scene import Scene
 
 from trumans.contacts.intervals import run_bounds
 from trumans.contacts.rule import body_penetration
-from trumans.skeleton import NUM_JOINTS, bone_lengths
+from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS, bone_lengths
 
 __all__ = [
     "bone_length_dev_mm",
     "foot_slides",
     "foot_skate_cm",
+    "foot_skate_planted_cm",
     "penetration_depth",
     "penetration_max_cm",
     "joint_centre_inside_cm",
@@ -75,6 +76,17 @@ def foot_skate_cm(foot: np.ndarray, contact: np.ndarray) -> float:
     """Mean horizontal slide of a foot while in floor contact, per step, in cm (see ``foot_slides``)."""
     s = foot_slides(foot, contact)
     return float(s.mean() * 100.0) if len(s) else 0.0
+
+
+def foot_skate_planted_cm(J: np.ndarray, Jc: np.ndarray, fps: float) -> float:
+    """Mean horizontal slide (cm) of the foot joints (ankles, toe bases) of J (T, 24, 3) m over the
+    planted runs of the truth Jc (T, 24, 3) m at ``fps``: a foot joint under 0.1 m/s and within 5 cm
+    of its lowest in the clip. NaN where the truth has no planted run."""
+    feet = Jc[:, list(FOOT_JOINTS)]
+    speed = np.linalg.norm(np.gradient(feet[..., :2], axis=0), axis=-1) * fps
+    planted = (speed < 0.1) & (feet[..., 2] - feet[..., 2].min(0) < 0.05)
+    s = foot_slides(J[:, list(FOOT_JOINTS)], planted)
+    return float(100 * s.mean()) if len(s) else float("nan")
 
 
 def penetration_depth(signed: np.ndarray, facing: np.ndarray | None = None) -> np.ndarray:

@@ -10,7 +10,8 @@ All inputs are world joints (T, 24, 3) float, metres, z-up, at ``fps``. Definiti
   (feet under the floor), ``floor_err_max_cm`` its max;
 - ``contact``: Table 2's contact score (DIMOS protocol): share of frames whose lowest foot joint
   is within 5 cm of its resting height and moves slower than 10 cm/s (a foot supports the body);
-- ``foot_skate_cm``: mean horizontal slide per foot contact (``trumans.eval.metrics.foot_skate_cm``);
+- ``foot_skate_near_floor_cm``: mean horizontal slide per foot contact, a contact being a foot joint within
+  5 cm of its resting height (``trumans.eval.metrics.foot_skate_cm``);
 - ``bone_length_cv``: per bone std / mean over time, the median over bones;
 - ``transition_jerk_ratio``: mean joint jerk (third difference) around the episode seams over
   the mean jerk inside episodes.
@@ -24,7 +25,7 @@ from trumans.eval.metrics import foot_skate_cm
 from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT, JOINT_INDEX, PARENTS
 
 __all__ = ["goal_errors_cm", "penetration_cm", "floor_err_cm", "contact_score", "bone_length_cv",
-           "transition_jerk_ratio", "feet_skate_cm", "seat_height_errors_cm", "motion_figures"]
+           "transition_jerk_ratio", "foot_skate_near_floor_cm", "seat_height_errors_cm", "motion_figures"]
 
 _FEET = list(FOOT_JOINTS)
 _HIPS = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
@@ -71,8 +72,9 @@ def contact_score(joints: np.ndarray, fps: float, height: float = 0.05, speed: f
     return float(ok.any(axis=1).mean())
 
 
-def feet_skate_cm(joints: np.ndarray) -> float:
-    """Foot skate with floor contact = foot joint within 5 cm of its resting height."""
+def foot_skate_near_floor_cm(joints: np.ndarray) -> float:
+    """joints (T, 24, 3) m -> mean horizontal slide (cm) per foot contact, a contact being a foot joint
+    (ankle or toe base) within 5 cm of its resting height (``FOOT_REST_HEIGHT``)."""
     feet = joints[:, _FEET]
     contact = (feet[..., 2] - FOOT_REST_HEIGHT) < 0.05
     return foot_skate_cm(feet, contact)
@@ -127,7 +129,7 @@ def motion_figures(result, sc, sit_offset: float | None = None) -> dict:
         "goal_err_cm": round(float(ge.mean()), 2) if ge.size else None,
         "seat_height_err_cm": round(float(seat.mean()), 2) if seat.size else None,
         "penetration_mean_cm": round(pen_mean, 2), "penetration_max_cm": round(pen_max, 2),
-        "contact": round(contact_score(J, result.fps), 3), "foot_skate_cm": round(feet_skate_cm(J), 2),
+        "contact": round(contact_score(J, result.fps), 3), "foot_skate_near_floor_cm": round(foot_skate_near_floor_cm(J), 2),
         "floor_err_cm": round(fl_mean, 2), "floor_err_max_cm": round(fl_max, 2),
         "bone_length_cv": round(bone_length_cv(J), 5), "raw_bone_length_cv": round(float(result.raw_bone_cv), 4),
         "transition_jerk_ratio": round(transition_jerk_ratio(J, result.episode_starts[1:]), 3),

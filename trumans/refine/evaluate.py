@@ -13,7 +13,7 @@ refined end to end (resampling, windows, blending). Figures (means over clips an
 - ``obj_t_err_in_cm`` / ``_out_cm``, ``obj_rot_err_in_deg`` / ``_out_deg``;
 - ``hand_obj_dist_cm``: mean |d̂ − d| with d the distance from the nearer hand (wrist / index1) to
   the object, for the output (``hand_obj_dist_in_cm`` for the input);
-- ``foot_skate_out_cm`` / ``_savgol_cm`` / ``_gt_cm``: how far a foot joint (ankles, feet) slides
+- ``foot_skate_planted_out_cm`` / ``_savgol_cm`` / ``_gt_cm`` (``trumans.eval.metrics.foot_skate_planted_cm``): how far a foot joint (ankles, feet) slides
   horizontally while the truth's is planted (under 0.1 m/s and within 5 cm of its lowest in the
   clip), summed over each such run and averaged over runs (``trumans.eval.metrics.foot_slides``), cm;
 - ``mpjpe_*_ra_mm``: the same, root-aligned (each frame's pelvis moved onto the truth's: a whole-body
@@ -45,7 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from trumans.refine.filter import category_indices
-from trumans.skeleton import FOOT_JOINTS, HAND_JOINTS
+from trumans.eval.metrics import foot_skate_planted_cm
+from trumans.skeleton import HAND_JOINTS
 
 __all__ = ["add_arguments", "run", "evaluate", "tune_savgol"]
 
@@ -154,25 +155,13 @@ def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarra
         "obj_rot_err_out_deg": _rot_deg(out[:, 219:225], cl[:, 219:225]).mean(),
         "hand_obj_dist_in_cm": 100 * np.nanmean(np.abs(_hand_dist(np.where(np.isfinite(tr), tr, np.nan)) - _hand_dist(cl))),
         "hand_obj_dist_cm": 100 * np.abs(_hand_dist(out) - _hand_dist(cl)).mean(),
-        **{f"foot_skate_{k}_cm": _skate_cm(J, Jc, fps) for k, J in (("out", Jo), ("savgol", Js), ("gt", Jc))},
+        **{f"foot_skate_planted_{k}_cm": foot_skate_planted_cm(J, Jc, fps) for k, J in (("out", Jo), ("savgol", Js), ("gt", Jc))},
     }
 
 
 def _mean_finite(values: list[float]) -> float:
     v = np.asarray(values, dtype=np.float64)
     return float(v[np.isfinite(v)].mean()) if np.isfinite(v).any() else float("nan")
-
-
-def _skate_cm(J: np.ndarray, Jc: np.ndarray, fps: float) -> float:
-    """Mean horizontal slide (cm) of the foot joints of J (T, 24, 3) over the truth Jc's planted runs
-    (foot joint under 0.1 m/s and within 5 cm of its lowest in the clip); NaN without a run."""
-    from trumans.eval.metrics import foot_slides
-
-    feet = Jc[:, list(FOOT_JOINTS)]
-    speed = np.linalg.norm(np.gradient(feet[..., :2], axis=0), axis=-1) * fps
-    planted = (speed < 0.1) & (feet[..., 2] - feet[..., 2].min(0) < 0.05)
-    s = foot_slides(J[:, list(FOOT_JOINTS)], planted)
-    return float(100 * s.mean()) if len(s) else float("nan")
 
 
 def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window: int, seed: int, options,
@@ -268,7 +257,7 @@ def _real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
 
 _BODY_KEYS = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_out_observed_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm",
               "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_err_savgol",
-              "accel_gt", "accel_out", "foot_skate_out_cm", "foot_skate_savgol_cm", "foot_skate_gt_cm", "frames_per_s", "clips")
+              "accel_gt", "accel_out", "foot_skate_planted_out_cm", "foot_skate_planted_savgol_cm", "foot_skate_planted_gt_cm", "frames_per_s", "clips")
 
 
 def evaluate_real(filt, clip: int, max_clips: int, savgol_window: int, seed: int, options) -> dict:

@@ -217,8 +217,8 @@ def build_dataset(cfg: SynthConfig, progress: bool = True, overwrite: bool = Fal
     the builder (kill -9 leaves no orphan writing); rerunning resumes from the finished rooms.
 
     Summary: sequences, frames, hours, rooms, action_frames (per action), frames_per_s (frames
-    generated in this run per wall-clock second), bone_length_dev_mm, foot_skate_cm,
-    penetration_max_cm, grasp_dist_cm (see ``trumans.eval.metrics``), splits, categories,
+    generated in this run per wall-clock second), bone_length_dev_mm, foot_skate_per_step_cm (mean slide
+    per planned floor step), penetration_max_cm, grasp_dist_cm (see ``trumans.eval.metrics``), splits, categories,
     activities (per scripted activity: performed / skipped as infeasible), hash."""
     from tqdm import tqdm
 
@@ -295,7 +295,7 @@ def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
         "seconds": elapsed,
         "workers": workers,
         "bone_length_dev_mm": max((r["bone_length_dev_mm"] for r in records), default=0.0),
-        "foot_skate_cm": 100.0 * sum(r["foot_slide_sum_m"] for r in records) / max(steps, 1),
+        "foot_skate_per_step_cm": 100.0 * sum(r["foot_slide_sum_m"] for r in records) / max(steps, 1),
         "foot_steps": steps,
         "penetration_max_cm": max((r["penetration_max_cm"] for r in records), default=0.0),
         "grasp_dist_cm": 100.0 * sum(r["grasp_gap_sum_m"] for r in records) / max(grasp_frames, 1),

@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"wrote {summary['sequences']} sequences, {summary['hours']:.2f} h over {summary['rooms']} rooms "
               f"to {summary['out']} in {summary['seconds']:.0f} s")
-        for k in ("bone_length_dev_mm", "foot_skate_cm", "penetration_max_cm", "grasp_dist_cm"):
+        for k in ("bone_length_dev_mm", "foot_skate_per_step_cm", "penetration_max_cm", "grasp_dist_cm"):
             print(f"  {k}: {summary[k]:.3f}")
         if "real" in summary:
             r = summary["real"]

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from trumans.actions import ActionInterval, intervals_from_labels, labels_from_intervals
-from trumans.contacts.intervals import JointContact, joint_contact_intervals, run_bounds, runs
+from trumans.contacts.intervals import JointContact, joint_contact_intervals
+from trumans.intervals import run_bounds, runs
 from trumans.eval.metrics import foot_slides
 
 

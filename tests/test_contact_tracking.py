@@ -6,7 +6,7 @@ import pytest
 
 from trumans.track.objects import (free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
                                       signed_angle, two_hand_motion)
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.track.postprocess import PostprocessConfig, contact_mask, contact_segments, fill_gaps
 from trumans.track.scores import average_precision, binary_scores
 from trumans.track.trajectory import TrajectoryConfig, correct_trajectory, turning_angles

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts.intervals import run_bounds
+from .intervals import run_bounds
 
 __all__ = ["ActionInterval", "labels_from_intervals", "intervals_from_labels", "remap_labels"]
 

@@ -14,7 +14,8 @@ import numpy as np
 import trimesh
 
 from trumans.scenes.scene import Scene, SceneObject
-from trumans.contacts.intervals import joint_contact_intervals, runs
+from trumans.contacts.intervals import joint_contact_intervals
+from trumans.intervals import runs
 from trumans.contacts.rule import FLOOR_NAME, HOLD_THRESHOLD, ContactScene, joint_contacts
 from trumans.ik.ccd import ROOT_GROUP, IKConfig
 from trumans.ik.fit import fit_rotations

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.skeleton import NUM_JOINTS
 
 __all__ = [

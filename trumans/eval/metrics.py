@@ -14,7 +14,7 @@ import numpy as np
 from trumans.scenes.distance import SceneDistance
 from trumans.scenes.scene import Scene
 
-from trumans.contacts.intervals import run_bounds
+from trumans.intervals import run_bounds
 from trumans.contacts.rule import body_penetration
 from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS, bone_lengths
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from trumans.actions import remap_labels
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.resample import resample_sequence
 from trumans.skeleton import JOINT_INDEX, bone_lengths, heading
 

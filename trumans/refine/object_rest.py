@@ -40,7 +40,7 @@ import numpy as np
 from scipy.ndimage import binary_dilation, label, uniform_filter1d
 from scipy.spatial.transform import Rotation
 
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
 from trumans.skeleton import NUM_JOINTS, WRISTS

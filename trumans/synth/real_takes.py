@@ -24,7 +24,7 @@ import numpy as np
 
 from trumans.eval import metrics
 from trumans.actions import ActionInterval, labels_from_intervals
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.contacts.rule import CONTACT_THRESHOLD, ContactScene, contact_rule
 from trumans.ik.fit import fit_rotations
 from trumans.mocap_corpus import MocapClip, load_corpus

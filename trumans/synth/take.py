@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 from trumans.actions import ActionInterval, labels_from_intervals
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.contacts.rule import CONTACT_THRESHOLD, contact_rule
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import FEET, JOINT_NAMES, NUM_JOINTS, WRISTS, forward_kinematics, heading, rest_offsets

@@ -14,7 +14,7 @@ from scipy.ndimage import maximum_filter1d
 
 from trumans.sequence import Sequence
 
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 from trumans.track.predictor import CLASSES, HAND_JOINTS, HANDS
 
 __all__ = ["hand_labels", "object_moving", "moving_intervals", "sequence_labels"]

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.contacts.intervals import runs
+from trumans.intervals import runs
 
 __all__ = ["PostprocessConfig", "ContactSegment", "fill_gaps", "contact_mask", "contact_segments"]
 

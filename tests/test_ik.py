@@ -6,7 +6,7 @@ from scipy.spatial.transform import Rotation
 
 from trumans.ik.fit import fit_error, fit_rotations, kabsch, offsets_from_joints
 from trumans.rotations import least_rotation
-from trumans.ik.rescale import leg_length, retarget, scale_offsets
+from trumans.ik.rescale import leg_length, rescale_motion, scale_offsets
 from trumans.rotations import axis_angle_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS, bone_lengths, forward_kinematics, rest_offsets
 
@@ -116,7 +116,7 @@ def test_retarget_keeps_rotations_and_changes_bones():
     root[:, 2] += 0.04 - J_src[:, [7, 8, 10, 11], 2].min(-1)  # put the source on the floor
     J_src, _ = forward_kinematics(R, root, src)
     dst = scale_offsets(src, 1.25)
-    R2, root2 = retarget(R, root, src, dst)
+    R2, root2 = rescale_motion(R, root, src, dst)
     np.testing.assert_array_equal(R2, R)  # rotations copied
     J_dst, _ = forward_kinematics(R2, root2, dst)
     np.testing.assert_allclose(bone_lengths(J_dst), 1.25 * bone_lengths(J_src), atol=1e-9)
@@ -135,8 +135,8 @@ def test_retarget_keeps_rotations_and_changes_bones():
 def test_retarget_bad_inputs():
     R, root = _plausible(4)
     with pytest.raises(ValueError, match="dst_offsets"):
-        retarget(R, root, rest_offsets(), np.zeros((23, 3)))
+        rescale_motion(R, root, rest_offsets(), np.zeros((23, 3)))
     with pytest.raises(ValueError, match="root"):
-        retarget(R, root[:2], rest_offsets(), rest_offsets())
+        rescale_motion(R, root[:2], rest_offsets(), rest_offsets())
     with pytest.raises(ValueError, match="scale"):
         scale_offsets(rest_offsets(), -1.0)

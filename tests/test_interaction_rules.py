@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from trumans.sample.carry import _dof_value
-from trumans.track.interactions import Interaction, _attach, _drive_one, attach_detach, clip_to_limits
+from trumans.track.interactions import AttachedContact, _attach, _drive_one, attach_detach, clip_to_limits
 from trumans.track.object_choice import ObjectQueries
 from trumans.scenes.procedural import make_room
 from trumans.scenes.scene import Scene, SceneObject
@@ -92,7 +92,7 @@ def test_a_hand_pushing_on_past_closed_leaves_the_drawer_closed(room):
     segs = (ContactSegment(10, 30, (False, True), 0), ContactSegment(35, 55, (False, True), 1))
     poses = {drawer.name: np.tile(drawer.pose, (T, 1, 1))}
     for seg in segs:
-        _drive_one(Interaction(drawer.name, "slide", seg.start, seg.end, (seg,), handle), room, poses, joints, wrist_rot)
+        _drive_one(AttachedContact(drawer.name, "slide", seg.start, seg.end, (seg,), handle), room, poses, joints, wrist_rot)
     got = np.array([_dof_value(drawer, p) for p in poses[drawer.name]])
     assert got[29] == pytest.approx(0.2, abs=1e-9)  # opened by the hand
     assert got.min() == pytest.approx(0.0, abs=1e-12)  # never inside the cabinet

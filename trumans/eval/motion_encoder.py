@@ -33,7 +33,7 @@ __all__ = [
     "DEFAULT_MOTION_ENCODER",
     "load_motion_encoder",
     "split_features",
-    "split_windows",
+    "split_features_and_labels",
     "matched_weights",
     "motion_windows",
     "window_inputs",
@@ -221,7 +221,7 @@ def load_motion_encoder(path: str | Path | None = None) -> MotionEncoder:
     return MotionEncoder(cfg, net, d["mean"].numpy(), d["std"].numpy(), list(d["vocabulary"]), d.get("info"))
 
 
-def split_windows(enc: MotionEncoder, data, split: str) -> tuple[np.ndarray, np.ndarray]:
+def split_features_and_labels(enc: MotionEncoder, data, split: str) -> tuple[np.ndarray, np.ndarray]:
     """Features (N, D) and dominant-action labels (N,) (encoder vocabulary, -1: none on) of every
     window of a dataset split's clips (a ``trumans.dataset.Dataset``); clips shorter than the
     encoder's window are skipped (they have no window)."""
@@ -241,8 +241,8 @@ def split_windows(enc: MotionEncoder, data, split: str) -> tuple[np.ndarray, np.
 
 
 def split_features(enc: MotionEncoder, data, split: str) -> np.ndarray:
-    """Features (N, D) of every window of a dataset split's clips (``split_windows`` without labels)."""
-    return split_windows(enc, data, split)[0]
+    """Features (N, D) of every window of a dataset split's clips (``split_features_and_labels`` without labels)."""
+    return split_features_and_labels(enc, data, split)[0]
 
 
 def matched_weights(real_labels: np.ndarray, gen_labels: np.ndarray) -> np.ndarray:

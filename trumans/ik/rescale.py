@@ -10,7 +10,7 @@ import numpy as np
 
 from trumans.skeleton import ANKLES, FOOT_JOINTS, KNEES, NUM_JOINTS, forward_kinematics
 
-__all__ = ["retarget", "scale_offsets", "leg_length"]
+__all__ = ["rescale_motion", "scale_offsets", "leg_length"]
 
 _LEG = [*KNEES, *ANKLES]  # the thigh and shin bones end at these joints
 _FEET = list(FOOT_JOINTS)
@@ -52,7 +52,7 @@ def scale_offsets(offsets: np.ndarray, scale: float | np.ndarray) -> np.ndarray:
     return out
 
 
-def retarget(
+def rescale_motion(
     rot: np.ndarray,
     root: np.ndarray,
     src_offsets: np.ndarray,

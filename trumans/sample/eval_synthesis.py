@@ -146,11 +146,11 @@ def reference_windows(enc, data: str, train_windows: int = 3000, seed: int = 0) 
     test split's clips, and of at most ``train_windows`` windows of its train split (seeded) for the
     real-vs-real value. What ``models/synthesis_reference.npz`` stores."""
     from trumans.dataset import Dataset
-    from trumans.eval.motion_encoder import split_windows
+    from trumans.eval.motion_encoder import split_features_and_labels
 
     ds = Dataset(data)
-    f, y = split_windows(enc, ds, "test")
-    tf, ty = split_windows(enc, ds, "train")
+    f, y = split_features_and_labels(enc, ds, "test")
+    tf, ty = split_features_and_labels(enc, ds, "train")
     keep = np.sort(np.random.default_rng(seed).choice(len(tf), min(train_windows, len(tf)), replace=False))
     return {"features": f.astype(np.float32), "labels": y, "train_features": tf[keep].astype(np.float32),
             "train_labels": ty[keep], "data_hash": np.str_(ds.hash), "split": np.str_("test")}

@@ -45,8 +45,8 @@ from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
 from trumans.track.object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
-__all__ = ["TrackerConfig", "Interaction", "TrackResult", "contact_probabilities", "interval_classes",
-           "attach_detach", "drive_object", "clip_to_limits", "track", "track_interactions"]
+__all__ = ["TrackerConfig", "AttachedContact", "TrackResult", "contact_probabilities", "interval_classes",
+           "attach_detach", "drive_object", "clip_to_limits", "track"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -78,7 +78,7 @@ class TrackerConfig:
 
 
 @dataclass(frozen=True)
-class Interaction:
+class AttachedContact:
     """One contact interval attached to ``name`` (a scene object of dof ``dof``): frames
     [start, end), its hand-set segments, and the contact point (world, m) at its start."""
 
@@ -96,7 +96,7 @@ class TrackResult:
     class name of each union contact interval; correction (T, 2) m added to the root path."""
 
     sequence: Sequence
-    interactions: list[Interaction]
+    interactions: list[AttachedContact]
     prob: np.ndarray
     mask: np.ndarray
     classes: list[str]
@@ -224,7 +224,7 @@ def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
     return out
 
 
-def _drive_one(it: Interaction, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
+def _drive_one(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
                wrist_rot: np.ndarray) -> None:
     """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
     released where it was left. joints: (T, 24, 3); wrist_rot: (T, 2, 3, 3)."""
@@ -265,7 +265,7 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
     hands let go; the other objects are where the interactions so far left them."""
     held, _, closest, _ = _attach(queries, name, poses[name][s0], span, segs, s0, fps, hand_radius)
     trial = {name: poses[name].copy()}
-    _drive_one(Interaction(name, "free", held[0].start, held[-1].end, held, closest.mean(0)), queries.scene, trial,
+    _drive_one(AttachedContact(name, "free", held[0].start, held[-1].end, held, closest.mean(0)), queries.scene, trial,
                joints, wrist_rot)
     e = held[-1].end - 1
     others = {n: o.pose for n, o in queries.scene.objects.items() if o.dof == "static"}
@@ -273,7 +273,7 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
     return release_support_gap(queries, name, trial[name][e], others)
 
 
-def _drive_all(interactions: list[Interaction], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
+def _drive_all(interactions: list[AttachedContact], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
                wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
     poses = {n: p.copy() for n, p in base.items()}
     for it in interactions:
@@ -316,7 +316,7 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
     corr = corrected([], [])
     joints_sel = joints0.copy()
     joints_sel[:, :, :2] += corr[:, None]  # the sensors' path with the anchors only: objects are chosen on it
-    interactions: list[Interaction] = []
+    interactions: list[AttachedContact] = []
     c_frames: list[int] = []
     c_xy: list[np.ndarray] = []
     poses = {n: p.copy() for n, p in base.items()}
@@ -346,7 +346,7 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         if cls[i] == "free":
             goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
         shift = (goal - span[a - s0])[:, :2]
-        interactions.append(Interaction(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
+        interactions.append(AttachedContact(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
         if config.correct:
             step = shift.mean(0)
             c_frames.append(a)
@@ -380,8 +380,3 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         extra=extra,
     )
     return TrackResult(out, interactions, prob, mask, [cls[i] for i in sorted(cls)], corr)
-
-
-def track_interactions(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConfig = TrackerConfig()) -> Sequence:
-    """The tracked sequence only (``track(...).sequence``)."""
-    return track(seq, scene, model, config).sequence

@@ -23,7 +23,7 @@ from trumans.eval.motion_encoder import (MotionEncoder, MotionEncoderConfig, Mot
                                           dominant_action, fid, motion_windows, split_features, window_inputs)
 from trumans.sequence import atomic_write
 
-__all__ = ["EncoderTrainConfig", "split_windows", "train_motion_encoder", "main"]
+__all__ = ["EncoderTrainConfig", "labelled_windows", "train_motion_encoder", "main"]
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class EncoderTrainConfig:
     time_limit_s: float = 400.0
 
 
-def split_windows(data: Dataset, split: str, cfg: MotionEncoderConfig,
+def labelled_windows(data: Dataset, split: str, cfg: MotionEncoderConfig,
                   stride: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Canonical windows (M, L, 24, 3) of a split and their dominant action (M,) in the dataset
     vocabulary; windows with no action on are dropped."""
@@ -77,12 +77,12 @@ def train_motion_encoder(data_root: str | Path, cfg: MotionEncoderConfig | None 
     cfg = cfg or MotionEncoderConfig(num_actions=len(vocab))
     if cfg.num_actions != len(vocab):
         raise ValueError(f"config has {cfg.num_actions} actions but the dataset vocabulary {len(vocab)}")
-    wx, y = split_windows(data, "train", cfg, tcfg.train_stride)
+    wx, y = labelled_windows(data, "train", cfg, tcfg.train_stride)
     x = window_inputs(wx, cfg.fps)
     mean = x.reshape(-1, x.shape[-1]).mean(0)
     std = np.maximum(x.reshape(-1, x.shape[-1]).std(0), 1e-2)
     x = (x - mean) / std
-    wt, yt = split_windows(data, "test", cfg)
+    wt, yt = labelled_windows(data, "test", cfg)
     xt = (window_inputs(wt, cfg.fps) - mean) / std
     log(f"motion encoder: {len(x)} train windows, {len(xt)} test windows, {len(vocab)} actions "
         f"({time.time() - t0:.0f} s loading)")

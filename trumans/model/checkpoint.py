@@ -14,9 +14,10 @@ figures), ``train_state`` (optimizer state, step, loss history; None in an expor
 on load - torch's zip reader does not notice altered tensor bytes, so without it a corrupted file
 would load silently (files written before the digest load unchecked).
 
-Kinds are registered in ``KINDS`` (``register_kind``): the model config class, the model builder,
-the payload keys the kind requires and a consistency check. The generator (the TRUMANS denoiser)
-is registered here; the HOI filter and the contact model register theirs in their own modules.
+``KINDS`` is the one table of kinds: each names the ``KindSpec`` (the model config class, the model
+builder, the payload keys the kind requires and a consistency check) of the module that owns the
+model, imported when a checkpoint of that kind is first saved or loaded - so no import registers
+anything as a side effect. ``register_kind`` adds or replaces one (a user's own model kind).
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Any, Callable, Literal, get_args
 
 import hashlib
+import importlib
 
 import torch
 from torch import nn
@@ -98,7 +100,12 @@ class KindSpec:
     check: Callable[[Checkpoint], None] | None = None
 
 
-KINDS: dict[str, KindSpec] = {}
+# kind -> its KindSpec, or "module:attribute" of it (imported when first needed)
+KINDS: dict[str, KindSpec | str] = {
+    "generator": "trumans.model.checkpoint:GENERATOR_KIND",  # the TRUMANS denoiser
+    "filter": "trumans.refine.filter:FILTER_KIND",  # the I'm-HOI filter
+    "contact": "trumans.track.model_io:CONTACT_KIND",  # the iReplica contact predictor
+}
 
 
 def register_kind(kind: CheckpointKind, spec: KindSpec) -> None:
@@ -113,8 +120,12 @@ def _spec(kind: str, where: str) -> KindSpec:
         raise ValueError(f"{where}unknown checkpoint kind {kind!r}; kinds are {get_args(CheckpointKind)}")
     if kind not in KINDS:
         raise ValueError(f"{where}no model builder is registered for {kind!r} checkpoints (registered: {sorted(KINDS)}); "
-                         f"import the module that defines that model before loading it")
-    return KINDS[kind]
+                         f"register one with trumans.model.checkpoint.register_kind")
+    spec = KINDS[kind]
+    if isinstance(spec, str):
+        module, _, attr = spec.partition(":")
+        spec = KINDS[kind] = getattr(importlib.import_module(module), attr)
+    return spec
 
 
 def _check_generator(ck: Checkpoint) -> None:
@@ -129,9 +140,9 @@ def _check_generator(ck: Checkpoint) -> None:
         raise ValueError(f"the model takes {cfg.frames} frames but L_epi is {ck.L_epi}; the checkpoint is inconsistent")
 
 
-register_kind("generator", KindSpec(
-    config_from_dict=DenoiserConfig.from_dict, build=Denoiser,
-    required=("diffusion_config", "norm", "vocabulary", "fps", "L_epi", "k", "grid"), check=_check_generator))
+GENERATOR_KIND = KindSpec(config_from_dict=DenoiserConfig.from_dict, build=Denoiser,
+                          required=("diffusion_config", "norm", "vocabulary", "fps", "L_epi", "k", "grid"),
+                          check=_check_generator)
 
 # payload key -> (Checkpoint field, to plain data, from plain data)
 _OPTIONAL: dict[str, tuple[str, Callable, Callable]] = {

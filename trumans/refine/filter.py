@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 import torch
 
-from trumans.model.checkpoint import Checkpoint, KindSpec, register_kind
+from trumans.model.checkpoint import Checkpoint, KindSpec
 from trumans.model.episodes import FeatureLayout, Normalizer
 from trumans.model.nets.denoiser import Denoiser, DenoiserConfig
 
@@ -253,6 +253,6 @@ def _check_filter(ck: Checkpoint) -> None:
 
 
 # I'm-HOI filter checkpoints: window = L_epi, overlap = k, fps, categories in extra
-register_kind("filter", KindSpec(config_from_dict=DenoiserConfig.from_dict, build=build_filter_model,
-                                 required=("diffusion_config", "norm", "fps", "L_epi", "k"),
-                                 required_extra=("categories",), check=_check_filter))
+FILTER_KIND = KindSpec(config_from_dict=DenoiserConfig.from_dict, build=build_filter_model,
+                       required=("diffusion_config", "norm", "fps", "L_epi", "k"), required_extra=("categories",),
+                       check=_check_filter)

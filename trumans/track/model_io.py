@@ -14,7 +14,7 @@ from pathlib import Path
 from torch import nn
 
 from trumans import __version__
-from trumans.model.checkpoint import Checkpoint, KindSpec, load_checkpoint, register_kind, save_checkpoint
+from trumans.model.checkpoint import Checkpoint, KindSpec, load_checkpoint, save_checkpoint
 
 from trumans.track.per_dof import DOFS, check_dof
 from trumans.track.predictor import CLASSES, HANDS, ContactPredictor, ContactPredictorConfig
@@ -41,8 +41,8 @@ def _check(ck: Checkpoint) -> None:
         raise ValueError(f"it is a per-dof model of unknown dof {ck.extra.get('dof')!r} (known: {list(DOFS)}); retrain it")
 
 
-register_kind(KIND, KindSpec(config_from_dict=ContactPredictorConfig.from_dict, build=ContactPredictor,
-                             required=("fps",), required_extra=("classes", "hands"), check=_check))
+CONTACT_KIND = KindSpec(config_from_dict=ContactPredictorConfig.from_dict, build=ContactPredictor,
+                        required=("fps",), required_extra=("classes", "hands"), check=_check)
 
 
 def predictor_checkpoint(model_config: ContactPredictorConfig, model_state: dict, *, ema_state: dict | None = None,

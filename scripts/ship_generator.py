@@ -15,7 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from trumans.dataset import Dataset
-from trumans.model.checkpoint import load_checkpoint, save_checkpoint
+from trumans.model.checkpoint import load_checkpoint, save_checkpoint, shipped_data_record
 from trumans.model.motion_stats import sampling_stats
 
 
@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     meta.update(stats)
     meta["train_command"] = a.command
     weights = ck.ema_state if ck.ema_state is not None else ck.model_state
-    out = replace(ck, model_state=weights, ema_state=None, train_state=None, meta=meta)
+    out = replace(ck, model_state=weights, ema_state=None, train_state=None, meta=meta, data=shipped_data_record(ck.data))
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     save_checkpoint(a.out, out)
     print(json.dumps({"out": a.out, "bytes": Path(a.out).stat().st_size, "data": ck.data,

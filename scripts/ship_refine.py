@@ -13,9 +13,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-import trumans.refine.filter  # noqa: F401  (registers the 'filter' checkpoint kind)
 from trumans.train.tasks.filter import export_checkpoint
-from trumans.model.checkpoint import load_checkpoint, save_checkpoint
+from trumans.model.checkpoint import load_checkpoint, save_checkpoint, shipped_data_record
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -25,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--command", default="", help="the training command, recorded in meta")
     a = p.parse_args(argv)
     ck = export_checkpoint(load_checkpoint(a.checkpoint, kind="filter"))
-    out = replace(ck, meta={**ck.meta, "train_command": a.command})
+    out = replace(ck, meta={**ck.meta, "train_command": a.command}, data=shipped_data_record(ck.data))
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     save_checkpoint(a.out, out)
     n = sum(v.numel() for v in out.model_state.values())

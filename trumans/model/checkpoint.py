@@ -38,6 +38,7 @@ from .episodes import Normalizer
 from .nets.denoiser import Denoiser, DenoiserConfig
 
 __all__ = ["Checkpoint", "CheckpointKind", "KindSpec", "KINDS", "register_kind", "save_checkpoint", "load_checkpoint",
+           "shipped_data_record",
            "FORMAT", "FORMAT_VERSION", "COMMON_KEYS"]
 
 FORMAT = "trumans-checkpoint"
@@ -106,6 +107,15 @@ KINDS: dict[str, KindSpec | str] = {
     "filter": "trumans.refine.filter:FILTER_KIND",  # the I'm-HOI filter
     "contact": "trumans.track.model_io:CONTACT_KIND",  # the iReplica contact predictor
 }
+
+
+def shipped_data_record(data: dict) -> dict:
+    """A checkpoint's ``data`` record for a file that leaves this machine: each dataset's name and
+    content hash, without the folder it was read from (a path of the training machine)."""
+    out = {k: v for k, v in data.items() if k != "path"}
+    if isinstance(out.get("augmented"), list):
+        out["augmented"] = [shipped_data_record(a) if isinstance(a, dict) else a for a in out["augmented"]]
+    return out
 
 
 def register_kind(kind: CheckpointKind, spec: KindSpec) -> None:

@@ -235,6 +235,17 @@ def configure_skip(model: FilterModel, ck: Checkpoint) -> FilterModel:
     return model
 
 
+def filter_window(ck: Checkpoint) -> tuple[int, int]:
+    """(window, overlap) in frames of a filter checkpoint: ``extra["window"]`` / ``extra["overlap"]``
+    (files written before they had their own names kept them in the generator's ``L_epi`` / ``k``)."""
+    if "window" in ck.extra:
+        return int(ck.extra["window"]), int(ck.extra.get("overlap", -1))
+    if ck.L_epi is None or ck.k is None:
+        raise ValueError("the filter checkpoint has no window / overlap (extra['window'], extra['overlap']); "
+                         "retrain or re-export it")
+    return int(ck.L_epi), int(ck.k)
+
+
 def _check_filter(ck: Checkpoint) -> None:
     cfg: DenoiserConfig = ck.model_config
     cats = ck.extra.get("categories")
@@ -244,15 +255,16 @@ def _check_filter(ck: Checkpoint) -> None:
     if cfg.feature_dim != FRAME_DIM or cfg.frame_cond_dim != COND_DIM or ck.normalizer.mean.shape[0] != FRAME_DIM:
         raise ValueError(f"a filter takes {FRAME_DIM} features and a {COND_DIM}-wide condition, this one "
                          f"{cfg.feature_dim} / {cfg.frame_cond_dim} (normalisation {ck.normalizer.mean.shape[0]})")
-    if cfg.frames != ck.L_epi or not 0 <= ck.k < ck.L_epi:
-        raise ValueError(f"window {ck.L_epi} / overlap {ck.k} do not fit the model's {cfg.frames} frames")
+    window, overlap = filter_window(ck)
+    if cfg.frames != window or not 0 <= overlap < window:
+        raise ValueError(f"window {window} / overlap {overlap} do not fit the model's {cfg.frames} frames")
     if ck.diffusion_config.prediction != "x0":
         raise ValueError(f"the filter predicts x0, this checkpoint {ck.diffusion_config.prediction!r}")
     if ck.extra.get("wiener") is not None:
         JointWiener.from_extra(ck.extra["wiener"])  # shapes and finite values
 
 
-# I'm-HOI filter checkpoints: window = L_epi, overlap = k, fps, categories in extra
+# I'm-HOI filter checkpoints: fps; categories, window and overlap (frames) in extra
 FILTER_KIND = KindSpec(config_from_dict=DenoiserConfig.from_dict, build=build_filter_model,
-                       required=("diffusion_config", "norm", "fps", "L_epi", "k"), required_extra=("categories",),
+                       required=("diffusion_config", "norm", "fps"), required_extra=("categories",),
                        check=_check_filter)

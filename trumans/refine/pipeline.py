@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from trumans.refine.body_drift import remove_body_drift
-from trumans.refine.filter import FilterModel, category_indices, configure_skip, prepare_windows, sample_x0
+from trumans.refine.filter import FilterModel, filter_window, category_indices, configure_skip, prepare_windows, sample_x0
 from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.refine.object_rest import RestConfig, pool_rest
@@ -90,7 +90,7 @@ class HOIFilter:
         self.diffusion = ckpt.build_diffusion()
         self.normalizer = ckpt.normalizer
         self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]
-        self.window, self.overlap, self.fps = int(ckpt.L_epi), int(ckpt.k), float(ckpt.fps)
+        (self.window, self.overlap), self.fps = filter_window(ckpt), float(ckpt.fps)
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "HOIFilter":

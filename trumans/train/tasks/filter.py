@@ -316,12 +316,13 @@ class FilterTask:
 
     def checkpoint(self, *, model_state: dict, ema_state: dict, meta: dict, train_state: dict) -> Checkpoint:
         net = self.config.net
-        extra = {"categories": list(self.categories), "skip_sigma": net.skip_sigma}
+        extra = {"categories": list(self.categories), "skip_sigma": net.skip_sigma, "window": net.window,
+                 "overlap": net.overlap}
         if self.wiener is not None:
             extra["wiener"] = self.wiener.to_extra()
         return Checkpoint(kind="filter", model_config=self.model_config, model_state=model_state,
                           diffusion_config=self.config.diffusion, normalizer=self.normalizer, fps=net.fps,
-                          L_epi=net.window, k=net.overlap, extra=extra,
+                          extra=extra,
                           data=dict(self.data_record), ema_state=ema_state,
                           meta={**meta, "net": net.to_dict(), "corruption": self.config.corruption.to_dict()},
                           train_state=train_state, code_version=__version__)

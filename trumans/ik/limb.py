@@ -16,7 +16,7 @@ import numpy as np
 from trumans.rotations import rodrigues, unit
 from trumans.skeleton import HINGE_AXES, INDEX1, JOINT_INDEX, LIMB_CHAINS, NUM_JOINTS, PARENTS, forward_kinematics
 
-__all__ = ["LIMBS", "Limb", "solve_limb", "set_global_rotation", "limb_reach"]
+__all__ = ["LIMBS", "Limb", "solve_limb", "set_global_rotation", "limb_reach", "two_bone_positions"]
 
 Limb = Literal["left_arm", "right_arm", "left_leg", "right_leg"]
 
@@ -191,3 +191,30 @@ def solve_limb(
     out[mask] = sub
     reached[mask] = ok
     return out, reached
+
+
+def two_bone_positions(hip: np.ndarray, knee: np.ndarray, target: np.ndarray, l1: np.ndarray | float,
+                       l2: np.ndarray | float, reach_margin: tuple[float, float] = (1e-4, 1e-3)
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Analytic two-bone IK on positions: the end joint on ``target`` (or as near as the chain
+    reaches), the middle joint at ``l1`` (m) from the root joint and ``l2`` from the end, in the plane
+    of the current bend (law of cosines). hip, knee, target: (..., 3) world m; l1, l2: (...,) or
+    scalars, m. The reach is clamped to ``[|l1 - l2| + margin[0], l1 + l2 - margin[1]]`` (default
+    1 mm short of full extension); a straight chain bends sideways of vertical.
+    Returns (knee (..., 3), end (..., 3))."""
+    l1 = np.asarray(l1, dtype=np.float64)[..., None]
+    l2 = np.asarray(l2, dtype=np.float64)[..., None]
+    d = target - hip
+    dist = np.linalg.norm(d, axis=-1, keepdims=True)
+    f = d / np.maximum(dist, 1e-9)
+    D = np.clip(dist, np.abs(l1 - l2) + reach_margin[0], l1 + l2 - reach_margin[1])
+    end = hip + f * D
+    a = (l1 ** 2 - l2 ** 2 + D ** 2) / (2 * D)  # root -> middle joint's foot point along the root-end line
+    r = np.sqrt(np.maximum(l1 ** 2 - a ** 2, 0.0))
+    bend = knee - hip
+    perp = bend - (bend * f).sum(-1, keepdims=True) * f
+    n = np.linalg.norm(perp, axis=-1, keepdims=True)
+    fallback = np.cross(f, np.array([0.0, 0.0, 1.0]))  # a straight chain: bend sideways of vertical
+    perp = np.where(n > 1e-6, perp / np.maximum(n, 1e-12), fallback / np.maximum(
+        np.linalg.norm(fallback, axis=-1, keepdims=True), 1e-12))
+    return hip + f * a + perp * r, end

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import label
 
+from trumans.ik.limb import two_bone_positions
 from trumans.rotations import least_rotation, matrix_to_6d, sixd_to_matrix
 from trumans.skeleton import FOOT_JOINTS, LEG_CHAINS, NUM_JOINTS, PARENTS
 
@@ -67,22 +68,6 @@ def _corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
     return out
 
 
-def _two_bone(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 3) each -> (new knee, new ankle): the ankle on ``target`` (or as near as the leg
-    reaches), thigh and shin lengths kept, the knee in the plane of hip, old knee and target."""
-    l1 = np.linalg.norm(knee - hip, axis=-1)
-    l2 = np.linalg.norm(ankle - knee, axis=-1)
-    d = target - hip
-    dist = np.clip(np.linalg.norm(d, axis=-1), np.abs(l1 - l2) + 1e-6, l1 + l2 - 1e-6)
-    e = d / np.maximum(np.linalg.norm(d, axis=-1), 1e-12)[:, None]
-    bend = (knee - hip) - ((knee - hip) * e).sum(-1, keepdims=True) * e  # the knee's side of the hip-target line
-    bend = bend / np.maximum(np.linalg.norm(bend, axis=-1), 1e-12)[:, None]
-    along = (l1 ** 2 - l2 ** 2 + dist ** 2) / (2 * dist)  # law of cosines
-    side = np.sqrt(np.maximum(l1 ** 2 - along ** 2, 0.0))
-    new_knee = hip + along[:, None] * e + side[:, None] * bend
-    return new_knee, hip + dist[:, None] * e
-
-
 def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig()) -> np.ndarray:
     """frames: (T, 235) the filter's output at ``fps`` (finite joints and rotations) -> (T, 235) a
     copy whose planted foot joints stay at one point per stance, the legs following (module doc)."""
@@ -106,7 +91,9 @@ def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig())
         if not touched.any():
             continue
         t = np.flatnonzero(touched)
-        new[t, knee], new[t, ankle] = _two_bone(J[t, hip], J[t, knee], J[t, ankle], J[t, ankle] + d_ankle[t])
+        new[t, knee], new[t, ankle] = two_bone_positions(
+            J[t, hip], J[t, knee], J[t, ankle] + d_ankle[t], np.linalg.norm(J[t, knee] - J[t, hip], axis=-1),
+            np.linalg.norm(J[t, ankle] - J[t, knee], axis=-1), reach_margin=(1e-6, 1e-6))
         toe_len = np.linalg.norm(J[t, toe] - J[t, ankle], axis=-1)
         aim = J[t, toe] + d_toe[t] - new[t, ankle]
         new[t, toe] = new[t, ankle] + toe_len[:, None] * aim / np.maximum(np.linalg.norm(aim, axis=-1), 1e-12)[:, None]

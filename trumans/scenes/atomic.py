@@ -6,7 +6,15 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["atomic_write"]
+__all__ = ["atomic_write", "umask_mode"]
+
+
+def umask_mode(mode: int) -> int:
+    """``mode`` (e.g. 0o666 for files, 0o777 for folders) less the process's umask: the permissions
+    ``open`` / ``mkdir`` would give, which ``tempfile``'s private 0600 / 0700 do not."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mode & ~mask
 
 
 def atomic_write(path: str | Path, write_fn: Callable[[str], None]) -> None:
@@ -18,6 +26,7 @@ def atomic_write(path: str | Path, write_fn: Callable[[str], None]) -> None:
     os.close(fd)
     try:
         write_fn(tmp)
+        os.chmod(tmp, umask_mode(0o666))
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

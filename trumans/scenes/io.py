@@ -29,6 +29,7 @@ import trimesh
 
 from trumans.scenes.occupancy import OCCUPANCY_FILE
 from trumans.scenes.scene import DOFS, Scene, SceneObject
+from trumans.scenes.atomic import umask_mode
 
 __all__ = ["save_scene", "load_scene", "import_mesh", "SCENE_FILE", "Y_UP_TO_Z_UP"]
 
@@ -108,6 +109,7 @@ def save_scene(scene: Scene, folder: str | Path) -> None:
             raise ValueError(f"static mesh {name!r} is empty; give it at least one face")
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.", suffix=".tmp"))
+    os.chmod(tmp, umask_mode(0o777))  # mkdtemp makes it private
     try:
         used: set[str] = set()
         doc = {"format": FORMAT, "version": VERSION, "name": scene.name, "meta": scene.meta,

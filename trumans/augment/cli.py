@@ -2,13 +2,13 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from trumans.argtypes import float_in, fraction, int_in, nonneg_int, positive_float
 from trumans.contacts.rule import HOLD_THRESHOLD
 
 from trumans.augment.pipeline import MAX_VARIATIONS, SOURCES, PipelineConfig, SourcesFailed, augment_dataset
 from trumans.augment.variations import KINDS
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run"]
 
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
 def _print(summary: dict, as_json: bool) -> None:
     summary = {k: v for k, v in summary.items() if k != "config"}
     if as_json:
-        print(json.dumps(summary))
+        print_summary(summary)
     else:
         for k, v in summary.items():
             print(f"{k:>20}: {v}")

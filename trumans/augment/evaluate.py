@@ -20,7 +20,6 @@ frames_per_wall_s gives the wall-clock figure).
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
@@ -33,6 +32,7 @@ from trumans.skeleton import FEET
 from trumans.augment.core import AugmentConfig, augment_many, sequence_contacts
 from trumans.augment.pipeline import MAX_VARIATIONS, contacted_objects
 from trumans.augment.variations import KINDS, sample_variation
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run", "evaluate_cases"]
 
@@ -204,5 +204,5 @@ def run(args: argparse.Namespace) -> int:
     else:
         for k, v in fig["by_case"].items():
             print(f"{k:>24}: {v}")
-        print(json.dumps(fig))
+        print_summary(fig)
     return 0

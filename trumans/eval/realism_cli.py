@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from trumans.summary import print_summary
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     report["dataset"] = args.dataset or "corpus:train"
     report["reference"] = args.reference
     if args.json:
-        print(json.dumps(report))
+        print_summary(report)
         return 0
     for k, r in report["statistics"].items():
         fmt = lambda v: "-" if v is None else f"{v:.3g}"  # noqa: E731

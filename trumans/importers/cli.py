@@ -11,6 +11,7 @@ import numpy as np
 from trumans.argtypes import positive_float
 from trumans.dataset import DatasetWriter
 from trumans.sequence import Sequence, save_sequence
+from trumans.summary import print_summary
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -161,5 +162,5 @@ def run(args: argparse.Namespace) -> int:
                "scenes": len(index["scenes"]), "out": str(out)}
     print(f"imported {summary['sequences']} sequences ({summary['frames']} frames) into {out}", file=sys.stderr)
     if args.json:
-        print(json.dumps(summary))
+        print_summary(summary)
     return 0

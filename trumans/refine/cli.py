@@ -7,10 +7,10 @@ adds its own options through ``add_interaction_arguments(group)``.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 from trumans.track import cli as track_cli
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run", "main"]
 
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
           f"{name!r} ({summary['category']}) in {seconds:.2f} s -> {args.out}; after the filter: "
           f"{', '.join(summary['post_steps']) or 'nothing'}")
     if args.json:
-        print(json.dumps(summary))
+        print_summary(summary)
     return 0
 
 

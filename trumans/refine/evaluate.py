@@ -37,7 +37,6 @@ body only.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -47,6 +46,7 @@ import numpy as np
 from trumans.refine.filter import category_indices
 from trumans.eval.metrics import foot_skate_planted_cm
 from trumans.skeleton import HAND_JOINTS
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run", "evaluate", "tune_savgol"]
 
@@ -330,5 +330,5 @@ def run(args: argparse.Namespace) -> int:
             [("real", res["real"]["default"]), ("real_dr", res["real"]["drift"])] if "real" in res else []):
         print(f"{name:8s} " + "  ".join(f"{k}={block[k]:.1f}" for k in keys if k in block))
     if args.json:
-        print(json.dumps(res))
+        print_summary(res)
     return 0

@@ -2,9 +2,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from trumans.argtypes import float_in, nonneg_int, positive_float, positive_int
+from trumans.summary import print_summary
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
                       real_share=args.real_share)
     summary = build_dataset(cfg, progress=True, overwrite=args.overwrite)
     if args.json:
-        print(json.dumps(summary))
+        print_summary(summary)
     else:
         print(f"wrote {summary['sequences']} sequences, {summary['hours']:.2f} h over {summary['rooms']} rooms "
               f"to {summary['out']} in {summary['seconds']:.0f} s")

@@ -8,11 +8,11 @@ them plus the input / --out / --seed / --json options for standalone use
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
+from trumans.summary import print_summary
 
 __all__ = ["add_interaction_arguments", "add_arguments", "run", "main"]
 
@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(res.interactions)} interactions ({', '.join(f'{i.name} {i.start}-{i.end}' for i in res.interactions) or 'none'}); "
           f"root corrected by {summary['correction_mean_cm']:.1f} cm on average; wrote {args.out}")
     if args.json:
-        print(json.dumps(summary))
+        print_summary(summary)
     return 0
 
 

@@ -22,13 +22,13 @@ a smooth offset of 5-15 cm whose direction and size drift with time and distance
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run", "simulate_drift", "evaluate"]
 
@@ -209,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
                                                           for k, v in fig["obj_center_err_cm_by_dof"].items()))
     print(f"{fig['sequences']} sequences, {fig['motion_min']:.1f} min of motion, {fig['object_interactions']} object interactions")
     if args.json:
-        print(json.dumps(fig))
+        print_summary(fig)
     return 0
 
 

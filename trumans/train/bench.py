@@ -6,8 +6,8 @@ shapes, so this measures the model + diffusion loss + Adam step alone (and prove
 from __future__ import annotations
 
 import argparse
-import json
 import time
+from trumans.summary import print_summary
 
 __all__ = ["bench_steps", "main"]
 
@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{r['config']}: {r['parameters'] / 1e6:.2f} M parameters, batch {r['batch_size']}, "
           f"{r['seconds_per_step']:.3f} s/step ({r['samples_per_s']:.1f} samples/s), loss {r['loss']:.4f}")
     if a.json:
-        print(json.dumps(r))
+        print_summary(r)
     return 0
 
 

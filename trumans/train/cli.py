@@ -6,9 +6,9 @@ FileNotFoundError; the console script prints it as the one line ``trumans: error
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run", "main"]
 
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
           f"val loss {res.val_loss:.4f} (zero baseline {res.val_loss_zero_baseline:.4f}, ratio {res.val_ratio:.3f}); "
           f"checkpoint {res.checkpoint}")
     if args.json:
-        print(json.dumps(res.to_dict()))
+        print_summary(res.to_dict())
     return 0
 
 

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import argparse
-import json
+from trumans.summary import print_summary
 
 __all__ = ["add_arguments", "run", "evaluate_checkpoint"]
 
@@ -54,5 +54,5 @@ def run(args: argparse.Namespace) -> int:
     print(f"val loss {res['val_loss']:.4f} (zero baseline {res['val_loss_zero_baseline']:.4f}, "
           f"ratio {res['val_ratio']:.3f}) on {res['val_episodes']} episodes")
     if args.json:
-        print(json.dumps(res))
+        print_summary(res)
     return 0

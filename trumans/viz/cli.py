@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -15,6 +14,7 @@ from trumans.dataset import INDEX_FILE, load_index
 from trumans.sequence import load_sequence
 
 from .render import SceneView, render_animation, render_topdown
+from trumans.summary import print_summary
 
 if TYPE_CHECKING:
     from trumans.scenes.scene import Scene
@@ -92,5 +92,5 @@ def run(args: argparse.Namespace) -> int:
     for k, v in written.items():
         print(f"{k}: {v}", file=sys.stderr)
     if args.json:
-        print(json.dumps(written))
+        print_summary(written)
     return 0

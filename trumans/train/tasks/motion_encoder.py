@@ -7,7 +7,6 @@ test-split accuracy and the real-vs-real reference figures (FID train vs test, d
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from trumans.dataset import Dataset
 from trumans.eval.motion_encoder import (MotionEncoder, MotionEncoderConfig, MotionEncoderNet, action_acc, diversity,
                                           dominant_action, fid, motion_windows, split_features, window_inputs)
 from trumans.sequence import atomic_write
+from trumans.summary import print_summary
 
 __all__ = ["EncoderTrainConfig", "labelled_windows", "train_motion_encoder", "main"]
 
@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
           f"fid train vs test {report['fid_train_vs_test']:.3f}, diversity test {report['diversity_test']:.3f}; "
           f"wrote {args.out}")
     if args.json:
-        print(json.dumps(report))
+        print_summary(report)
     return 0
 
 

@@ -5,6 +5,8 @@ import pytest
 
 from trumans.scenes.atomic import atomic_write
 
+from helpers import REPO_ROOT
+
 
 def test_atomic_write_replaces_or_leaves_nothing(tmp_path):
     p = tmp_path / "sub" / "a.txt"
@@ -31,7 +33,7 @@ def test_scenes_never_imports_trumans():
     """No import of trumans anywhere in scenes/, lazy ones inside functions included."""
     import ast
 
-    root = Path(__file__).resolve().parents[1] / "scenes"
+    root = REPO_ROOT / "scenes"
     bad = []
     for f in sorted(root.glob("*.py")):
         for node in ast.walk(ast.parse(f.read_text())):

@@ -14,7 +14,9 @@ from trumans.dataset import Dataset
 from trumans.io_lock import LOCK_FILE, FolderLock
 from trumans.synth.build import SynthConfig, build_dataset
 
-REPO_BVH = "tests/data/cmu_131_01_start_walk_stop_first480.bvh"
+from helpers import CMU_WALK_BVH
+
+REPO_BVH = str(CMU_WALK_BVH)
 
 
 @pytest.fixture(scope="module")

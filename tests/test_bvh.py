@@ -1,5 +1,4 @@
 """trumans.bvh: write/read round trips, the CMU excerpt, rotation-order conventions, bad inputs."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,9 +10,11 @@ from trumans.importers.joint_maps import DEFAULT_JOINT_MAP, map_joints
 from trumans.rotations import axis_angle_to_matrix, sixd_to_matrix, yaw_matrix
 from trumans.skeleton import JOINT_INDEX, JOINT_NAMES, NUM_JOINTS, PARENTS, forward_kinematics, heading, rest_offsets
 
+from helpers import CMU_WALK_BVH
+
 torch.set_num_threads(1)
 
-CMU = Path(__file__).parent / "data" / "cmu_131_01_start_walk_stop_first480.bvh"
+CMU = CMU_WALK_BVH
 JI = JOINT_INDEX
 
 

@@ -12,7 +12,8 @@ import pytest
 from trumans.dataset import Dataset
 from trumans.synth.build import SynthConfig, build_dataset
 
-ROOT = Path(__file__).resolve().parents[1]
+from helpers import REPO_ROOT
+
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 
 
@@ -35,7 +36,7 @@ def _kill_when(argv: list[str], ready, timeout: float = 180.0) -> int:
     """Start ``trumans argv`` in its own session, kill -9 it (the parent only) as soon as ``ready()``;
     returns the session id."""
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    proc = subprocess.Popen([sys.executable, "-m", "trumans", *argv], cwd=ROOT, env=env, start_new_session=True,
+    proc = subprocess.Popen([sys.executable, "-m", "trumans", *argv], cwd=REPO_ROOT, env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     t0, seen = time.time(), 0
     while not ready() and proc.poll() is None and time.time() - t0 < timeout:

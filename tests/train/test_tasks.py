@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from test_train import TINY_TOML, make_tiny_dataset
+from helpers import TINY_TOML, make_tiny_dataset
 from trumans.train.config import GeneratorConfig, TrainSection, build_config, load_config
 from trumans.train.tasks import TASKS, TaskLoss, make_task, register_task
 from trumans.model.checkpoint import KINDS, Checkpoint, KindSpec, load_checkpoint

@@ -13,6 +13,8 @@ from trumans.track.postprocess import contact_mask, contact_segments
 from trumans.track.predictor import CLASSES, ContactPredictor, ContactPredictorConfig, predict_contacts
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d
 
+from helpers import tiny_contact_dataset
+
 TINY = ContactPredictorConfig(window=9, d_model=8, hidden=8, heads=2, layers=1, ff=8, dropout=0.0)
 
 
@@ -123,14 +125,12 @@ def test_eval_and_refine_command_lines_take_per_dof_checkpoints(tmp_path, capsys
     from trumans.dataset import Dataset
     from trumans.sequence import load_sequence
 
-    from test_contact_task import _tiny_dataset
-
     paths = {d: _save(tmp_path, d, d, seed=i) for i, d in enumerate(DOFS)}
     with pytest.raises(ValueError, match="unknown dof class 'door'"):
         eval_main([f"door={paths['slide']}"])
     with pytest.raises(ValueError, match="pass it as slide="):
         eval_main([str(paths["slide"])])
-    ds = Dataset(_tiny_dataset(tmp_path / "data"))
+    ds = Dataset(tiny_contact_dataset(tmp_path / "data"))
     seq_path = ds.root / ds.split("val")[0]
     scene = str(ds.scene_dir(load_sequence(seq_path).scene))
     args = [str(seq_path), "--scene", scene, "--out", str(tmp_path / "o.npz"), "--json"]
@@ -154,15 +154,13 @@ def test_per_dof_task_config_labels_and_checkpoint(tmp_path):
     from trumans.track.model_io import load_predictor
     from trumans.dataset import Dataset
 
-    from test_contact_task import _tiny_dataset
-
     task = ContactTask.from_config("slide")
     assert task.config.data.dof == "slide" and task.config.data.class_weight == 0.0
     with pytest.raises(ValueError, match="set class_weight = 0"):
         ContactTask.from_config(None, overrides={"data": {"dof": "hinge"}})
     with pytest.raises(ValueError, match="unknown dof class 'door'"):
         ContactTask.from_config(None, overrides={"data": {"dof": "door"}})
-    data = _tiny_dataset(tmp_path / "data")
+    data = tiny_contact_dataset(tmp_path / "data")
     ds = Dataset(data)
     # the toy clips touch a static table: contacts for the class-head model, negatives for a dof model
     assert load_contact_data(ds, "train", 30.0).hands.sum() > 0

@@ -12,7 +12,7 @@ from trumans.cli import console_main
 from trumans.model.checkpoint import save_checkpoint
 from trumans.sequence import load_sequence
 
-from test_sample_rollout import VOCAB, tiny_checkpoint
+from helpers import SAMPLE_VOCAB, tiny_checkpoint
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_sample_writes_files_and_figures(ckpt_path, tmp_path, capsys):
                 "seconds_per_episode", "realtime_factor"):
         assert key in figs
     seq = load_sequence(out.with_suffix(".npz"))
-    assert seq.joints.shape == (figs["frames"], 24, 3) and list(seq.action_names) == VOCAB
+    assert seq.joints.shape == (figs["frames"], 24, 3) and list(seq.action_names) == SAMPLE_VOCAB
     assert (tmp_path / "walk_top.png").is_file()
 
 

@@ -1,6 +1,5 @@
 """trumans.motion_labels, trumans.mocap_corpus and trumans.eval.realism: states, the shipped corpus, statistics."""
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +11,8 @@ from trumans.eval.realism import STATISTICS, clip_statistics, compare, reference
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import REST_JOINTS
 
-DATA = Path(__file__).parent / "data"
+from helpers import TEST_DATA
+
 FPS = 30.0
 
 
@@ -125,8 +125,8 @@ def test_tpose_frame_is_dropped():
 
 
 def test_conversion_is_deterministic(tmp_path):
-    a = convert_clip(DATA / "cmu_13_10_daz_first12keys.fbx", "13_10", "reach")
-    b = convert_clip(DATA / "cmu_13_10_daz_first12keys.fbx", "13_10", "reach")
+    a = convert_clip(TEST_DATA / "cmu_13_10_daz_first12keys.fbx", "13_10", "reach")
+    b = convert_clip(TEST_DATA / "cmu_13_10_daz_first12keys.fbx", "13_10", "reach")
     write_corpus(tmp_path / "a.npz", [a], {"x": 1})
     write_corpus(tmp_path / "b.npz", [b], {"x": 1})
     assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b.npz").read_bytes()

@@ -8,81 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.scenes.occupancy import OccupancyGrid
-from trumans.actions import ActionInterval, labels_from_intervals
-from trumans.dataset import content_hash, write_index
-from trumans.rotations import axis_angle_to_matrix
-from trumans.sequence import Sequence, save_sequence
-from trumans.skeleton import forward_kinematics
-
-VOCAB = ["walk", "sit", "reach"]
-
-TINY_TOML = """
-name = "tiny"
-[model]
-d_model = 32
-layers = 2
-heads = 4
-ff = 64
-dropout = 0.1
-[scene]
-d_model = 16
-layers = 1
-heads = 2
-ff = 32
-[action]
-d_model = 16
-layers = 1
-heads = 2
-ff = 32
-[data]
-stride = 3
-max_val_episodes = 64
-[train]
-steps = 6
-batch_size = 8
-lr = 1e-3
-warmup_steps = 2
-checkpoint_every = 3
-val_every = 3
-val_batch_size = 32
-"""
-
-
-def make_tiny_dataset(root: Path, num_seqs: int = 6, frames: int = 150, seed: int = 0) -> Path:
-    """A dataset folder: random-walk-ish 30 fps motions from FK, a 3 m room with a box, index.json."""
-    rng = np.random.default_rng(seed)
-    root = Path(root)
-    scene_dir = root / "scenes" / "room0"
-    scene_dir.mkdir(parents=True, exist_ok=True)
-    grid = np.zeros((60, 60, 44), dtype=bool)
-    grid[40:50, 10:30, :10] = True  # a 0.5 x 1.0 x 0.5 m box
-    OccupancyGrid(grid, np.array([-1.5 + 0.025, -1.5 + 0.025, 0.025]), 0.05).save(scene_dir / "occupancy.npz")
-    paths = []
-    for s in range(num_seqs):
-        t = np.arange(frames) / 30.0
-        yaw = rng.uniform(-np.pi, np.pi) + 0.3 * np.sin(t * rng.uniform(0.5, 1.5))
-        speed = rng.uniform(0.3, 1.0)
-        root_xy = np.cumsum(np.stack([np.cos(yaw), np.sin(yaw)], -1) * speed / 30.0, 0) + rng.uniform(-0.5, 0.5, 2)
-        aa = np.zeros((frames, 24, 3))
-        aa[:, 0, 2] = yaw
-        phase = rng.uniform(0, 2 * np.pi, 24)
-        aa[:, 1:, 0] = 0.3 * np.sin(2 * np.pi * 1.2 * t[:, None] + phase[None, 1:])
-        aa[:, 1:, 1] = 0.15 * np.cos(2 * np.pi * 0.7 * t[:, None] + phase[None, 1:])
-        R = axis_angle_to_matrix(aa)
-        root_pos = np.concatenate([root_xy, np.full((frames, 1), 0.93)], -1)
-        joints, _ = forward_kinematics(R, root_pos)
-        cut = int(rng.integers(frames // 3, 2 * frames // 3))
-        acts = labels_from_intervals([ActionInterval("walk", 0, cut + 1), ActionInterval("reach", cut - 10, frames)],
-                                     VOCAB, frames)
-        rel = f"sequences/seq{s}.npz"
-        save_sequence(Sequence(joints=joints, fps=30.0, actions=acts, action_names=VOCAB, scene="room0"), root / rel)
-        paths.append(rel)
-    n_val = max(1, num_seqs // 3)
-    splits = {"train": paths[:-n_val], "val": paths[-n_val:], "test": []}
-    write_index(root, {"name": "tiny", "version": "1", "fps": 30, "vocabulary": VOCAB, "splits": splits,
-                       "scenes": {"room0": "scenes/room0"}, "hash": content_hash(root, paths)})
-    return root
+from helpers import DATASET_VOCAB, TINY_TOML, make_tiny_dataset
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +58,7 @@ def test_episodes_from_dataset(tiny) -> None:
     root, cfg_path = tiny
     cfg = load_config(cfg_path)
     ds = Dataset(root)
-    eps = build_episodes(ds, "train", cfg.data, VOCAB)
+    eps = build_episodes(ds, "train", cfg.data, DATASET_VOCAB)
     # 150 frames at 30 fps -> 50 frames at 10 fps -> starts 0, 3, ..., 33 = 12 episodes per sequence
     assert len(eps) == 4 * 12 and eps.features.shape == (48, 16, 72) and eps.actions.shape == (48, 16, 3)
     assert np.allclose(eps.features[:, 0, :2], 0, atol=1e-5)  # canonical: first pelvis at the origin
@@ -146,17 +72,17 @@ def test_episodes_from_dataset(tiny) -> None:
     assert np.array_equal(eps.unpack_grids(np.array([k])), ref)
     assert eps.actions.max() > 1.0  # progress indicator present
     # ablations
-    nop = build_episodes(ds, "train", cfg.with_overrides(data={"progress_indicator": False}).data, VOCAB)
+    nop = build_episodes(ds, "train", cfg.with_overrides(data={"progress_indicator": False}).data, DATASET_VOCAB)
     assert set(np.unique(nop.actions)) <= {0.0, 1.0} and np.array_equal(nop.actions > 0, eps.actions > 0)
     ds.index["augmented"] = [ds.index["splits"]["train"][0]]
-    noaug = build_episodes(ds, "train", cfg.with_overrides(data={"augmented": False}).data, VOCAB)
+    noaug = build_episodes(ds, "train", cfg.with_overrides(data={"augmented": False}).data, DATASET_VOCAB)
     assert len(noaug) == 3 * 12
     # cache: the second load reads the file written by the first
     cache = root / "cache-test"
-    a = load_episodes(Dataset(root), "val", cfg.data, VOCAB, cache)
+    a = load_episodes(Dataset(root), "val", cfg.data, DATASET_VOCAB, cache)
     files = list(cache.iterdir())
     assert len(files) == 1
-    b = load_episodes(Dataset(root), "val", cfg.data, VOCAB, cache)
+    b = load_episodes(Dataset(root), "val", cfg.data, DATASET_VOCAB, cache)
     assert np.array_equal(a.grids, b.grids) and np.array_equal(a.features, b.features)
     # batches: deterministic in (seed, step, rank); ranks disjoint; every episode once per epoch
     s = BatchStream(eps, Normalizer.fit(eps.features), 8, seed=5)
@@ -176,7 +102,7 @@ def test_pooled_batches_hold_each_pool_share_and_walk_each_pool_once_per_epoch(t
     from trumans.model.episodes import Normalizer
 
     root, cfg_path = tiny
-    eps = build_episodes(Dataset(root), "train", load_config(cfg_path).data, VOCAB)  # 48 episodes
+    eps = build_episodes(Dataset(root), "train", load_config(cfg_path).data, DATASET_VOCAB)  # 48 episodes
     groups = (np.arange(48) >= 12).astype(np.int64)  # 12 "original", 36 "augmented"
     s = BatchStream(eps, Normalizer.fit(eps.features), 8, seed=3, groups=groups, shares=[0.75, 0.25])
     steps = [s.indices(i) for i in range(40)]

@@ -13,7 +13,7 @@ from trumans.sample.cleanup.scene_pushout import push_radii
 
 from trumans.skeleton import JOINT_INDEX
 
-from test_foot_cleanup import _standing
+from helpers import standing_body
 
 L_ARM = [JOINT_INDEX[f"left_{n}"] for n in ("elbow", "wrist", "index1")]
 WRIST, INDEX = JOINT_INDEX["left_wrist"], JOINT_INDEX["left_index1"]
@@ -36,7 +36,7 @@ def test_a_hand_through_a_thin_wall_comes_back_on_the_body_side_with_bones_kept(
     """T-pose, left arm along +y: the wrist is just inside the wall, the index1 past its middle,
     where the field's gradient points on through (+y). The push brings the hand back (-y)."""
     sdf, k, T = _wall(0.70, 0.84), 2, 14
-    J = _standing(T)
+    J = standing_body(T)
     assert _depth(sdf, J)[0, :, INDEX].min() > 0.03
     _, g = sdf.value_and_gradient(torch.as_tensor(J[0, 0, INDEX], dtype=torch.float32)[None])
     assert g[0, 1] > 0.5  # the gradient would push the index1 through the wall
@@ -52,7 +52,7 @@ def test_a_hand_through_a_thin_wall_comes_back_on_the_body_side_with_bones_kept(
 
 def test_a_brief_touch_is_eased_in_and_out():
     sdf, T = _wall(0.84, 0.92), 20  # the rest pose's index1 (y = 0.80) is clear of this wall
-    J = _standing(T)
+    J = standing_body(T)
     J[0, 10, INDEX, 1] += 0.08  # one frame's hand 8 cm further: into the wall
     assert _depth(sdf, J)[0, 10, INDEX] > 0.04 and _depth(sdf, J)[0, [9, 11]].max() == 0
     out = push_arms_out(J, bone_lengths_of(J[0, 0]), sdf)
@@ -65,7 +65,7 @@ def test_a_brief_touch_is_eased_in_and_out():
 
 def test_a_clear_body_and_kept_frames_are_left_exactly():
     sdf, T = _wall(), 8
-    J = _standing(T)
+    J = standing_body(T)
     clear = J.copy()
     clear[..., 1] -= 0.3  # the whole body 30 cm back from the wall
     assert not arm_push(clear, sdf).any()
@@ -77,13 +77,13 @@ def test_a_clear_body_and_kept_frames_are_left_exactly():
 
 def test_a_shoulder_in_the_scene_is_left_to_the_body_push_out():
     sdf = _wall(0.10, 0.60)  # the left shoulder (y = 0.195) inside a thick wall
-    J = _standing(4)
+    J = standing_body(4)
     assert _depth(sdf, J)[0, 0, JOINT_INDEX["left_shoulder"]] > 0
     assert not arm_push(J, sdf)[..., 0, :].any()
 
 
 def test_bad_input_raises():
-    sdf, J = _wall(), _standing(6)
+    sdf, J = _wall(), standing_body(6)
     lengths = bone_lengths_of(J[0, 0])
     with pytest.raises(ValueError, match="joints must be"):
         push_arms_out(J[0], lengths, sdf)
@@ -99,7 +99,7 @@ def test_bad_input_raises():
 
 def test_batch_members_are_pushed_independently():
     sdf, k = _wall(0.70, 0.84), 2
-    J = _standing(10)
+    J = standing_body(10)
     clear = J.copy()
     clear[..., 1] -= 0.3
     lengths = bone_lengths_of(J[0, 0])

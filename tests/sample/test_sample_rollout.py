@@ -11,41 +11,10 @@ from trumans.sample.controller import Phase
 from trumans.sample.plan import plan_from_dict
 from trumans.sample.rollout import INCREMENTAL_SCHEDULE, sample_plan, start_context, stream
 from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig, bone_lengths_of, project_bones
-from trumans.scenes.occupancy import OccupancyGrid
-from trumans.scenes.scene import Scene
 from trumans.scenes.scene_grids import SceneGrids
-from trumans.scenes.walkability import walkable_map
-from trumans.model.checkpoint import Checkpoint
-from trumans.model.diffusion import DiffusionConfig
-from trumans.model.episodes import FeatureLayout, Normalizer
-from trumans.model.nets import ActionEncoderConfig, Denoiser, DenoiserConfig, ScenePerceiverConfig
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS
 
-VOCAB = ["stand", "walk", "sit_down", "sit", "stand_up", "drink"]
-
-
-def tiny_checkpoint(seed: int = 0) -> Checkpoint:
-    torch.manual_seed(seed)
-    cfg = DenoiserConfig(layout=FeatureLayout(), frames=16, d_model=32, layers=1, heads=2, ff=32, dropout=0.0,
-                         scene=ScenePerceiverConfig(grid=16, patch=8, d_model=16, layers=1, heads=2, ff=16, dropout=0.0),
-                         action=ActionEncoderConfig(num_actions=len(VOCAB), frames=16, d_model=16, layers=1, heads=2,
-                                                    ff=16, dropout=0.0))
-    model = Denoiser(cfg)
-    rest = REST_JOINTS.copy()
-    mean = np.tile(rest.reshape(-1), 1).astype(np.float32)
-    return Checkpoint(kind="generator", model_config=cfg, diffusion_config=DiffusionConfig(steps=20, schedule="cosine",
-                                                                                          prediction="x0"),
-                      model_state=model.state_dict(), normalizer=Normalizer(mean, np.full(72, 0.3, np.float32)),
-                      vocabulary=VOCAB, fps=10.0, L_epi=16, k=2, grid={"n": 16, "extent": [1.2, 1.2, 1.2]},
-                      meta={"walk_speed": 1.0})
-
-
-@pytest.fixture(scope="module")
-def open_room():
-    grid = np.zeros((120, 120, 120), dtype=bool)
-    grid[:, :, :5] = True  # floor: z < 0
-    occ = OccupancyGrid(grid, np.array([0.01, 0.01, -0.09]), 0.02)
-    return Scene("open"), occ, walkable_map(occ)
+from helpers import SAMPLE_VOCAB, tiny_checkpoint
 
 
 def test_project_bones_keeps_lengths_and_directions():
@@ -63,7 +32,7 @@ def test_episode_honours_masks_and_context(open_room):
     ck = tiny_checkpoint()
     sampler = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=5))
     ctx = start_context(ck, np.array([1.0, 1.0]), 0.3, batch=2)
-    labels = np.zeros((2, 16, len(VOCAB)), np.float32)
+    labels = np.zeros((2, 16, len(SAMPLE_VOCAB)), np.float32)
     goals = [Goal((1.8, 1.2)), Goal((1.5, 1.0, 0.9), "right_wrist", 9)]
     out = sampler.episode(ctx, labels, goals, generator=torch.Generator().manual_seed(0), attach_pelvis=False)
     assert out.shape == (2, 16, 24, 3) and np.isfinite(out).all()
@@ -82,7 +51,7 @@ def test_precomputed_conditions_match_naive(open_room):
     scene, occ, wm = open_room
     ck = tiny_checkpoint(1)
     ctx = start_context(ck, np.array([1.0, 1.0]), 0.0)
-    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels = np.zeros((1, 16, len(SAMPLE_VOCAB)), np.float32)
     labels[:, :, 1] = 1.5
     outs = [EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=4, naive=n)).episode(
         ctx, labels, [Goal((1.5, 1.0))], generator=torch.Generator().manual_seed(3)) for n in (False, True)]
@@ -97,7 +66,7 @@ def test_sample_plan_runs_to_the_end_and_keeps_bones(open_room):
                                                            {"do": "act", "action": "drink", "seconds": 1.0}]})
     res = sample_plan(ck, sampler, scene, wm, plan, num_samples=2, seed=0)
     B, T = res.joints.shape[:2]
-    assert B == 2 and T == 2 + 14 * res.episodes and res.labels.shape == (2, T, len(VOCAB))
+    assert B == 2 and T == 2 + 14 * res.episodes and res.labels.shape == (2, T, len(SAMPLE_VOCAB))
     cv = np.std(bone_lengths_of(res.joints[0].astype(np.float64))[:, 1:], 0)
     assert cv.max() < 1e-4  # bone lengths kept over the whole rollout
     assert res.episode_starts == [14 * e for e in range(res.episodes)]
@@ -159,7 +128,7 @@ def test_goal_guidance_pulls_the_body_onto_its_goal(open_room):
     scene, occ, wm = open_room
     ck = tiny_checkpoint(2)
     ctx = start_context(ck, np.array([1.0, 1.0]), 0.0)
-    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels = np.zeros((1, 16, len(SAMPLE_VOCAB)), np.float32)
     goal = Goal((1.9, 1.3))
     hips = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
     errs = []
@@ -177,7 +146,7 @@ def test_labels_follow_the_checkpoints_progress_indicator(open_room):
     """A model trained without the progress indicator (the ablation) is sampled with 0/1 labels, as trained."""
     scene, occ, wm = open_room
     ctx = start_context(tiny_checkpoint(), np.array([1.0, 1.0]), 0.3, batch=1)
-    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels = np.zeros((1, 16, len(SAMPLE_VOCAB)), np.float32)
     labels[0, 4:, 1] = 1.0 + np.linspace(0.0, 1.0, 12)
     goals = [Goal((1.8, 1.2))]
     with_progress = EpisodeSampler(tiny_checkpoint(), SceneGrids(occ)).condition(ctx, labels, goals)

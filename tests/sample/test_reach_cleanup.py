@@ -12,6 +12,8 @@ from trumans.sample.sampling_args import add_postprocess_arguments, postprocess_
 from trumans.rotations import rodrigues
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS, SUBTREE
 
+from helpers import tiny_checkpoint
+
 SH, EL, WR, IX = ARMS[1]  # right arm
 NO_LEAN = ReachCleanupConfig(max_lean=0.0)
 
@@ -201,8 +203,6 @@ def test_no_reach_cleanup_flag():
 
 @pytest.mark.parametrize("goal, reached", [([1.05, 0.6, 1.1], True), ([1.4, 0.6, 1.0], False)])
 def test_rollout_reaches_the_hand_goal_or_stretches_toward_it(goal, reached):
-    from test_sample_rollout import tiny_checkpoint
-
     from trumans.sample.plan import plan_from_dict
     from trumans.sample.rollout import sample_plan
     from trumans.sample.sampler import EpisodeSampler, SamplerConfig

@@ -15,7 +15,8 @@ from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import Normalizer
 from trumans.model.nets.denoiser import Denoiser
 from trumans.sequence import ObjectTrack, Sequence, load_sequence, save_sequence
-from test_hoi_frame import _clip  # pytest puts tests/ on sys.path
+
+from helpers import carried_box_clip
 
 NET = FilterNetConfig(d_model=32, layers=1, heads=2, ff=32, window=16, overlap=4, fps=30.0, wiener_radius=2)
 CATS = ["box", "cup"]
@@ -34,7 +35,7 @@ def _ckpt(path, zero=True, seed=0):
     rng = np.random.default_rng(0)
     norm = Normalizer(rng.normal(0, 0.1, FRAME_DIM), rng.uniform(0.5, 2, FRAME_DIM))
     ck = Checkpoint(kind="filter", model_config=mc, diffusion_config=DIFF, model_state=FilterModel(net).state_dict(),
-                    normalizer=norm, fps=NET.fps, L_epi=NET.window, k=NET.overlap, extra={"categories": CATS, "skip_sigma": 0.0 if zero else 2.0},
+                    normalizer=norm, fps=NET.fps, extra={"categories": CATS, "window": NET.window, "overlap": NET.overlap, "skip_sigma": 0.0 if zero else 2.0},
                     meta={"net": NET.to_dict()})
     save_checkpoint(path, ck)
     return path
@@ -60,7 +61,7 @@ def test_filter_mode_denoiser_errors():
 
 
 def _tracked(T=100, seed=0):
-    s = _clip(T=T, seed=seed)
+    s = carried_box_clip(T=T, seed=seed)
     f, _ = frames_from_sequence(s, "box_0")
     return s, f
 
@@ -162,7 +163,7 @@ def _dataset(root):
 
     splits = {}
     for k, split in enumerate(("train", "val", "test")):
-        s = _clip(T=80, seed=k)
+        s = carried_box_clip(T=80, seed=k)
         s.extra["offsets"] = rest_offsets().astype(np.float32)
         rel = f"sequences/{split}.npz"
         save_sequence(s, root / rel)
@@ -225,7 +226,7 @@ def test_filter_task_trains_through_the_loop(tmp_path):
 
 
 def test_window_objects_and_eval_figures():
-    s = _clip(T=64)
+    s = carried_box_clip(T=64)
     assert window_objects(s, np.array([0, 32]), 32) == ["box_0", "box_0"]  # the lamp never moves
     _, f = _tracked(T=64)
     f = add_clean_imu(f[None], 30.0)[0]
@@ -338,7 +339,7 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
     from trumans.rotations import matrix_to_6d, sixd_to_matrix
 
     filt = HOIFilter.load(_ckpt(tmp_path / "f.pt"))
-    frames, _ = frames_from_sequence(_clip(T=120))
+    frames, _ = frames_from_sequence(carried_box_clip(T=120))
     flipped = frames.copy()
     S = np.diag([-1.0, -1.0, 1.0])  # pi about the object's own z
     flipped[23:78, OBJ_R] = matrix_to_6d(sixd_to_matrix(frames[23:78, OBJ_R].astype(np.float64)) @ S)  # ends between output frames

@@ -13,8 +13,9 @@ from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out, push_r
 
 from trumans.skeleton import JOINT_INDEX
 
-from test_foot_cleanup import FPS, _standing
-from test_penetration_guidance import _box_room
+from helpers import box_room, standing_body
+
+FPS = 30.0
 
 
 def _depth(sdf: SceneSDF, J: np.ndarray) -> np.ndarray:
@@ -25,7 +26,7 @@ def _depth(sdf: SceneSDF, J: np.ndarray) -> np.ndarray:
 def _walk_into_box(T: int = 40, k: int = 4) -> np.ndarray:
     """A standing body (1, T, 24, 3) whose hips slide from 20 cm in front of the box (x = 1.0) to
     6 cm inside the box's front face over the new frames, the context (first k frames) outside."""
-    J = _standing(T)
+    J = standing_body(T)
     J[..., 1] += 1.0
     J[..., 0] += 0.8 + np.r_[np.zeros(k), np.linspace(0.0, 0.26, T - k)][None, :, None]
     return J
@@ -38,7 +39,7 @@ def test_spline_basis_vanishes_at_the_seam():
 
 
 def test_body_walking_into_a_box_is_pushed_out_smoothly_with_context_and_bones_kept():
-    sdf, k = SceneSDF(_box_room()), 4
+    sdf, k = SceneSDF(box_room()), 4
     J = _walk_into_box(k=k)
     assert _depth(sdf, J).max() > 0.08  # the hips' skin 8+ cm into the box
     out = push_out(J, sdf, fixed=k)
@@ -66,7 +67,7 @@ def _objective(J: np.ndarray, out: np.ndarray, sdf: SceneSDF, k: int, c: PushOut
 
 
 def test_push_out_minimises_its_objective():
-    sdf, k = SceneSDF(_box_room()), 4
+    sdf, k = SceneSDF(box_room()), 4
     J = _walk_into_box(k=k).astype(np.float64)
     out = push_out(J, sdf, fixed=k)
     best = _objective(J, out, sdf, k)
@@ -82,7 +83,7 @@ def test_push_out_minimises_its_objective():
 
 
 def test_planted_feet_stay_where_they_stood_after_push_out_and_foot_cleanup():
-    sdf, k = SceneSDF(_box_room()), 4
+    sdf, k = SceneSDF(box_room()), 4
     J = _walk_into_box(k=k)  # the feet skate with the body into the box
     lengths = bone_lengths_of(J[0, 0])
     out = clean_feet(push_out(J, sdf, fixed=k), lengths, FPS, fixed=k)
@@ -107,7 +108,7 @@ def test_hand_reaching_into_a_thin_wall_is_pushed_out_while_the_seam_knee_cannot
     only the knee active; the next step, held by nothing else, pulled the body back in (the
     iterations ping-ponged and ended on the pulled-back one). The damped steps keep the hand out."""
     sdf, k, T = SceneSDF(_thin_wall()), 2, 16
-    J = _standing(T)
+    J = standing_body(T)
     J[..., 1] += 1.0
     J[..., 0] += 0.75
     hand, knee = JOINT_INDEX["left_index1"], JOINT_INDEX["left_knee"]
@@ -122,7 +123,7 @@ def test_hand_reaching_into_a_thin_wall_is_pushed_out_while_the_seam_knee_cannot
 
 
 def test_bad_input_raises():
-    sdf = SceneSDF(_box_room())
+    sdf = SceneSDF(box_room())
     with pytest.raises(ValueError, match="joints must be"):
         push_out(np.zeros((10, 24, 3)), sdf, 2)
     with pytest.raises(ValueError, match="fixed"):

@@ -10,10 +10,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from test_train import TINY_TOML, VOCAB, make_tiny_dataset
+from helpers import DATASET_VOCAB, REPO_ROOT, TINY_TOML, make_tiny_dataset
 from trumans.model.checkpoint import load_checkpoint
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_two_process_gloo_weights_identical(tmp_path: Path) -> None:
@@ -24,7 +23,7 @@ def test_two_process_gloo_weights_identical(tmp_path: Path) -> None:
     cfg = tmp_path / "tiny.toml"
     cfg.write_text(TINY_TOML)
     # this checkout's code, not an installed copy (the subprocess starts outside the repository)
-    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=os.pathsep.join([str(REPO_ROOT), os.environ.get("PYTHONPATH", "")]))
     cmd = [str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "trumans.train", "--config", str(cfg),
            "--data", str(data), "--out", str(tmp_path / "run"), "--steps", "4", "--seed", "3",
            "--device", "cpu", "--threads", "1", "--no-progress", "--json"]
@@ -42,7 +41,7 @@ def test_two_process_gloo_weights_identical(tmp_path: Path) -> None:
     assert weights_digest(model) == res["weights_sha256"]  # rank 0 saved the weights every rank holds
     # the weights moved away from the initialisation the loop starts from (seed 3): every parameter
     # that gets a gradient in every step changed (the null embeddings only when a condition is dropped)
-    init = initial_model(GeneratorTask(load_config(cfg), vocabulary=VOCAB), 3).state_dict()
+    init = initial_model(GeneratorTask(load_config(cfg), vocabulary=DATASET_VOCAB), 3).state_dict()
     assert init.keys() == ck.model_state.keys()
     moved = {k: float((ck.model_state[k] - v).abs().max()) for k, v in init.items()}
     assert all(torch.isfinite(v).all() for v in ck.model_state.values())

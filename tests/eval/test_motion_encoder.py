@@ -1,7 +1,6 @@
 """trumans.eval.motion_encoder: windows, FID / diversity / accuracy, the network, the shipped weights."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +14,8 @@ from trumans.importers.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
 from trumans.synth.cases import make_case
+
+from helpers import CMU_WALK_BVH
 
 
 def _walk(T: int = 90, fps: float = 30.0, speed: float = 1.0) -> np.ndarray:
@@ -206,7 +207,7 @@ def test_shipped_encoder_loads_and_recognises_actions():
     names = [enc.vocabulary[i] for i in enc.classify(seq.joints, seq.fps, stride=8)[0].argmax(-1)]
     assert set(names) <= {"sit_down", "sit", "stand_up"} and names.count("sit") > len(names) / 2
     # real motion capture (CMU 131_01 at 120 fps, read through our BVH importer): walking
-    walk = import_bvh(Path(__file__).parent / "data" / "cmu_131_01_start_walk_stop_first480.bvh", refine_steps=0)
+    walk = import_bvh(CMU_WALK_BVH, refine_steps=0)
     assert all(enc.vocabulary[i] == "walk" for i in enc.classify(walk.joints, walk.fps)[0].argmax(-1))
 
 

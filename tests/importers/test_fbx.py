@@ -1,7 +1,6 @@
 """trumans.importers.fbx: the node reader (ASCII / binary), transforms, curves and the skeleton import."""
 import struct
 import zlib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,10 +11,11 @@ from trumans.importers.fbx_nodes import parse_ascii, parse_binary, read_fbx_node
 from trumans.importers.joint_maps import detect_skeleton, floor_height, place_pelvis
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS
 
-DATA = Path(__file__).parent / "data"
-CMU_FBX = DATA / "cmu_13_10_daz_first12keys.fbx"
-CMU_BVH = DATA / "cmu_13_10_daz_first56.bvh"
-ANIM = {(v, enc): DATA / f"ufbx_maya_transform_animation_{v}_{enc}.fbx" for v in (6100, 7500)
+from helpers import TEST_DATA
+
+CMU_FBX = TEST_DATA / "cmu_13_10_daz_first12keys.fbx"
+CMU_BVH = TEST_DATA / "cmu_13_10_daz_first56.bvh"
+ANIM = {(v, enc): TEST_DATA / f"ufbx_maya_transform_animation_{v}_{enc}.fbx" for v in (6100, 7500)
         for enc in ("ascii", "binary")}
 
 
@@ -64,7 +64,7 @@ def test_curves_hit_their_keys():
 def test_rotation_orders_match_maya():
     """World matrices of six meshes with RotationOrder XYZ..ZYX, applied to their vertices, give
     Maya's own world-space vertices (the .obj ufbx checks against)."""
-    path = DATA / "ufbx_maya_rotation_order_7500_binary.fbx"
+    path = TEST_DATA / "ufbx_maya_rotation_order_7500_binary.fbx"
     scene = read_fbx(path)
     assert sorted(m.rotation_order for m in scene.models) == [0, 1, 2, 3, 4, 5]
     W = scene.world_matrices(np.zeros(1))[0]
@@ -74,7 +74,7 @@ def test_rotation_orders_match_maya():
     model_name = {n.props[0]: n.props[1].split("::")[1] for n in top["Objects"].find_all("Model")}
     owner = {c.props[1]: c.props[2] for c in top["Connections"].children if c.props[1] in geo}
     verts, groups, cur = [], {}, None
-    for line in (DATA / "ufbx_maya_rotation_order.obj").read_text().splitlines():
+    for line in (TEST_DATA / "ufbx_maya_rotation_order.obj").read_text().splitlines():
         if line.startswith("v "):
             verts.append([float(x) for x in line.split()[1:]])
         elif line.startswith("g "):

@@ -2,14 +2,14 @@
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from trumans.sample.eval_synthesis import _load_reference, fid_figures, read_windows, write_windows
 
-ROOT = Path(__file__).resolve().parents[1]
+from helpers import REPO_ROOT
+
 
 
 def test_windows_round_trip_and_bad_files(tmp_path):
@@ -58,9 +58,9 @@ def test_pooled_fid_script(tmp_path):
         write_windows(tmp_path / f"a{i}.npz", tf[i * 100:(i + 1) * 100], ty[i * 100:(i + 1) * 100])
     noisy = tf[:200] + np.random.default_rng(0).normal(0, 3 * tf.std(), tf[:200].shape)
     write_windows(tmp_path / "b.npz", noisy, ty[:200])
-    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "pooled_fid.py"),
+    run = subprocess.run([sys.executable, str(REPO_ROOT / "benchmarks" / "pooled_fid.py"),
                           f"real={tmp_path / 'a0.npz'},{tmp_path / 'a1.npz'}", f"noisy={tmp_path / 'b.npz'}"],
-                         capture_output=True, text=True, cwd=ROOT, check=True)
+                         capture_output=True, text=True, cwd=REPO_ROOT, check=True)
     out = json.loads(run.stdout.strip().splitlines()[-1])
     assert out["real"]["pooled"]["windows"] == 200 and len(out["real"]["each"]) == 2
     pooled = fid_figures(tf[:200], ty[:200], ref)

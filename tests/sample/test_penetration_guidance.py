@@ -7,24 +7,14 @@ import torch
 from trumans.sample.guidance.penetration import SceneSDF, penetration_loss
 from trumans.sample.rollout import start_context
 from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
-from trumans.scenes.occupancy import OccupancyGrid
 from trumans.scenes.scene_grids import SceneGrids
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 
-from test_sample_rollout import VOCAB, tiny_checkpoint
-
-
-def _box_room() -> OccupancyGrid:
-    """Floor (z < 0) plus a box x in [1.0, 1.4], y in [0.6, 1.4], z in [0, 1.0] at 2 cm voxels."""
-    origin = np.array([0.01, 0.01, -0.09])
-    c = origin[:, None] + 0.02 * np.arange(120)[None]  # (3, 120) voxel centres per axis
-    x, y, z = np.meshgrid(*c, indexing="ij")
-    grid = (z < 0) | ((x > 1.0) & (x < 1.4) & (y > 0.6) & (y < 1.4) & (z < 1.0))
-    return OccupancyGrid(grid, origin, 0.02)
+from helpers import SAMPLE_VOCAB, box_room, tiny_checkpoint
 
 
 def test_sdf_gradient_is_the_outward_normal_and_values_agree():
-    sdf = SceneSDF(_box_room())
+    sdf = SceneSDF(box_room())
     pts = torch.tensor([[0.8, 1.0, 0.5], [1.05, 1.0, 0.5], [1.2, 0.5, 0.5], [1.2, 1.0, 1.2]])  # front, inside, side, top
     d, g = sdf.value_and_gradient(pts)
     np.testing.assert_allclose(d.numpy(), sdf(pts).numpy(), atol=1e-6)
@@ -33,7 +23,7 @@ def test_sdf_gradient_is_the_outward_normal_and_values_agree():
 
 
 def test_sdf_is_signed_distance_and_ignores_the_floor():
-    sdf = SceneSDF(_box_room())
+    sdf = SceneSDF(box_room())
     pts = torch.tensor([[0.7, 1.0, 0.5], [1.2, 1.0, 0.5], [1.2, 1.0, 1.3], [0.5, 0.3, 0.05]])
     d = sdf(pts).numpy()
     np.testing.assert_allclose(d[0], 0.3, atol=0.03)  # 30 cm in front of the box
@@ -43,7 +33,7 @@ def test_sdf_is_signed_distance_and_ignores_the_floor():
 
 
 def test_descending_the_loss_pushes_a_pose_out_of_the_box():
-    sdf = SceneSDF(_box_room())
+    sdf = SceneSDF(box_room())
     j = torch.full((24, 3), 0.0)
     j[:, 0], j[:, 1], j[:, 2] = 1.05, 1.0, torch.linspace(0.1, 1.5, 24)  # a body standing 5 cm into the box
     j.requires_grad_(True)
@@ -59,10 +49,10 @@ def test_descending_the_loss_pushes_a_pose_out_of_the_box():
 
 
 def test_guided_episode_penetrates_less():
-    occ = _box_room()
+    occ = box_room()
     ck = tiny_checkpoint(3)
     ctx = start_context(ck, np.array([0.9, 1.0]), 0.0)  # facing the box, 10 cm in front of it
-    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels = np.zeros((1, 16, len(SAMPLE_VOCAB)), np.float32)
     sdfs, pens = SceneSDF(occ), []
     for on in (False, True):
         s = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=6, goal_guidance=20.0, goal_iters=3,

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_sample_rollout import open_room, tiny_checkpoint  # noqa: F401 - the fixture is used by name
+from helpers import tiny_checkpoint
 
 from trumans.sample.cli import body_frame
 from trumans.sample.plan import plan_from_dict
@@ -53,7 +53,7 @@ def test_body_pose_refuses_frames_that_do_not_stand():
         body_pose(J[:20])
 
 
-def test_sample_plan_keeps_the_given_body(open_room):  # noqa: F811
+def test_sample_plan_keeps_the_given_body(open_room):
     scene, occ, wm = open_room
     ck = tiny_checkpoint()
     body = REST_JOINTS.astype(np.float64) * 0.85

@@ -11,7 +11,7 @@ from trumans.sample.guidance.seat import seated_heights
 from trumans.scenes.scene_grids import SceneGrids
 from trumans.skeleton import JOINT_INDEX
 
-from test_sample_rollout import VOCAB, open_room, tiny_checkpoint  # noqa: F401 (fixture)
+from helpers import SAMPLE_VOCAB, tiny_checkpoint
 
 
 def test_seated_heights_follow_the_sit_phases():
@@ -23,11 +23,11 @@ def test_seated_heights_follow_the_sit_phases():
     assert seated_heights(np.array([1, 1, 0]), phases, 0.1, k=2) == ()  # context frames are not targeted
 
 
-def test_guidance_pulls_the_seated_pelvis_to_the_seat_height(open_room):  # noqa: F811
+def test_guidance_pulls_the_seated_pelvis_to_the_seat_height(open_room):
     _, occ, _ = open_room
     ck = tiny_checkpoint(2)
     ctx = start_context(ck, np.array([1.0, 1.0]), 0.0)
-    labels = np.zeros((1, 16, len(VOCAB)), np.float32)
+    labels = np.zeros((1, 16, len(SAMPLE_VOCAB)), np.float32)
     target = 0.5  # m, well under the standing pelvis (~0.95 m)
     frames = tuple((f, target) for f in range(8, 16))
     pelvis = JOINT_INDEX["pelvis"]

@@ -12,31 +12,15 @@ from trumans.refine import (COND_DIM, FRAME_DIM, CorruptionConfig, add_clean_imu
                          window_starts, window_weights)
 from trumans.refine.frame import IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS
 from trumans.refine.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_vel
-from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
-from trumans.sequence import ObjectTrack, Sequence, load_sequence, save_sequence
-from trumans.skeleton import forward_kinematics, rest_offsets
+from trumans.rotations import sixd_to_matrix
+from trumans.sequence import load_sequence, save_sequence
+from trumans.skeleton import rest_offsets
 
-
-def _clip(T=40, seed=0, imu=True):
-    """A kinematically exact clip: random smooth rotations, FK joints, an object carried by the right wrist."""
-    rng = np.random.default_rng(seed)
-    aa = 0.3 * np.sin(np.linspace(0, 3, T)[:, None, None] + rng.uniform(0, 6, (1, 24, 3)))
-    R = axis_angle_to_matrix(aa)
-    root = np.stack([np.linspace(0, 1, T), np.zeros(T), np.full(T, 0.95)], -1)
-    joints, _ = forward_kinematics(R, root)
-    pose = np.tile(np.eye(4), (T, 1, 1))
-    pose[:, :3, :3] = axis_angle_to_matrix(np.stack([np.zeros(T), np.zeros(T), np.linspace(0, 2, T)], -1))
-    pose[:, :3, 3] = joints[:, 21] + pose[:, :3, :3] @ [0.05, 0, 0]  # held by the right wrist, 5 cm off in its own frame
-    ob = ObjectTrack(pose=pose.astype(np.float32), category="box")
-    if imu:
-        ob.imu_rot = matrix_to_6d(pose[:, :3, :3]).astype(np.float32)
-        ob.imu_acc = simulate_imu_acc(pose[:, :3, 3], 30.0).astype(np.float32)
-    return Sequence(joints=joints, fps=30.0, rotations=matrix_to_6d(R).astype(np.float32), root_pos=root,
-                    objects={"box_0": ob, "lamp": ObjectTrack(pose=np.tile(np.eye(4), (T, 1, 1)), category="lamp")})
+from helpers import carried_box_clip
 
 
 def test_frame_vector_round_trip(tmp_path):
-    s = _clip()
+    s = carried_box_clip()
     f, name = frames_from_sequence(s)
     assert name == "box_0" and f.shape == (40, FRAME_DIM) and (f[:, IMU_FLAG] == 1).all()
     back = sequence_from_frames(f, s.fps, name, "box", template=s)
@@ -66,7 +50,7 @@ def test_frame_vector_round_trip(tmp_path):
 
 
 def test_frame_errors():
-    s = _clip()
+    s = carried_box_clip()
     with pytest.raises(ValueError, match="'cup' is not in the sequence"):
         frames_from_sequence(s, "cup")
     with pytest.raises(ValueError, match=r"\(T, 235\)"):
@@ -81,7 +65,7 @@ def test_frame_errors():
 
 
 def test_condition_and_canonical_frame():
-    s = _clip()
+    s = carried_box_clip()
     f, _ = frames_from_sequence(s)
     f[3, JOINTS][:3] = np.nan  # pelvis missing on frame 3
     f[7, OBJ_T] = np.nan
@@ -100,7 +84,7 @@ def test_condition_and_canonical_frame():
     np.testing.assert_allclose(o[:2], np.nanmean(f[:, 0:2], 0), atol=1e-5)
     # canonical <-> world is exact, and moves the object and IMU with the body
     rng = np.random.default_rng(0)
-    W = add_clean_imu(np.stack([frames_from_sequence(_clip(seed=k))[0] for k in range(3)]), 30.0)
+    W = add_clean_imu(np.stack([frames_from_sequence(carried_box_clip(seed=k))[0] for k in range(3)]), 30.0)
     o, y = rng.normal(size=(3, 3)), rng.uniform(-3, 3, 3)
     C = to_frame(W, o, y)
     np.testing.assert_allclose(from_frame(C, o, y), W, atol=2e-5)
@@ -115,7 +99,7 @@ def test_simulated_imu_and_resampling():
     traj = np.stack([0.5 * 2.0 * t ** 2, np.zeros(60), 3 * t], -1)  # constant acceleration 2 m/s² in x
     a = simulate_imu_acc(traj, 30.0)
     np.testing.assert_allclose(a[4:-4], np.tile([2.0, 0, 0], (52, 1)), atol=1e-9)
-    f, _ = frames_from_sequence(_clip())
+    f, _ = frames_from_sequence(carried_box_clip())
     up = resample_frames(f, 30.0, 60.0)
     assert up.shape == (79, FRAME_DIM)
     np.testing.assert_allclose(up[::2], f, atol=1e-5)  # the source frames come back exactly
@@ -123,7 +107,7 @@ def test_simulated_imu_and_resampling():
 
 
 def test_corruption_is_seeded_and_shaped():
-    W = add_clean_imu(np.stack([frames_from_sequence(_clip(T=64, seed=k))[0] for k in range(8)]), 30.0)
+    W = add_clean_imu(np.stack([frames_from_sequence(carried_box_clip(T=64, seed=k))[0] for k in range(8)]), 30.0)
     a = corrupt(W, 30.0, np.random.default_rng(3))
     b = corrupt(W, 30.0, np.random.default_rng(3))
     np.testing.assert_array_equal(a, b)
@@ -142,7 +126,7 @@ def test_corruption_is_seeded_and_shaped():
 
 
 def test_corruption_position_scale_sets_each_window_s_severity():
-    W = add_clean_imu(np.stack([frames_from_sequence(_clip(T=64, seed=k))[0] for k in range(16)]), 30.0)
+    W = add_clean_imu(np.stack([frames_from_sequence(carried_box_clip(T=64, seed=k))[0] for k in range(16)]), 30.0)
     off = CorruptionConfig(p_joint_occlusion=0.0, p_dropout=0.0, p_freeze=0.0)
 
     def per_window(cfg):
@@ -163,7 +147,7 @@ def _t(x):
 
 
 def test_regularisers_analytic():
-    W = add_clean_imu(np.stack([frames_from_sequence(_clip(T=32, seed=k))[0] for k in range(2)]), 30.0).astype(np.float64)
+    W = add_clean_imu(np.stack([frames_from_sequence(carried_box_clip(T=32, seed=k))[0] for k in range(2)]), 30.0).astype(np.float64)
     x = _t(W)
     off = _t(np.stack([rest_offsets()] * 2))
     # exact prediction: every term vanishes (L_imu too: a constant-acceleration object with its
@@ -241,7 +225,7 @@ def test_windows_and_blending():
 
 
 def test_corruption_reports_the_body_drift_it_added():
-    W = add_clean_imu(np.stack([frames_from_sequence(_clip(T=64, seed=k))[0] for k in range(4)]), 30.0)
+    W = add_clean_imu(np.stack([frames_from_sequence(carried_box_clip(T=64, seed=k))[0] for k in range(4)]), 30.0)
     # only the drifts left: no jitter, spikes, freezes or missing joints
     cfg = CorruptionConfig(jitter_m=0.0, p_spike=0.0, joint_drift_m=0.0, p_joint_occlusion=0.0, p_dropout=0.0,
                            p_freeze=0.0, position_scale=(0.5, 2.0))

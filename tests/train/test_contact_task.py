@@ -8,6 +8,8 @@ from trumans.train.tasks import make_task, task_names
 from trumans.track.model_io import load_predictor
 from trumans.track.predictor import ContactPredictorConfig
 
+from helpers import tiny_contact_dataset
+
 
 def test_config_round_trip_and_errors(tmp_path):
     cfg = ContactTaskConfig()
@@ -24,34 +26,10 @@ def test_config_round_trip_and_errors(tmp_path):
         make_task("contact", ablate=["scene"])
 
 
-def _tiny_dataset(root):
-    """Two toy clips (one train, one val) with rule contacts, in the dataset layout."""
-    from trumans.scenes.io import save_scene
-    from trumans.contacts.rule import ContactScene, joint_contacts
-    from trumans.dataset import content_hash, write_index
-    from trumans.sequence import save_sequence
-    from trumans.synth.cases import make_case
-
-    splits, scenes, files = {"train": [], "val": [], "test": []}, {}, []
-    for split, kind, seed in (("train", "hand", 0), ("val", "two_hands", 1)):
-        seq, scene = make_case(kind, seed)
-        seq.contacts = joint_contacts(seq.joints, ContactScene(scene)).contact
-        scene.name = seq.scene = f"{kind}_{seed}"
-        save_scene(scene, root / "scenes" / scene.name)
-        rel = f"sequences/{scene.name}.npz"
-        save_sequence(seq, root / rel)
-        splits[split].append(rel)
-        scenes[scene.name] = f"scenes/{scene.name}"
-        files.append(rel)
-    write_index(root, {"name": "tiny", "version": "1", "fps": 30.0, "vocabulary": [], "splits": splits,
-                       "scenes": scenes, "hash": content_hash(root, files)})
-    return root
-
-
 def test_a_few_steps_through_the_loop(tmp_path):
     from trumans.train.loop import train
 
-    data = _tiny_dataset(tmp_path / "data")
+    data = tiny_contact_dataset(tmp_path / "data")
     task = ContactTask.from_config(None, overrides={"model": {"d_model": 8, "hidden": 8, "heads": 2, "layers": 1,
                                                               "ff": 8, "window": 15},
                                                     "train": {"batch_size": 4, "val_every": 2, "checkpoint_every": 2},

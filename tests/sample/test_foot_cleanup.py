@@ -8,22 +8,14 @@ from trumans.sample.sampler import bone_lengths_of
 from trumans.eval.synthesis_metrics import floor_err_cm, foot_skate_near_floor_cm
 from trumans.skeleton import rest_offsets, forward_kinematics
 
+from helpers import box_room, standing_body
+
 FPS = 30.0
-
-
-def _standing(T: int) -> np.ndarray:
-    """(1, T, 24, 3) rest pose with the feet on the floor (lowest foot joint at its rest height)."""
-    rot = np.broadcast_to(np.eye(3), (T, 24, 3, 3)).copy()
-    P, _ = forward_kinematics(rot, np.zeros((T, 3)), rest_offsets())
-    L, R = LEGS["left"], LEGS["right"]
-    low = min((P[0, [L[2], R[2]], 2] - 0.08).min(), (P[0, [L[3], R[3]], 2] - 0.04).min())
-    P[..., 2] -= low
-    return P[None]
 
 
 def _sliding_planted_foot(T: int = 40) -> np.ndarray:
     """Standing body whose whole left leg slides 1 cm/frame forward and sinks 3 cm (a skating foot)."""
-    J = _standing(T)
+    J = standing_body(T)
     left = list(LEGS["left"][1:])
     J[0, :, left, 0] += 0.01 * np.arange(T)[:, None]
     J[0, :, left, 2] -= 0.03
@@ -43,7 +35,7 @@ def test_two_bone_positions_keeps_lengths_and_reaches():
 
 
 def test_contacts_have_hysteresis():
-    J = np.repeat(_standing(1), 30, axis=1)
+    J = np.repeat(standing_body(1), 30, axis=1)
     ankle, toe = LEGS["left"][2:]
     lift = np.r_[np.zeros(10), np.full(5, 0.08), np.full(5, 0.2), np.full(10, 0.08)]  # 0.08: between thresholds
     J[:, :, [ankle, toe], 2] += lift[:, None]
@@ -54,7 +46,7 @@ def test_contacts_have_hysteresis():
 
 
 def test_clean_feet_pins_planted_foot_and_keeps_bones():
-    J = _standing(40)
+    J = standing_body(40)
     lengths = bone_lengths_of(J[0, 0])
     ankle, toe = LEGS["left"][2:]
     moved = J.copy()  # the whole body slides forward 6 cm/s and sinks 3 cm: both feet skate under the floor
@@ -74,7 +66,7 @@ def test_clean_feet_pins_planted_foot_and_keeps_bones():
 
 
 def test_context_frames_are_fixed_and_seed_the_lock():
-    J = _standing(30)
+    J = standing_body(30)
     lengths = bone_lengths_of(J[0, 0])
     ankle, toe = LEGS["right"][2:]
     moved = J.copy()
@@ -85,7 +77,7 @@ def test_context_frames_are_fixed_and_seed_the_lock():
 
 
 def test_swing_foot_is_left_free_and_bad_input_raises():
-    J = np.repeat(_standing(1), 20, axis=1)
+    J = np.repeat(standing_body(1), 20, axis=1)
     lengths = bone_lengths_of(J[0, 0])
     ankle, toe = LEGS["left"][2:]
     J[:, :, [ankle, toe], 0] += 0.05 * np.arange(20)[:, None]  # 1.5 m/s, a step in the air
@@ -167,7 +159,7 @@ def test_support_foot_plants_the_lower_foot_only_when_upright():
     """Both feet sliding fast (no detected contact): the lower one is planted, with hysteresis; a body
     whose hips are low (sitting down) gets no support foot."""
     T = 20
-    J = np.repeat(_standing(1), T, axis=1)
+    J = np.repeat(standing_body(1), T, axis=1)
     (_, _, la, lt), (_, _, ra, rt) = LEGS["left"], LEGS["right"]
     # left foot 3 cm up for frames 0-9, then 5 cm; the right the other way round (1 cm differences within
     # the margin never switch); both feet slide 3 cm a frame, too fast to count as planted
@@ -196,7 +188,7 @@ def test_support_removes_flight_phases():
     """Two feet whose free (sliding) spans overlap, as a shuffling network's do, are never both in the
     air after the cleanup with support; without it each swing gets its clearance arc and both lift."""
     T = 30
-    J = np.repeat(_standing(1), T, axis=1)
+    J = np.repeat(standing_body(1), T, axis=1)
     (_, _, la, lt), (_, _, ra, rt) = LEGS["left"], LEGS["right"]
     t = np.arange(T)
     for (a, b), (t0, t1) in (((la, lt), (6, 20)), ((ra, rt), (3, 17))):  # slides 3 cm a frame over [t0, t1)
@@ -221,9 +213,8 @@ def test_out_of_scene_moves_feet_out_of_furniture_and_keeps_locks():
     under the top goes up."""
     from trumans.sample.cleanup.foot import out_of_scene
     from trumans.sample.guidance.penetration import SceneSDF
-    from test_penetration_guidance import _box_room
 
-    sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4]
+    sdf = SceneSDF(box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4]
     ankle = np.array([[[1.02, 1.0, 0.08]] * 4 + [[0.5, 1.0, 0.08]]])  # (1, 5, 3): a lock of 4 frames, then the open
     toe_off = np.broadcast_to(np.array([0.0, 0.12, -0.04]), ankle.shape)  # the toe points along +y
     r = (0.04, 0.03)
@@ -242,7 +233,7 @@ def test_out_of_scene_moves_feet_out_of_furniture_and_keeps_locks():
 def _shuffling_crouch(T: int = 80, k: int = 2, speed: float = 0.005) -> np.ndarray:
     """A body 5 cm lower than standing (knees bent) sliding forward ``speed`` m/frame over the new
     frames with both feet on the floor (a shuffle: slow enough to count as planted at ``FPS``)."""
-    J = _standing(T)
+    J = standing_body(T)
     feet = [j for leg in LEGS.values() for j in leg[2:]]
     J[0, :, [j for j in range(24) if j not in feet], 2] -= 0.05
     J[0, :, :, 0] += speed * np.clip(np.arange(T) - (k - 1), 0, None)[:, None]
@@ -256,7 +247,7 @@ def test_a_lock_out_of_the_legs_reach_ends_its_contact_run():
     swings on, and no frame holds a foot at its lock out of reach or off the floor."""
     k, T = 2, 80
     J = _shuffling_crouch(T, k)
-    lengths = bone_lengths_of(_standing(1)[0, 0])
+    lengths = bone_lengths_of(standing_body(1)[0, 0])
     assert foot_contacts(J, FPS)[0, k:].all()  # the network's feet count as planted all along
     out = clean_feet(J, lengths, FPS, fixed=k)
     stuck = clean_feet(J, lengths, FPS, fixed=k, config=FootCleanupConfig(reach_passes=0))
@@ -288,9 +279,8 @@ def test_knee_bent_into_a_wall_turns_outward_with_bone_lengths_kept():
     core radius clear; hip and ankle stay, both bones keep their lengths; a knee in the open stays."""
     from trumans.sample.cleanup.foot import knee_out_of_scene
     from trumans.sample.guidance.penetration import SceneSDF
-    from test_penetration_guidance import _box_room
 
-    sdf = SceneSDF(_box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4], z < 1
+    sdf = SceneSDF(box_room())  # box x in [1.0, 1.4], y in [0.6, 1.4], z < 1
     hip = np.array([[[0.80, 1.0, 0.85], [0.30, 1.0, 0.85]]])  # (1, 2, 3): 20 cm from the box, then in the open
     ankle = hip - [0.0, 0.0, 0.70]
     knee = hip + [0.25, 0.0, -0.35]  # bent 25 cm forward: 5 cm into the box's face

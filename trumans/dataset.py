@@ -196,6 +196,7 @@ class Dataset:
 
 
 CLAIM_FILE = ".trumans-output.json"
+NOT_OURS = "holds no trumans output"
 # what a writer may remove under --overwrite: the outputs of synth, augment and the importers
 _OUTPUT_NAMES = (INDEX_FILE, "manifest.json", "summary.json", "summary.png", "sequences", "scenes", "records",
                  "rooms", CLAIM_FILE)
@@ -208,13 +209,21 @@ class DatasetWriter:
     (``trumans.io_lock.FolderLock``: a second writer is refused), then claims the folder:
     a new or empty folder, or one claimed by the same command with the same ``settings``
     (a resume), is accepted; a folder holding other data (another dataset's ``index.json``, the
-    output of other settings, unrelated files) is refused unless ``overwrite``, which first
-    removes the previous outputs (``index.json``, ``sequences/``, ``scenes/``, ...; nothing else).
+    output of other settings) is refused unless ``overwrite``, which first removes the previous
+    outputs (``index.json``, ``sequences/``, ``scenes/``, ...; nothing else; links are unlinked, never
+    followed). A folder of files that are no trumans output is refused even with ``overwrite``, and so
+    are an empty ``root`` and the current folder or one above it.
     Stale temp files of killed writers are swept. ``save_occupancy`` writes a scene grid through
     ``OccupancyGrid``; ``finish(index)`` adds the content hash and writes ``index.json``.
     Call it after every input is validated: a refused run changes nothing on disk."""
 
     def __init__(self, root: str | Path, command: str, settings: dict, overwrite: bool = False) -> None:
+        if not str(root).strip():
+            raise ValueError("--out is empty (an unset shell variable?); give the output folder")
+        resolved, cwd = Path(root).resolve(), Path.cwd().resolve()
+        if resolved == cwd or resolved in cwd.parents:
+            raise ValueError(f"--out {root} is the current folder or one above it; give a new or empty folder "
+                             f"for the output (e.g. --out {Path(root) / 'out'})")
         self.root = Path(root)
         self.command = command
         self.settings = json.loads(json.dumps(settings, sort_keys=True, default=str))
@@ -233,9 +242,10 @@ class DatasetWriter:
         try:
             content = sorted(p.name for p in self.root.iterdir() if p.name != LOCK_FILE) if existed else []
             refusal = self._refusal(content)
-            if refusal and not self.overwrite:
-                raise FileExistsError(f"{self.root} {refusal}; pass --overwrite to replace it, or choose "
-                                      f"another --out")
+            if refusal and (not self.overwrite or refusal.endswith(NOT_OURS)):
+                fix = ("choose another --out (--overwrite replaces only a trumans output)" if refusal.endswith(NOT_OURS)
+                       else "pass --overwrite to replace it, or choose another --out")
+                raise FileExistsError(f"{self.root} {refusal}; {fix}")
             if refusal:
                 for name in _OUTPUT_NAMES:
                     p = self.root / name
@@ -283,7 +293,7 @@ class DatasetWriter:
                 name = "?"
             return f"holds another dataset ({name!r}) that this run would overwrite"
         shown = ", ".join(content[:4]) + (" ..." if len(content) > 4 else "")
-        return f"is not empty ({shown}) and holds no trumans output"
+        return f"is not empty ({shown}) and {NOT_OURS}"
 
     def __exit__(self, *exc) -> None:
         if self._lock is not None:

@@ -165,6 +165,9 @@ def _remove_scene_folder(folder: Path) -> None:
     """Delete a scene folder moved aside, its scene.json last: a concurrent saver that listed the
     folder just before it was moved aside reads a listing that shrinks while we delete, and must
     still see a scene folder (scene.json present) or an empty one, never a foreign one."""
+    if folder.is_symlink():  # a link moved aside: remove the link, never what it points to
+        folder.unlink()
+        return
     try:
         entries = os.listdir(folder)
     except (FileNotFoundError, NotADirectoryError):

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from trumans.model.checkpoint import (FORMAT_VERSION, KINDS, Checkpoint, KindSpec, load_checkpoint, register_kind,
-                                      save_checkpoint)
+                                      resign_checkpoint, save_checkpoint)
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import Normalizer
 from trumans.model.nets import ActionEncoderConfig, Denoiser, DenoiserConfig
@@ -133,6 +133,9 @@ def test_wrong_kind_version_and_inconsistent(tmp_path: Path, monkeypatch) -> Non
     d = torch.load(p, weights_only=True)
     del d["norm"], d["digest"]  # as an older writer would have left it
     torch.save(d, p)
+    with pytest.raises(ValueError, match="has no digest.*python -m trumans.model.checkpoint"):
+        load_checkpoint(p)
+    resign_checkpoint(p)  # its owner trusts it: signed, it loads as far as its missing field
     with pytest.raises(ValueError, match="lacks"):
         load_checkpoint(p)
 
@@ -175,8 +178,11 @@ def test_kinds_registry_required_fields_and_old_files(tmp_path: Path, monkeypatc
         save_checkpoint(p, Checkpoint(kind="contact", model_config=TinyConfig(), model_state=lin.state_dict(), fps=30.0))
     d = torch.load(p, weights_only=True)
     d["extra"]["classes"] = 3
-    del d["digest"]  # a file written before digests: loaded unchecked, but the kind's check still runs
+    del d["digest"]  # a file written before digests: refused until its owner signs it
     torch.save(d, p)
+    with pytest.raises(ValueError, match="has no digest"):
+        load_checkpoint(p, kind="contact")
+    resign_checkpoint(p)  # signed, the kind's check still runs
     with pytest.raises(ValueError, match="classes must be 2"):
         load_checkpoint(p, kind="contact")
     with pytest.raises(ValueError, match="kind must be one of"):
@@ -193,10 +199,12 @@ def test_kinds_registry_required_fields_and_old_files(tmp_path: Path, monkeypatc
     for key in ("kind", "digest", "extra"):
         del d[key]
     torch.save(d, p)
+    resign_checkpoint(p)
     old = load_checkpoint(p)
     assert old.kind == "generator" and old.extra == {} and old.L_epi == 16
     d["kind"] = "tracker"
     torch.save(d, p)
+    resign_checkpoint(p)
     with pytest.raises(ValueError, match="unknown checkpoint kind 'tracker'"):
         load_checkpoint(p, kind=None)
 
@@ -209,3 +217,19 @@ def test_non_finite_weights_are_refused(tmp_path: Path) -> None:
     save_checkpoint(p, ck)
     with pytest.raises(ValueError, match=r"non-finite \(NaN or inf\) ema weights in \['out_proj.bias'\]"):
         load_checkpoint(p)
+
+
+def test_resign_command_signs_a_trusted_file_and_refuses_foreign_ones(tmp_path: Path) -> None:
+    from trumans.model.checkpoint import main
+
+    ck, _ = _ckpt()
+    p = tmp_path / "old.pt"
+    save_checkpoint(p, ck)
+    d = torch.load(p, weights_only=True)
+    del d["digest"]
+    torch.save(d, p)
+    assert main([str(p), "--out", str(tmp_path / "signed.pt")]) == 0
+    assert load_checkpoint(tmp_path / "signed.pt").L_epi == ck.L_epi
+    torch.save({"weights": torch.zeros(2)}, tmp_path / "foreign.pt")
+    assert main([str(tmp_path / "foreign.pt")]) == 2
+    assert main([str(tmp_path / "missing.pt")]) == 2

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import torch
 
+from trumans.model.checkpoint import resign_checkpoint
 from trumans.track.interactions import contact_probabilities, interval_classes
 from trumans.train.tasks.contact import ContactTask, load_contact_data
 from trumans.track.model_io import load_contact_models, save_predictor
@@ -111,6 +112,7 @@ def test_checkpoint_routing_and_bad_inputs(tmp_path):
     with pytest.raises(FileNotFoundError, match="does not exist"):
         load_contact_models([f"slide={tmp_path / 'missing.pt'}"])
     torch.save({"format": "trumans-checkpoint", "format_version": 1, "kind": "generator"}, tmp_path / "gen.pt")
+    resign_checkpoint(tmp_path / "gen.pt")  # a signed file of another kind
     with pytest.raises(ValueError, match="'contact' checkpoint is needed"):
         load_contact_models([f"slide={tmp_path / 'gen.pt'}"])
     with pytest.raises(ValueError, match="unknown dof class 'door'"):
@@ -146,7 +148,7 @@ def test_eval_and_refine_command_lines_take_per_dof_checkpoints(tmp_path, capsys
     assert eval_main(specs + ["--data", str(ds.root), "--split", "val", "--json"]) == 0
     fig = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert fig["checkpoint"] == " ".join(specs) and fig["sequences"] == 1
-    assert np.isnan(fig["ap_interaction"]) and fig["recall_interaction"] == 0.0 and 0 <= fig["ap"] <= 1
+    assert fig["ap_interaction"] is None and fig["recall_interaction"] == 0.0 and 0 <= fig["ap"] <= 1
 
 
 def test_per_dof_task_config_labels_and_checkpoint(tmp_path):

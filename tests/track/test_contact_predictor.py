@@ -5,6 +5,8 @@ import numpy as np
 import pytest
 import torch
 
+from trumans.model.checkpoint import resign_checkpoint
+
 from trumans.track.model_io import load_predictor, save_predictor
 from trumans.track.predictor import (MIRROR_JOINTS, ContactPredictor, ContactPredictorConfig, mirror_rotations,
                                         pose_windows, predict_contacts, window_indices)
@@ -121,6 +123,7 @@ def test_checkpoint_round_trip(tmp_path):
     with pytest.raises(ValueError, match="not a readable"):
         load_predictor(bad)
     torch.save({"format": "trumans-checkpoint", "format_version": 1, "kind": "generator"}, tmp_path / "gen.pt")
+    resign_checkpoint(tmp_path / "gen.pt")  # a signed file of another kind
     with pytest.raises(ValueError, match="'contact' checkpoint is needed"):
         load_predictor(tmp_path / "gen.pt")
     state = torch.load(path, weights_only=True)

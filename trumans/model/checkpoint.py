@@ -12,7 +12,8 @@ plain-data fields), ``data`` ({"name", "hash", "path"}), ``meta`` (free dict: tr
 figures), ``train_state`` (optimizer state, step, loss history; None in an export), and
 ``digest``: SHA-256 of everything else (tensors' dtype, shape and bytes; plain values' repr), checked
 on load - torch's zip reader does not notice altered tensor bytes, so without it a corrupted file
-would load silently (files written before the digest load unchecked).
+would load silently. A file without a digest is refused; ``resign_checkpoint`` (``python -m
+trumans.model.checkpoint FILE``) signs a file its owner trusts.
 
 ``KINDS`` is the one table of kinds: each names the ``KindSpec`` (the model config class, the model
 builder, the payload keys the kind requires and a consistency check) of the module that owns the
@@ -38,7 +39,7 @@ from .episodes import Normalizer
 from .nets.denoiser import Denoiser, DenoiserConfig
 
 __all__ = ["Checkpoint", "CheckpointKind", "KindSpec", "KINDS", "register_kind", "save_checkpoint", "load_checkpoint",
-           "shipped_data_record",
+           "shipped_data_record", "resign_checkpoint",
            "FORMAT", "FORMAT_VERSION", "COMMON_KEYS"]
 
 FORMAT = "trumans-checkpoint"
@@ -235,7 +236,11 @@ def load_checkpoint(path: str | Path, kind: CheckpointKind | None = "generator")
     if int(d.get("format_version", 0)) > FORMAT_VERSION:
         raise ValueError(f"{path} has checkpoint format {d.get('format_version')}, newer than this code's "
                          f"{FORMAT_VERSION}; update trumans")
-    if "digest" in d and d["digest"] != _payload_digest(d):
+    if "digest" not in d:
+        raise ValueError(f"{path} has no digest, so altered weights could not be told apart (a file written before "
+                         f"checkpoints were signed, or edited since); if you trust it, sign it with "
+                         f"`python -m trumans.model.checkpoint {path}`")
+    if d["digest"] != _payload_digest(d):
         raise ValueError(f"{path} is not a readable trumans checkpoint (its content does not match the digest written "
                          f"with it); it is corrupt - use an intact copy or retrain")
     found = str(d.get("kind", "generator"))  # files from before kinds were typed are generators
@@ -270,3 +275,43 @@ def load_checkpoint(path: str | Path, kind: CheckpointKind | None = "generator")
         except ValueError as e:
             raise ValueError(f"{path}: {e}") from e
     return ck
+
+
+def resign_checkpoint(path: str | Path, out: str | Path | None = None) -> Path:
+    """Write ``path``'s checkpoint with a digest of its current content to ``out`` (default: in place).
+    For a file its owner trusts (one written before checkpoints were signed): the digest then vouches
+    for exactly these bytes. The file is read without running code; its kind's checks run on load."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint {path} does not exist")
+    try:
+        d = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # corrupt bytes surface as many types
+        raise ValueError(f"{path} is not a readable trumans checkpoint ({type(e).__name__}); nothing to sign") from e
+    if not isinstance(d, dict) or d.get("format") != FORMAT:
+        raise ValueError(f"{path} is not a trumans checkpoint (no format={FORMAT!r}); nothing to sign")
+    d["digest"] = _payload_digest(d)
+    out = Path(out) if out is not None else path
+    atomic_write(out, lambda tmp: torch.save(d, tmp))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m trumans.model.checkpoint FILE [--out NEW]``: sign a trusted checkpoint (``resign_checkpoint``)."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m trumans.model.checkpoint",
+                                description="sign a trusted checkpoint written before checkpoints carried a digest")
+    p.add_argument("checkpoint")
+    p.add_argument("--out", default=None, help="write the signed file here (default: in place)")
+    a = p.parse_args(argv)
+    try:
+        print(resign_checkpoint(a.checkpoint, a.out))
+    except (ValueError, OSError) as e:
+        print(f"error: {e}")
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -266,3 +266,19 @@ def test_bad_arguments(small_bvh, tmp_path):
     with pytest.raises(ValueError, match="fps must be positive"):
         write_bvh(tmp_path / "x.bvh", R, root, rest_offsets(), 0)
     assert not (tmp_path / "x.bvh").exists()
+
+
+def test_frame_rates_and_frame_counts_outside_the_budget_are_refused_before_reading(tmp_path):
+    from trumans.limits import MAX_FRAMES
+    from trumans.resample import resample_times
+
+    p = tmp_path / "slow.bvh"
+    p.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n"
+                 " End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 1e6\n0 0 0\n0 0 0\n")
+    with pytest.raises(ValueError, match="between 1 and 1000 frames per second"):
+        read_bvh(p)
+    with pytest.raises(ValueError, match="between 1 and 1000"):
+        resample_times(100, 30.0, 1e9)  # would ask for 3.3e9 frames
+    with pytest.raises(ValueError, match="limit of"):
+        resample_times(MAX_FRAMES, 30.0, 60.0)
+    assert len(resample_times(31, 30.0, 10.0)) == 11

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .limits import check_fps, check_frames
 from .sequence import atomic_write
 from .skeleton import JOINT_NAMES, NUM_JOINTS, children
 
@@ -235,6 +236,8 @@ def _parse_motion(body: str, path: Path, n_channels: int) -> tuple[np.ndarray, f
     n_frames, frame_time = int(m1.group(1)), float(m2.group(1))
     if not (frame_time > 0 and np.isfinite(frame_time)):
         raise ValueError(f"{path}: Frame Time must be positive, got {frame_time}")
+    check_fps(1.0 / frame_time, f"{path}: the frame rate (1 / Frame Time {frame_time:g} s)")
+    check_frames(n_frames, f"{path}")
     rows = [ln for ln in lines[2:] if ln.strip()]
     if len(rows) < n_frames:
         raise ValueError(f"{path}: header says {n_frames} frames but only {len(rows)} are present; "

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from .limits import check_fps, check_frames
 from .rotations import matrix_to_6d, sixd_to_matrix
 from .sequence import ObjectTrack, Sequence
 
@@ -16,10 +17,11 @@ __all__ = ["resample_times", "resample_sequence", "interp_rotations"]
 
 def resample_times(num_frames: int, fps_in: float, fps_out: float) -> np.ndarray:
     """Source-frame coordinates (float) of the output frames: (T_out,)."""
-    if fps_in <= 0 or fps_out <= 0:
-        raise ValueError(f"frame rates must be positive, got {fps_in} -> {fps_out}")
+    check_fps(fps_in, "the source frame rate")
+    check_fps(fps_out, "the target frame rate")
     duration = (num_frames - 1) / fps_in
-    t_out = np.arange(int(np.floor(duration * fps_out + 1e-9)) + 1) / fps_out
+    n_out = check_frames(np.floor(duration * fps_out + 1e-9) + 1, f"resampling {num_frames} frames to {fps_out:g} fps")
+    t_out = np.arange(n_out) / fps_out
     return t_out * fps_in
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from trumans.scenes.atomic import atomic_write  # the one implementation; re-exported here
 
+from .limits import check_fps
 from .skeleton import NUM_JOINTS
 
 __all__ = ["ObjectTrack", "Sequence", "save_sequence", "load_sequence", "atomic_write"]
@@ -65,8 +66,7 @@ class Sequence:
         if np.isinf(j).any() or (not self.allow_missing and np.isnan(j).any()):
             raise ValueError("joints contain NaN or inf; clean the sequence before saving/using it "
                              "(tracked input with missing frames: load it with allow_missing=True)")
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"fps must be a positive number, got {self.fps}")
+        check_fps(self.fps, "the sequence's fps")
         T = j.shape[0]
         if self.rotations is not None and np.shape(self.rotations) != (T, NUM_JOINTS, 6):
             raise ValueError(f"rotations must be ({T}, 24, 6), got {np.shape(self.rotations)}")

@@ -90,3 +90,20 @@ def test_bad_release_inputs(tmp_path):
     (tmp_path / "r" / "action_label.npy").write_bytes(b"not a numpy file")
     with pytest.raises(ValueError, match="not a readable"):
         read_release(tmp_path / "r")
+
+
+def test_a_npy_header_declaring_more_than_the_file_holds_is_refused_before_loading(tmp_path):
+    from trumans.limits import check_npy_size
+
+    good = tmp_path / "good.npy"
+    np.save(good, np.zeros((4, 3), np.float32))
+    check_npy_size(good)
+    bomb = tmp_path / "human_joints.npy"
+    header = {"descr": "<f4", "fortran_order": False, "shape": (1 << 20, 1 << 16, 3)}  # 768 GiB declared
+    with open(bomb, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, header)
+        f.write(b"\0" * 64)
+    with pytest.raises(ValueError, match=r"declares .* GiB\) but holds 64 bytes"):
+        check_npy_size(bomb)
+    with pytest.raises(ValueError, match="declares"):
+        read_release(tmp_path)

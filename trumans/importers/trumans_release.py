@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from trumans.limits import check_npy_size
 from trumans.scenes.io import Y_UP_TO_Z_UP  # the one y-up -> z-up turn, shared with mesh import
 from trumans.scenes.occupancy import OccupancyGrid
 from trumans.sequence import ObjectTrack, Sequence
@@ -61,6 +62,7 @@ def _load(folder: Path, name: str, required: bool = True) -> np.ndarray | None:
         if required:
             raise FileNotFoundError(f"{p} is missing: a TRUMANS release folder needs {name}")
         return None
+    check_npy_size(p)  # before np.load allocates what the header declares
     try:
         return np.load(p, allow_pickle=False)
     except (ValueError, OSError, EOFError) as e:

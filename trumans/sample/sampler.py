@@ -26,7 +26,8 @@ from trumans.model.masks import joint_goal_mask, pelvis_goal_mask, transition_ma
 from trumans.model.nets import GuidedDenoiser
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
 
-from trumans.sample.guidance.penetration import SceneSDF, penetration_loss
+from trumans.sample.guidance.penetration import penetration_loss
+from trumans.sample.scene_sdf import SceneSDF
 
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 

@@ -15,7 +15,7 @@ After the body push-out, for each arm and new frame:
    isolated push keeps ~95 % of its size; frames farther than ``2 spread`` stay), faded in over
    ``spread`` frames after the context (whose frames stay: no jump at the seam);
 3. the wrist goes to ``W + p``; elbow and wrist are re-solved by two-bone IK
-   (``reach_cleanup.arm_ik``: shoulder fixed, the elbow in the plane of the network's bend, bone
+   (``trumans.sample.cleanup.common.arm_ik``: shoulder fixed, the elbow in the plane of the network's bend, bone
    lengths kept) and the hand (index1) turns with the forearm.
 
 Repeated ``iters`` times (the hand may still touch after the first). Frames with a reach weight
@@ -32,10 +32,8 @@ import torch
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import gaussian_filter1d
 
-from trumans.sample.cleanup.foot import episode_joints
-from trumans.sample.guidance.penetration import SceneSDF
-from trumans.sample.cleanup.reach import ARMS, arm_ik
-from trumans.sample.cleanup.scene_pushout import push_radii
+from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, push_radii
+from trumans.sample.scene_sdf import SceneSDF
 
 __all__ = ["ArmPushConfig", "arm_push", "push_arms_out"]
 

@@ -47,7 +47,9 @@ import numpy as np
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.skeleton import JOINT_INDEX
 
-__all__ = ["episode_joints", "FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene",
+from trumans.sample.cleanup.common import episode_joints
+
+__all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene",
            "clean_feet", "two_bone_positions", "FOOT_REST"]
 
 # (hip, knee, ankle, toe) per leg
@@ -353,17 +355,6 @@ def knee_out_of_scene(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, outw
     frac = np.where((k > 0) & (d1 <= 0), d0 / np.maximum(d0 - d1, 1e-9), 1.0)  # the crossing between k - 1 and k
     turn = np.where(k > 0, angle[np.maximum(k - 1, 0)] + frac * (max_angle / steps), 0.0)
     return centre + np.cos(turn)[..., None] * u + np.sin(turn)[..., None] * e2
-
-
-def episode_joints(joints: np.ndarray, fixed: int) -> np.ndarray:
-    """A float64 copy of an episode's joints (B, T, 24, 3), checked with its ``fixed`` context
-    frames (0 <= fixed <= T): the common input of the sampling-time cleanups."""
-    J = np.array(joints, dtype=np.float64, copy=True)
-    if J.ndim != 4 or J.shape[2:] != (24, 3):
-        raise ValueError(f"joints must be (B, T, 24, 3), got {J.shape}")
-    if not 0 <= fixed <= J.shape[1]:
-        raise ValueError(f"fixed must be in [0, {J.shape[1]}] frames, got {fixed}")
-    return J
 
 
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,

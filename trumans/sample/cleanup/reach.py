@@ -16,7 +16,7 @@ wrist target ``P`` (both from the plan's hand phases: ``reach_schedule``, filled
    ``max_lean`` (a bound on twists; the tilt limit is the one that acts: being absolute, it does
    not let the lean jump at a seam when the next episode continues the leaned context): a lean
    toward the target, bone lengths unchanged;
-3. the arm is re-solved with the two-bone IK of the legs (``foot_cleanup.two_bone_positions``):
+3. the arm is re-solved with two-bone IK (``trumans.sample.cleanup.common.arm_ik``):
    the shoulder stays, the wrist goes to ``D`` (clamped to the arm's reach: a target still out of
    reach after the lean is approached along the shoulder-target line on a straight arm), the
    elbow stays in the plane of the network's own bend, and the hand (index1) turns with the
@@ -42,17 +42,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.rotations import least_rotation, rodrigues, unit
+from trumans.rotations import rodrigues, unit
 from trumans.skeleton import JOINT_INDEX, SUBTREE
 
-from trumans.sample.cleanup.foot import episode_joints, two_bone_positions
+from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, smoothstep
 
-__all__ = ["ReachCleanupConfig", "ARMS", "smoothstep", "reach_schedule", "release_weights", "lean_angle",
-           "tilt_limit", "arm_ik", "clean_reach"]
+__all__ = ["ReachCleanupConfig", "reach_schedule", "release_weights", "lean_angle", "tilt_limit", "clean_reach"]
 
-# (shoulder, elbow, wrist, index1) per arm; side 0 = left, 1 = right
-ARMS = tuple(tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("shoulder", "elbow", "wrist", "index1"))
-             for side in ("left", "right"))
 PELVIS, SPINE1, NECK = JOINT_INDEX["pelvis"], JOINT_INDEX["spine1"], JOINT_INDEX["neck"]
 
 
@@ -73,12 +69,6 @@ class ReachCleanupConfig:
             raise ValueError(f"ramp_in and ramp_out must be > 0 s, got {self.ramp_in}, {self.ramp_out}")
         if not (0 <= self.max_lean <= np.pi / 2 and 0 <= self.max_tilt <= np.pi / 2):
             raise ValueError(f"max_lean and max_tilt must be in [0, pi/2] rad, got {self.max_lean}, {self.max_tilt}")
-
-
-def smoothstep(x: np.ndarray) -> np.ndarray:
-    """3x^2 - 2x^3 of x clipped to [0, 1]."""
-    s = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    return s * s * (3.0 - 2.0 * s)
 
 
 def reach_schedule(phase, u: np.ndarray, fps: float, config: ReachCleanupConfig = ReachCleanupConfig()
@@ -136,19 +126,6 @@ def tilt_limit(trunk: np.ndarray, axis: np.ndarray, theta: np.ndarray, max_tilt:
     zi, zj = np.take_along_axis(z, i[..., None], -1)[..., 0], np.take_along_axis(z, j[..., None], -1)[..., 0]
     frac = np.clip((zi - floor[..., 0]) / np.maximum(zi - zj, 1e-12), 0.0, 1.0)
     return np.where(first > n, theta, theta * (i + frac) / n)
-
-
-def arm_ik(J: np.ndarray, arm: tuple[int, int, int, int], goal: np.ndarray, lengths: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Two-bone IK of one arm (``ARMS[side]``) of joints J (..., 24, 3) with the wrist to ``goal``
-    (..., 3): the shoulder stays, the elbow in the plane of the network's bend
-    (``foot_cleanup.two_bone_positions``), bone lengths kept. Returns (elbow, wrist, hand): the
-    new elbow and wrist (..., 3) and the wrist -> index1 vector turned with the forearm (the least
-    rotation from the old to the new forearm direction)."""
-    sh, el, wr, ix = arm
-    new_el, new_wr = two_bone_positions(J[..., sh, :], J[..., el, :], goal, float(lengths[el]), float(lengths[wr]))
-    turn = least_rotation(J[..., wr, :] - J[..., el, :], new_wr - new_el)
-    return new_el, new_wr, np.einsum("...ij,...j->...i", turn, J[..., ix, :] - J[..., wr, :])
 
 
 def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, weight: np.ndarray, fixed: int = 0,

@@ -28,13 +28,10 @@ import numpy as np
 import torch
 from scipy.interpolate import BSpline
 
-from trumans.contacts.rule import JOINT_CORE_RADIUS, JOINT_RADIUS
-from trumans.skeleton import SEAT
+from trumans.sample.cleanup.common import episode_joints, push_radii
+from trumans.sample.scene_sdf import SceneSDF
 
-from trumans.sample.cleanup.foot import episode_joints
-from trumans.sample.guidance.penetration import SceneSDF
-
-__all__ = ["PushOutConfig", "push_radii", "seam_spline_basis", "push_out"]
+__all__ = ["PushOutConfig", "seam_spline_basis", "push_out"]
 
 
 @dataclass(frozen=True)
@@ -61,13 +58,6 @@ class PushOutConfig:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v}")
-
-
-def push_radii(margin: float = 0.0) -> np.ndarray:
-    """(24,) m: the contact radius for the seat joints, the core radius elsewhere, plus ``margin``."""
-    r = JOINT_CORE_RADIUS.copy()
-    r[list(SEAT)] = JOINT_RADIUS[list(SEAT)]
-    return r + margin
 
 
 def seam_spline_basis(n: int, knot: int) -> np.ndarray:

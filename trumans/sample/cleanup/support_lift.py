@@ -9,7 +9,7 @@ body stood with the knees bent 57 degrees (training data 17-24, the network's ow
 
 So after the projection, on the frames where the feet carry the body, the whole body moves up by
 ``w * max(0, -h)``, ``h`` the height of its lowest foot joint above its resting height
-(``foot_cleanup.FOOT_REST``): the lowest foot back on the floor, the legs as straight as the network
+(``trumans.skeleton.FOOT_REST_HEIGHT``): the lowest foot back on the floor, the legs as straight as the network
 made them. ``w`` comes from the frame's action labels (``support_weights``): 1 standing and walking,
 0 seated or lying (the seat carries the pelvis: the seat guidance has put it on the seat and the leg
 IK then bends the longer legs down to the floor, as a taller person sits), eased across sitting down
@@ -19,16 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.skeleton import JOINT_INDEX
+from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT
 
-from trumans.sample.cleanup.foot import FOOT_REST
-from trumans.sample.cleanup.reach import smoothstep
+from trumans.sample.cleanup.common import smoothstep
 
 __all__ = ["SEATED_ACTIONS", "support_weights", "lowest_foot_height", "lift_onto_feet"]
 
 SEATED_ACTIONS = ("sit", "lie", "lie_down", "get_up")  # the seat or bed carries the body (weight 0)
-_FEET = np.array([JOINT_INDEX[n] for n in ("left_ankle", "right_ankle", "left_foot", "right_foot")])
-_REST = np.array([FOOT_REST[0], FOOT_REST[0], FOOT_REST[1], FOOT_REST[1]])
 
 
 def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...]) -> np.ndarray:
@@ -57,7 +54,7 @@ def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...])
 
 def lowest_foot_height(joints: np.ndarray) -> np.ndarray:
     """joints (..., 24, 3) world m, z up -> (...,) height of the lowest foot joint above its rest, m."""
-    return (np.asarray(joints)[..., _FEET, 2] - _REST).min(axis=-1)
+    return (np.asarray(joints)[..., list(FOOT_JOINTS), 2] - FOOT_REST_HEIGHT).min(axis=-1)
 
 
 def lift_onto_feet(joints: np.ndarray, weight: np.ndarray, fixed: int = 0) -> np.ndarray:

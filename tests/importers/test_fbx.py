@@ -295,3 +295,24 @@ def test_place_pelvis_lifts_a_hip_level_root_into_the_pelvis():
 def test_cmu_pelvis_sits_above_the_hips_like_ours(cmu_fbx):
     rest = _hips_to_pelvis_up(REST_JOINTS[None])[0]
     np.testing.assert_allclose(_hips_to_pelvis_up(cmu_fbx.joints), rest, atol=0.02)
+
+
+def test_binary_array_inflation_bomb_is_refused_before_inflating():
+    """A zlib array declaring far more values than its stored bytes can hold (8 GiB from 1 KiB) or
+    inflating past what it declares is refused; nothing larger than the declared size is inflated."""
+    def one_node_file(n, enc, payload):
+        prop = b"d" + struct.pack("<III", n, enc, len(payload)) + payload
+        header = b"Kaydara FBX Binary  \x00\x1a\x00" + struct.pack("<I", 7500)
+        head_len = 25 + 1
+        rec = struct.pack("<QQQB", len(header) + head_len + len(prop), 1, len(prop), 1) + b"A" + prop
+        return header + rec + b"\0" * 25
+
+    small = zlib.compress(b"\0" * 80)
+    with pytest.raises(ValueError, match="more than zlib can hold"):
+        parse_binary(one_node_file(1 << 30, 1, small))  # 8 GiB of float64 declared
+    nodes, _ = parse_binary(one_node_file(10, 1, small))
+    np.testing.assert_array_equal(nodes[0].props[0], np.zeros(10))
+    with pytest.raises(ValueError, match="holds 80 of its 160 bytes"):
+        parse_binary(one_node_file(20, 1, small))
+    with pytest.raises(ValueError, match="does not inflate"):
+        parse_binary(one_node_file(10, 1, b"not zlib data at all"))

@@ -209,6 +209,10 @@ def _read_node(data: bytes, pos: int, wide: bool) -> tuple[FbxNode | None, int]:
     return node, end
 
 
+MAX_ARRAY_BYTES = 1 << 30  # one array property of a binary FBX: 1 GiB (a long take's keys are a few MiB)
+_ZLIB_MAX_RATIO = 1032  # zlib's largest possible inflation ratio
+
+
 def _read_prop(data: bytes, pos: int):
     code = data[pos:pos + 1]
     pos += 1
@@ -222,10 +226,21 @@ def _read_prop(data: bytes, pos: int):
         n, enc, clen = struct.unpack_from("<III", data, pos)
         pos += 12
         raw = data[pos:pos + clen]
+        size = n * np.dtype(_ARRAY[code]).itemsize  # bytes the array declares
+        if size > MAX_ARRAY_BYTES or (enc == 1 and size > _ZLIB_MAX_RATIO * len(raw) + 64):
+            raise ValueError(f"array property at byte {pos} declares {n} values ({size / 2**20:.4g} MiB) from "
+                             f"{len(raw)} stored bytes, more than zlib can hold or the {MAX_ARRAY_BYTES >> 20} MiB "
+                             f"limit; the binary FBX is corrupt")
         if enc == 1:
-            raw = zlib.decompress(raw)
+            try:
+                raw = zlib.decompressobj().decompress(raw, size)  # never inflates past the declared size
+            except zlib.error as e:
+                raise ValueError(f"array property at byte {pos} does not inflate ({e}); the binary FBX is corrupt") from None
         elif enc != 0:
             raise ValueError(f"array property at byte {pos} has unknown encoding {enc} (0 = raw, 1 = zlib)")
+        if len(raw) < size:
+            raise ValueError(f"array property at byte {pos} holds {len(raw)} of its {size} bytes; the binary FBX is "
+                             f"truncated or corrupt")
         arr = np.frombuffer(raw, dtype=_ARRAY[code], count=n).copy()
         return arr, pos + clen
     if code in (b"S", b"R"):

@@ -28,3 +28,12 @@ def test_pickled_files_are_refused_without_unsafe_advice(tmp_path, capsys):
     assert console_main(["view", str(note)]) == 2
     err = capsys.readouterr().err.lower()
     assert "not a readable sequence" in err and "allow_pickle" not in err and "unsafely" not in err
+
+
+def test_seeds_outside_what_the_generators_take_are_clear_errors(capsys):
+    from trumans.cli import console_main
+
+    for seed in ("18446744073709551616", "-1", "1.5"):
+        assert console_main(["data", "synth", "--out", "unused", "--seed", seed]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--seed" in err[0] and ("[0, 4294967295]" in err[0] or "whole number" in err[0])

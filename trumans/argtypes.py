@@ -6,7 +6,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["int_in", "float_in", "positive_int", "nonneg_int", "positive_float", "nonneg_float", "fraction"]
+__all__ = ["int_in", "float_in", "positive_int", "nonneg_int", "positive_float", "nonneg_float", "fraction", "seed"]
 
 
 def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -52,3 +52,4 @@ nonneg_int = int_in(0)
 positive_float = float_in(0.0, lo_open=True)
 nonneg_float = float_in(0.0)
 fraction = float_in(0.0, 1.0)
+seed = int_in(0, 2**32 - 1)  # --seed: every random generator (numpy, torch) takes it whole

@@ -9,6 +9,7 @@ from trumans.contacts.rule import HOLD_THRESHOLD
 from trumans.augment.pipeline import MAX_VARIATIONS, SOURCES, PipelineConfig, SourcesFailed, augment_dataset
 from trumans.augment.variations import KINDS
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_arguments", "run"]
 
@@ -34,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--occupancy", action="store_true", help="also cache each new scene's occupancy grid")
     p.add_argument("--workers", type=nonneg_int, default=0,
                    help="worker processes (default 0: CPU count; never more than the sequences to do)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same outputs)")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (same seed -> same outputs)")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
 
 

@@ -33,6 +33,7 @@ from trumans.augment.core import AugmentConfig, augment_many, sequence_contacts
 from trumans.augment.pipeline import MAX_VARIATIONS, contacted_objects
 from trumans.augment.variations import KINDS, sample_variation
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_arguments", "run", "evaluate_cases"]
 
@@ -46,7 +47,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cases", type=positive_int, default=4, help="synthetic clips per contact kind (default 4)")
     p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS), default=2,
                    help="variations per touched object (default 2)")
-    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
 

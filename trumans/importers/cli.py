@@ -12,6 +12,7 @@ from trumans.argtypes import positive_float
 from trumans.dataset import DatasetWriter
 from trumans.sequence import Sequence, save_sequence
 from trumans.summary import print_summary
+from trumans import argtypes
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -32,7 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="BVH/FBX: move each motion vertically so its feet stand on z = 0 (without it, feet "
                         "more than 10 cm off the floor are reported)")
     p.add_argument("--fps", type=positive_float, help="resample to this frame rate (default: keep the file's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the train/val/test split")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="seed of the train/val/test split")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
 
 

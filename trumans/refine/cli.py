@@ -11,6 +11,7 @@ import time
 
 from trumans.track import cli as track_cli
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_arguments", "run", "main"]
 
@@ -28,7 +29,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise",
                    help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
     p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
-    p.add_argument("--seed", type=int, default=0, help="sampling seed")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="sampling seed")
     p.add_argument("--no-rest-pooling", action="store_true",
                    help="keep the filter's object pose in every frame (default: one pose per rest of the object, "
                         "pooled over the whole rest; trumans.refine.object_rest)")

@@ -47,8 +47,9 @@ from trumans.refine.filter import category_indices
 from trumans.eval.metrics import foot_skate_planted_cm
 from trumans.skeleton import HAND_JOINTS
 from trumans.summary import print_summary
+from trumans import argtypes
 
-__all__ = ["add_arguments", "run", "evaluate", "tune_savgol"]
+__all__ = ["add_arguments", "run", "evaluate", "tune_savgol", "clip_figures", "root_aligned_errors", "real_clips"]
 
 _HANDS = list(HAND_JOINTS)
 
@@ -62,7 +63,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=2, help="DDIM sampling steps (default 2; 1, 2 and 5 give the same errors, benchmarks/refine_diagnosis.py)")
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise", help="sampling start (default noise)")
     p.add_argument("--ablation", default=None, metavar="CHECKPOINT", help="a second checkpoint to report as 'ablation'")
-    p.add_argument("--seed", type=int, default=0, help="corruption and sampling seed")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="corruption and sampling seed")
     p.add_argument("--no-rest-pooling", action="store_true", help="refine without pooling the object's rests "
                                                                 "(trumans.refine.object_rest)")
     p.add_argument("--no-hand-link", action="store_true", help="pool each rest of the object on its own, moves "
@@ -120,18 +121,18 @@ def _hand_dist(f: np.ndarray) -> np.ndarray:
     return np.linalg.norm(_joints(f)[:, _HANDS] - f[:, None, 216:219], axis=-1).min(-1)
 
 
-def _root_aligned(J: np.ndarray, Jc: np.ndarray) -> np.ndarray:
+def root_aligned_errors(J: np.ndarray, Jc: np.ndarray) -> np.ndarray:
     """Per-joint errors (T, 24) m after moving each frame's pelvis onto the truth's (root-aligned
     MPJPE; a whole-body translation such as the corruption's shared drift does not count). NaN where
     the joint or the frame's pelvis is missing."""
     return np.linalg.norm((J - J[:, :1]) - (Jc - Jc[:, :1]), axis=-1)
 
 
-def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarray, fps: float) -> dict[str, float]:
+def clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarray, fps: float) -> dict[str, float]:
     Jt, Jo, Jc, Js = _joints(tr), _joints(out), _joints(cl), sg.reshape(-1, 24, 3)
     e_in = np.linalg.norm(Jt - Jc, axis=-1)
     obs = np.isfinite(e_in)
-    e_in_ra = _root_aligned(Jt, Jc)
+    e_in_ra = root_aligned_errors(Jt, Jc)
     acc = lambda J: np.diff(J, 2, axis=0)
     a_c = acc(Jc)
     ea_in = np.linalg.norm(acc(Jt) - a_c, axis=-1)
@@ -142,8 +143,8 @@ def _clip_figures(tr: np.ndarray, out: np.ndarray, sg: np.ndarray, cl: np.ndarra
         "mpjpe_out_observed_mm": 1000 * np.linalg.norm(Jo - Jc, axis=-1)[obs].mean(),
         "mpjpe_savgol_mm": 1000 * np.linalg.norm(Js - Jc, axis=-1).mean(),
         "mpjpe_in_ra_mm": 1000 * e_in_ra[np.isfinite(e_in_ra)].mean(),
-        "mpjpe_out_ra_mm": 1000 * _root_aligned(Jo, Jc).mean(),
-        "mpjpe_savgol_ra_mm": 1000 * _root_aligned(Js, Jc).mean(),
+        "mpjpe_out_ra_mm": 1000 * root_aligned_errors(Jo, Jc).mean(),
+        "mpjpe_savgol_ra_mm": 1000 * root_aligned_errors(Js, Jc).mean(),
         "accel_err_in": 1000 * ea_in[np.isfinite(ea_in)].mean(),
         "accel_err_out": 1000 * np.linalg.norm(acc(Jo) - a_c, axis=-1).mean(),
         "accel_err_savgol": 1000 * np.linalg.norm(acc(Js) - a_c, axis=-1).mean(),
@@ -179,7 +180,7 @@ def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window
     t0 = time.perf_counter()
     outs = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats), options)
     seconds = time.perf_counter() - t0
-    rows = [_clip_figures(tr, out, _savgol(tr, savgol_window), cl, filt.fps) for tr, out, cl in zip(tracked, outs, clean)]
+    rows = [clip_figures(tr, out, _savgol(tr, savgol_window), cl, filt.fps) for tr, out, cl in zip(tracked, outs, clean)]
     fig = {k: _mean_finite([r[k] for r in rows]) for k in rows[0]}  # a clip without a planted foot has no skate
     frames = int(sum(len(tr) for tr in tracked))
     fig["frames_per_s"] = frames / max(seconds, 1e-9)
@@ -235,7 +236,7 @@ def _clips(data: str, split: str, clip: int, fps: float, categories: list[str], 
     return add_clean_imu(clean, fps), [categories[c] for c in cat]
 
 
-def _real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
+def real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
     """Held-out real-motion clips (N, clip, 235) at 30 fps: the mocap corpus's test split
     (``trumans.mocap_corpus``, subjects never trained on) cut into ``clip``-frame pieces; joints
     only (rotations, object and IMU missing: NaN / no IMU)."""
@@ -267,7 +268,7 @@ def evaluate_real(filt, clip: int, max_clips: int, savgol_window: int, seed: int
 
     from trumans.refine.corrupt import CorruptionConfig
 
-    clean = _real_clips(clip, max_clips, seed)
+    clean = real_clips(clip, max_clips, seed)
     cats = [filt.categories[0]] * len(clean)
     res = {}
     with warnings.catch_warnings():  # the object columns are all missing: their means are NaN and dropped

@@ -16,10 +16,11 @@ import trimesh
 
 from trumans.scenes.local_grid import local_grids
 from trumans.scenes.occupancy import compute_occupancy
+from trumans import argtypes
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--seed", type=int, default=0, help="random seed (room layout and queries)")
+    parser.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (room layout and queries)")
     parser.add_argument("--batch", type=int, default=256, help="queries per batch")
     parser.add_argument("--runs", type=int, default=9, help="timed runs (median reported)")
     parser.add_argument("--n", type=int, default=32, help="local grid resolution per axis")

@@ -5,6 +5,7 @@ import argparse
 
 from trumans.argtypes import float_in, nonneg_int, positive_float, positive_int
 from trumans.summary import print_summary
+from trumans import argtypes
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -13,7 +14,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace the dataset already in --out")
     p.add_argument("--hours", type=positive_float, default=2.0, help="hours of motion at 30 fps (default 2)")
     p.add_argument("--rooms", type=positive_int, default=50, help="number of procedural rooms (default 50)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same data)")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (same seed -> same data)")
     p.add_argument("--workers", type=nonneg_int, default=0, help="worker processes, rooms in parallel (default: CPU count)")
     p.add_argument("--real-share", type=float_in(0.0, 1.0), default=1.0,
                    help="share of the mocap corpus's train clips added as real takes, each in a procedural room "

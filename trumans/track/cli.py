@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_interaction_arguments", "add_arguments", "run", "main"]
 
@@ -35,7 +36,7 @@ def add_interaction_arguments(p: argparse.ArgumentParser) -> None:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("input", help="tracked sequence .npz (body motion with rotations, in the scene's frame)")
     p.add_argument("--out", required=True, help="output sequence .npz (corrected body + object trajectories)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (the tracker is deterministic; kept for the CLI contract)")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (the tracker is deterministic; kept for the CLI contract)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     add_interaction_arguments(p)
 

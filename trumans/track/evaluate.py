@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_arguments", "run", "simulate_drift", "evaluate"]
 
@@ -41,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--split", default="test", help="split of --data (default test)")
     p.add_argument("--rooms", type=int, default=4, help="rooms of the held-out set built without --data (default 4)")
     p.add_argument("--max-seqs", type=int, default=12, help="at most this many sequences (default 12)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (held-out set, drift)")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (held-out set, drift)")
     p.add_argument("--stride", type=int, default=3, help="prediction stride (default 3; 1 = the centre frame of every window, as the paper)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import time
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["bench_steps", "main"]
 
@@ -49,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=1)
     p.add_argument("--batch-size", type=int, default=None)
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=argtypes.seed, default=0)
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
     import torch

@@ -9,6 +9,7 @@ import argparse
 import math
 import os
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_arguments", "run", "main"]
 
@@ -29,7 +30,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--init", default=None, metavar="CHECKPOINT",
                    help="fine-tune: start from this checkpoint's weights and normalisation (same task and model; "
                         "its data or other data with the same action vocabulary), fresh optimiser")
-    p.add_argument("--seed", type=int, default=0, help="random seed (data order, noise, init)")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (data order, noise, init)")
     p.add_argument("--ablate", action="append", default=[], metavar="NAME",
                    help="switch off a part (generator: progress (indicator), scene / action (condition), "
                         "augmented (data)); repeatable")

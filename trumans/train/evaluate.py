@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["add_arguments", "run", "evaluate_checkpoint"]
 
@@ -44,7 +45,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", help="RUN/checkpoint.pt written by `trumans train`")
     p.add_argument("--data", default=None, help="dataset folder (default: the one recorded in the checkpoint)")
     p.add_argument("--raw", action="store_true", help="evaluate the raw weights instead of the EMA weights")
-    p.add_argument("--seed", type=int, default=0, help="random seed (validation noise is fixed regardless)")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (validation noise is fixed regardless)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
 

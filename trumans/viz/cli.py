@@ -15,6 +15,7 @@ from trumans.sequence import load_sequence
 
 from .render import SceneView, render_animation, render_topdown
 from trumans.summary import print_summary
+from trumans import argtypes
 
 if TYPE_CHECKING:
     from trumans.scenes.scene import Scene
@@ -29,7 +30,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stride", type=positive_int, default=3, help="render every N-th frame (default 3)")
     p.add_argument("--max-frames", type=positive_int, default=300, help="render at most this many frames (default 300)")
     p.add_argument("--no-animation", action="store_true", help="only write the top-down PNG")
-    p.add_argument("--seed", type=int, default=0, help="unused (rendering is deterministic); accepted for uniformity")
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="unused (rendering is deterministic); accepted for uniformity")
     p.add_argument("--json", action="store_true", help="print the written paths as JSON on the last line")
 
 

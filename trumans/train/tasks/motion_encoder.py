@@ -22,6 +22,7 @@ from trumans.eval.motion_encoder import (MotionEncoder, MotionEncoderConfig, Mot
                                           dominant_action, fid, motion_windows, split_features, window_inputs)
 from trumans.sequence import atomic_write
 from trumans.summary import print_summary
+from trumans import argtypes
 
 __all__ = ["EncoderTrainConfig", "labelled_windows", "train_motion_encoder", "main"]
 
@@ -139,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default="models/motion_encoder.pt", help="checkpoint path (default models/motion_encoder.pt)")
     p.add_argument("--epochs", type=int, default=EncoderTrainConfig.epochs)
     p.add_argument("--time-limit", type=float, default=EncoderTrainConfig.time_limit_s, help="seconds for loading + training (default 400)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=argtypes.seed, default=0)
     p.add_argument("--json", action="store_true", help="print the report as JSON on the last line")
     args = p.parse_args(argv)
     try:

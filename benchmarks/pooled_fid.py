@@ -21,7 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from trumans.sample.eval_synthesis import _load_reference, fid_figures, read_windows, reference_windows  # noqa: E402
+from trumans.sample.eval_synthesis import fid_figures, load_reference, read_windows, reference_windows  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
 
         ref = reference_windows(load_motion_encoder(None), a.data)
     else:
-        ref = _load_reference()
+        ref = load_reference()
         if ref is None:
             raise SystemExit("no shipped reference features (models/synthesis_reference.npz); give --data DATASET")
     out, names = {}, []

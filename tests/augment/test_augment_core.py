@@ -117,7 +117,7 @@ def test_find_intervals_groups_seat_contacts(sit):
 
 
 def test_rigid_hand_offsets_average_wrist_and_finger_on_shared_frames():
-    from trumans.augment.core import _rigid_hand_offsets
+    from trumans.augment.core import rigid_hand_offsets
     from trumans.augment.offsets import ContactInterval
     from trumans.skeleton import JOINT_INDEX
     w, f = JOINT_INDEX["right_wrist"], JOINT_INDEX["right_index1"]
@@ -127,7 +127,7 @@ def test_rigid_hand_offsets_average_wrist_and_finger_on_shared_frames():
     jf.frame_offset = np.tile([0.0, 0.02, 0.0], (5, 1))
     other = ContactInterval(JOINT_INDEX["left_wrist"], "drawer", 0, 4)
     other.frame_offset = np.tile([0.3, 0.0, 0.0], (4, 1))
-    _rigid_hand_offsets([iw, jf, other], {"drawer"}, 12)
+    rigid_hand_offsets([iw, jf, other], {"drawer"}, 12)
     np.testing.assert_allclose(iw.frame_offset[:3], [[0.10, 0, 0]] * 3)  # frames 2-4: wrist alone
     np.testing.assert_allclose(iw.frame_offset[3:], [[0.05, 0.01, 0]] * 3)  # frames 5-7: shared
     np.testing.assert_allclose(jf.frame_offset[:3], [[0.05, 0.01, 0]] * 3)
@@ -139,7 +139,7 @@ def test_resting_legs_move_rigidly_with_the_lying_body():
     """Knees-up lying: pelvis, hips and both ankles touch the mattress, the knees do not. A
     footprint scale maps the ankles' points inwards; the resting body moves as one rigid piece,
     so the pelvis-ankle distances are kept (the legs cannot stretch)."""
-    from trumans.augment.core import _rigid_body_offsets
+    from trumans.augment.core import rigid_body_offsets
     from trumans.augment.offsets import ContactInterval
     from trumans.skeleton import JOINT_INDEX
     T = 5
@@ -155,7 +155,7 @@ def test_resting_legs_move_rigidly_with_the_lying_body():
         p = np.asarray(pts[n])
         iv.frame_offset = np.tile(p * np.array([0.9, 0.9, 1.0]) - p + [0, 0, -0.1], (T, 1))  # footprint x0.9, 10 cm lower
         ivs.append(iv)
-    _rigid_body_offsets(ivs, closest, {"bed"}, T)
+    rigid_body_offsets(ivs, closest, {"bed"}, T)
     new = {n: closest[0, JOINT_INDEX[n]] + iv.frame_offset[0] for n, iv in zip(names, ivs)}
     for a in ("left_ankle", "right_ankle"):
         d0 = np.linalg.norm(np.subtract(pts[a], pts["pelvis"]))

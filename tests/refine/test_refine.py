@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.refine.evaluate import _clip_figures, tune_savgol
+from trumans.refine.evaluate import clip_figures, tune_savgol
 from trumans.refine.pipeline import HOIFilter, RefineOptions
 from trumans.refine import FRAME_DIM, add_clean_imu, frames_from_sequence
 from trumans.refine.data import FilterWindows, window_objects
@@ -175,7 +175,7 @@ def _dataset(root):
 
 
 def test_filter_task_trains_through_the_loop(tmp_path):
-    from trumans.train.tasks.filter import FilterTask, _phase_weights
+    from trumans.train.tasks.filter import FilterTask, phase_weights
     from trumans.train.loop import train
     from trumans.train.tasks import make_task
 
@@ -215,7 +215,7 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     loss = task.loss(task.build_model(), b, torch.Generator().manual_seed(0), "cpu")
     assert set(loss.terms) == {"simple", "off", "vel", "consist", "imu", "pose"}
     assert all(torch.isfinite(v) for v in loss.terms.values())
-    w0, w1, w2 = (_phase_weights(task.config.filter, k) for k in (0.0, 0.4, 0.9))
+    w0, w1, w2 = (phase_weights(task.config.filter, k) for k in (0.0, 0.4, 0.9))
     assert sum(w0.values()) == w0["pose"] > 0 and w1["off"] > 0 and w1["imu"] == 0 and w2["imu"] > 0
     abl = make_task("filter", ablate=["regularisers"])
     assert abl.config.filter.w_off == 0 and abl.config.filter.w_imu == 0
@@ -230,7 +230,7 @@ def test_window_objects_and_eval_figures():
     assert window_objects(s, np.array([0, 32]), 32) == ["box_0", "box_0"]  # the lamp never moves
     _, f = _tracked(T=64)
     f = add_clean_imu(f[None], 30.0)[0]
-    fig = _clip_figures(f, f, f[:, :72], f, 30.0)
+    fig = clip_figures(f, f, f[:, :72], f, 30.0)
     assert fig["mpjpe_in_mm"] == 0 and fig["mpjpe_out_mm"] == 0 and fig["obj_rot_err_out_deg"] < 1e-3
     assert fig["accel_err_out"] == 0 and fig["accel_gt"] > 0 and fig["hand_obj_dist_cm"] == 0
     rng = np.random.default_rng(0)
@@ -314,18 +314,18 @@ def test_refine_many_equals_one_by_one(tmp_path):
 
 
 def test_root_aligned_mpjpe_ignores_a_body_translation_and_real_clips_are_body_only():
-    from trumans.refine.evaluate import _real_clips, _root_aligned
+    from trumans.refine.evaluate import real_clips, root_aligned_errors
 
     rng = np.random.default_rng(0)
     Jc = rng.normal(size=(20, 24, 3))
     drift = np.cumsum(rng.normal(0, 0.01, (20, 1, 3)), axis=0)  # a whole-body translation per frame
-    np.testing.assert_allclose(_root_aligned(Jc + drift, Jc), 0.0, atol=1e-12)
+    np.testing.assert_allclose(root_aligned_errors(Jc + drift, Jc), 0.0, atol=1e-12)
     J = Jc.copy()
     J[:, 5] += [0.0, 0.03, 0.04]  # one joint 5 cm off, the root exact
-    e = _root_aligned(J, Jc)
+    e = root_aligned_errors(J, Jc)
     np.testing.assert_allclose(e[:, 5], 0.05)
     assert np.allclose(np.delete(e, 5, axis=1), 0.0)
-    clips = _real_clips(64, 3, seed=0)
+    clips = real_clips(64, 3, seed=0)
     assert clips.shape == (3, 64, 235) and np.isfinite(clips[..., JOINTS]).all()
     assert np.isnan(clips[..., 72:216]).all() and np.isnan(clips[..., OBJ_T]).all()  # no rotations, no object
     assert (clips[..., 234] == 0).all()  # no IMU

@@ -10,7 +10,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from trumans.track.objects import dof_limits
-from trumans.sample.carry import CarryConfig, _dof_value, initial_motion, object_tracks, optimise_motion, \
+from trumans.sample.carry import CarryConfig, dof_value, initial_motion, object_tracks, optimise_motion, \
     plan_interactions
 from trumans.sample.carry_metrics import carry_figures
 from trumans.sample.carry_plan import GRASP_SPAN, OPEN_FRACTION, articulated_pose, surface_point
@@ -69,7 +69,7 @@ def test_hinge_angle_is_recovered_and_the_door_only_turns_about_its_axis(room):
     hand = _rigid_hand(true, np.stack([handle, handle + [0.05, 0, 0]])) + np.random.default_rng(1).normal(0, 0.01, (n, 2, 3))
     init = initial_motion(door, door.pose, hand, np.tile(np.eye(3), (n, 1, 1)))
     out = optimise_motion(door, init, hand, fix_end=False)
-    got = np.array([_dof_value(door, p) for p in out])
+    got = np.array([dof_value(door, p) for p in out])
     assert np.abs(got - angle).max() < 0.03
     # every pose is the scene pose turned about the hinge: the hinge point does not move, z stays up
     hp = np.einsum("nij,j->ni", out[:, :3, :3], door.hinge_point) + out[:, :3, 3]
@@ -91,7 +91,7 @@ def test_dof_limits_hold_when_the_hand_pulls_too_far(room, name, beyond):
     hand = _rigid_hand(moved, np.stack([np.asarray(obj.meta["handle"])] * 2))
     init = initial_motion(obj, obj.pose, hand, np.tile(np.eye(3), (n, 1, 1)))
     out = optimise_motion(obj, init, hand, fix_end=False)
-    v = np.array([_dof_value(obj, p) for p in out])
+    v = np.array([dof_value(obj, p) for p in out])
     assert v.min() >= lo - 1e-9 and v.max() <= hi + 1e-9 and v.max() > hi - 0.05  # pulled to, not past, the end
 
 
@@ -192,7 +192,7 @@ def test_compiled_object_steps_give_place_and_handle_goals(room):
     np.testing.assert_allclose(reach[2].hand_goal, door.pose[:3, :3] @ handle + door.pose[:3, 3])
     np.testing.assert_allclose(reach[3].hand_goal, opened[:3, :3] @ handle + opened[:3, 3])
     assert reach[2].span == (0.0, GRASP_SPAN) and reach[3].span == (GRASP_SPAN, 1.0)
-    assert _dof_value(door, opened) == pytest.approx(OPEN_FRACTION * door.meta["max_angle"] * door.meta["open_sign"])
+    assert dof_value(door, opened) == pytest.approx(OPEN_FRACTION * door.meta["max_angle"] * door.meta["open_sign"])
 
 
 @pytest.mark.parametrize("steps, match", [

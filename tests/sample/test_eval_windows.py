@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from trumans.sample.eval_synthesis import _load_reference, fid_figures, read_windows, write_windows
+from trumans.sample.eval_synthesis import fid_figures, load_reference, read_windows, write_windows
 
 from helpers import REPO_ROOT
 
@@ -34,7 +34,7 @@ def test_windows_round_trip_and_bad_files(tmp_path):
 
 
 def test_fid_figures_of_real_windows_are_near_the_real_values():
-    ref = _load_reference()
+    ref = load_reference()
     if ref is None:
         pytest.skip("no shipped synthesis reference")
     test_f, test_y = ref["features"], ref["labels"]
@@ -50,7 +50,7 @@ def test_fid_figures_of_real_windows_are_near_the_real_values():
 
 
 def test_pooled_fid_script(tmp_path):
-    ref = _load_reference()
+    ref = load_reference()
     if ref is None:
         pytest.skip("no shipped synthesis reference")
     tf, ty = ref["train_features"], ref["train_labels"]

@@ -10,7 +10,7 @@ import trimesh
 
 from trumans.scenes import furniture as F
 from trumans.scenes.procedural import (
-    _overlap,
+    quads_overlap,
     approach_points,
     floor_footprints,
     list_categories,
@@ -94,13 +94,13 @@ def _quads_overlap_by_sampling(qa: np.ndarray, qb: np.ndarray, n: int = 25) -> b
 
 def test_sat_analytic():
     sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float)
-    assert _overlap(sq, sq + 0.5)
-    assert not _overlap(sq, sq + [1.0, 0.0])  # touching edges
-    assert not _overlap(sq, sq + [1.01, 1.01])
+    assert quads_overlap(sq, sq + 0.5)
+    assert not quads_overlap(sq, sq + [1.0, 0.0])  # touching edges
+    assert not quads_overlap(sq, sq + [1.01, 1.01])
     c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
     diamond = (sq - 0.5) @ np.array([[c, -s], [s, c]]).T + [1.0 + 0.5 * np.sqrt(2) + 0.01, 0.5]
-    assert not _overlap(sq, diamond)
-    assert _overlap(sq, diamond - [0.05, 0.0])
+    assert not quads_overlap(sq, diamond)
+    assert quads_overlap(sq, diamond - [0.05, 0.0])
     assert _quads_overlap_by_sampling(sq, sq + 0.5) and not _quads_overlap_by_sampling(sq, sq + [1.0, 0.0])
 
 
@@ -110,7 +110,7 @@ def test_no_overlapping_footprints(rooms):
         names = list(fps)
         for i, a in enumerate(names):
             for b in names[i + 1:]:
-                assert not _overlap(fps[a], fps[b]), (sc.name, a, b)
+                assert not quads_overlap(fps[a], fps[b]), (sc.name, a, b)
                 assert not _quads_overlap_by_sampling(fps[a], fps[b]), (sc.name, a, b)
 
 
@@ -281,7 +281,7 @@ def test_door_swings_into_the_room_clear_of_furniture(rooms):
             assert (q[:, 1] > -T - 1e-6).all() and (q[:, 1] < D + T + 1e-6).all()
             # ... and never meets a piece of furniture: the room keeps the door's clear zone free
             for name, fp in fps.items():
-                assert not _overlap(q, fp), (sc.name, name, a)
+                assert not quads_overlap(q, fp), (sc.name, name, a)
 
 
 def test_drawer_slides_out_of_its_cabinet():

@@ -188,7 +188,7 @@ def test_removing_a_blocking_piece_removes_its_parts_and_what_stands_on_them():
     import trimesh
 
     from trumans.scenes.scene import Scene, SceneObject
-    from trumans.synth.real_place import _remove
+    from trumans.synth.real_place import remove_objects
 
     box = trimesh.creation.box(extents=(0.2, 0.2, 0.2))
     objs = [SceneObject("cabinet_0", "cabinet", box),
@@ -196,7 +196,7 @@ def test_removing_a_blocking_piece_removes_its_parts_and_what_stands_on_them():
             SceneObject("cup_0", "cup", box, meta={"support": "cabinet_0_drawer_0"}),
             SceneObject("book_0", "book", box, meta={"support": "cabinet_0"}), SceneObject("table_0", "table", box)]
     scene = Scene(name="s", objects={o.name: o for o in objs})
-    assert _remove(scene, ["cabinet_0"]) == ["book_0", "cabinet_0", "cabinet_0_drawer_0", "cup_0"]
+    assert remove_objects(scene, ["cabinet_0"]) == ["book_0", "cabinet_0", "cabinet_0_drawer_0", "cup_0"]
     assert list(scene.objects) == ["table_0"]
 
 

@@ -4,7 +4,7 @@ import pytest
 
 from scipy.signal import find_peaks
 
-from trumans.eval.realism import _knee_angle, clip_statistics
+from trumans.eval.realism import clip_statistics, knee_angle
 from trumans.skeleton import JOINT_INDEX, rest_offsets
 from trumans.synth.locomotion import walk
 
@@ -77,7 +77,7 @@ def test_knee_angle_has_the_real_shape_through_a_stride(seed, speed):
     m = walk(np.array([[0.0, 0.0], [8.0, 0.0]]), rest_offsets(1.0), np.random.default_rng(seed), speed=speed, fps=FPS)
     j = m.joints()
     for f, side in enumerate(("left", "right")):
-        k = _knee_angle(j, side)
+        k = knee_angle(j, side)
         strikes = np.flatnonzero(m.foot_contact[1:, f] & ~m.foot_contact[:-1, f]) + 1
         a, b = strikes[1], strikes[-2]
         ext = np.concatenate([find_peaks(k, prominence=3)[0], find_peaks(-k, prominence=3)[0]])

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from trumans.sample.carry import _dof_value
-from trumans.track.interactions import AttachedContact, _attach, _drive_one, attach_detach, clip_to_limits
+from trumans.sample.carry import dof_value
+from trumans.track.interactions import AttachedContact, attach_contact, attach_detach, clip_to_limits, drive_contact
 from trumans.track.object_choice import ObjectQueries
 from trumans.scenes.procedural import make_room
 from trumans.scenes.scene import Scene, SceneObject
@@ -38,7 +38,7 @@ def test_a_drawer_stops_at_closed_and_at_full_travel(room):
     top = drawer.meta["max_travel"]
     travel = np.array([-0.08, 0.0, 0.1, top, top + 0.05])
     out = clip_to_limits(drawer, _slid(drawer, travel))
-    got = np.array([_dof_value(drawer, p) for p in out])
+    got = np.array([dof_value(drawer, p) for p in out])
     np.testing.assert_allclose(got, [0.0, 0.0, 0.1, top, top], atol=1e-12)
     np.testing.assert_allclose(out[1:4], _slid(drawer, travel)[1:4], atol=1e-12)  # within range: unchanged
     np.testing.assert_allclose(out[:, :3, :3], np.tile(drawer.pose[:3, :3], (5, 1, 1)))
@@ -60,7 +60,7 @@ def test_a_door_does_not_swing_through_its_frame_or_past_its_stop(room, sign):
     opened = sign * np.array([-0.3, 0.0, 0.7, 1.4, 1.9, 2.6])  # 2.6 rad: past 180 deg from closed when unwrapped
     poses = rotation_about_axis(np.unwrap(opened), axis, point) @ door.pose
     out = clip_to_limits(door, poses)
-    got = np.array([_dof_value(door, p) for p in out])
+    got = np.array([dof_value(door, p) for p in out])
     np.testing.assert_allclose(got, sign * np.array([0.0, 0.0, 0.7, 1.4, 1.4, 1.4]), atol=1e-9)
     np.testing.assert_allclose(out[1:4], poses[1:4], atol=1e-12)
     np.testing.assert_allclose(out[:, :3, 3] @ axis, np.full(6, door.pose[:3, 3] @ axis), atol=1e-12)  # about the hinge
@@ -92,8 +92,9 @@ def test_a_hand_pushing_on_past_closed_leaves_the_drawer_closed(room):
     segs = (ContactSegment(10, 30, (False, True), 0), ContactSegment(35, 55, (False, True), 1))
     poses = {drawer.name: np.tile(drawer.pose, (T, 1, 1))}
     for seg in segs:
-        _drive_one(AttachedContact(drawer.name, "slide", seg.start, seg.end, (seg,), handle), room, poses, joints, wrist_rot)
-    got = np.array([_dof_value(drawer, p) for p in poses[drawer.name]])
+        drive_contact(AttachedContact(drawer.name, "slide", seg.start, seg.end, (seg,), handle), room, poses, joints,
+                      wrist_rot)
+    got = np.array([dof_value(drawer, p) for p in poses[drawer.name]])
     assert got[29] == pytest.approx(0.2, abs=1e-9)  # opened by the hand
     assert got.min() == pytest.approx(0.0, abs=1e-12)  # never inside the cabinet
     assert got[-1] == pytest.approx(0.0, abs=1e-12)  # left closed
@@ -116,8 +117,8 @@ def test_a_hand_reaching_over_a_small_object_attaches_at_its_grasp_point():
     for key, meta in (("grasp", {"grasp_point": [0.0, 0.0, 0.018]}), ("surface", {})):
         mouse = SceneObject("mouse_0", "mouse", trimesh.creation.box((0.11, 0.06, 0.036)), pose, dof="free",
                             dynamic=True, meta=meta)
-        held, frames[key], near, target = _attach(ObjectQueries(Scene("desk", objects={"mouse_0": mouse})), "mouse_0",
-                                                  pose, hands, segs, 100, 30.0, 0.015)
+        held, frames[key], near, target = attach_contact(ObjectQueries(Scene("desk", objects={"mouse_0": mouse})),
+                                                         "mouse_0", pose, hands, segs, 100, 30.0, 0.015)
         assert held[0].start == frames[key] and held[-1].end <= 140
         np.testing.assert_allclose(near[0, 2], top, atol=1e-6)  # the contact point is on its top
     assert frames == {"grasp": 110, "surface": 104}

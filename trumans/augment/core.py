@@ -29,7 +29,7 @@ from trumans.augment.contact_ik import RetargetResult, retarget_many
 from trumans.augment.variations import Variation, apply_variation, map_contact_points, move_matrix
 
 __all__ = ["AugmentConfig", "AugmentOutput", "SequenceContacts", "sequence_pose", "sequence_contacts", "find_intervals",
-           "merge_body_contacts", "augment_sequence", "augment_many"]
+           "merge_body_contacts", "rigid_body_offsets", "rigid_hand_offsets", "augment_sequence", "augment_many"]
 
 
 @dataclass
@@ -115,7 +115,7 @@ def merge_body_contacts(intervals: list[ContactInterval], T: int, max_gap: int =
 _LEGS = [*KNEES, *ANKLES, *FEET]
 
 
-def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, changed: set[str], T: int) -> None:
+def rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, changed: set[str], T: int) -> None:
     """Lying / sitting: the body resting on one changed object cannot stretch with it, so the new
     contact points of its *resting group* -- the root-group joints touching the object, plus every
     touching joint whose parent is in the group (an arm or leg lying on the bed) -- are mapped
@@ -158,7 +158,7 @@ def _rigid_body_offsets(intervals: list[ContactInterval], closest: np.ndarray, c
 _HANDS = tuple(zip(WRISTS, INDEX1))  # (wrist, index1) per hand
 
 
-def _rigid_hand_offsets(intervals: list[ContactInterval], changed: set[str], T: int) -> None:
+def rigid_hand_offsets(intervals: list[ContactInterval], changed: set[str], T: int) -> None:
     """A hand gripping a changed object moves as one piece: on frames where the wrist and its
     index1 both touch the object, both get the mean of their two mapped offsets (scaling maps them
     to points a few mm apart in different directions, which the rigid hand cannot reach at once).
@@ -269,8 +269,8 @@ def _prepare(sc: SequenceContacts, variations: list[Variation], replacements: di
             vm = closest[iv.start:iv.end, iv.joint]
             tr = poses.get(iv.obj)
             iv.frame_offset = map_contact_points(old, new_objs[iv.obj], vm, None if tr is None else tr[iv.start:iv.end]) - vm
-    _rigid_body_offsets(intervals, closest, set(new_objs), len(sc.joints))
-    _rigid_hand_offsets(intervals, set(new_objs), len(sc.joints))
+    rigid_body_offsets(intervals, closest, set(new_objs), len(sc.joints))
+    rigid_hand_offsets(intervals, set(new_objs), len(sc.joints))
     for iv in intervals:
         if iv.frame_offset is not None:
             iv.offset = iv.frame_offset.mean(0)  # A2: the interval's offset (per-frame ones kept)

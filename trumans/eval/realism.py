@@ -15,7 +15,8 @@ from scipy.signal import find_peaks
 from trumans.motion_labels import MOTION_STATES, body_features, label_states, segments
 from trumans.skeleton import JOINT_INDEX as J
 
-__all__ = ["STATISTICS", "clip_statistics", "compare", "dataset_statistics", "reference_range"]
+__all__ = ["STATISTICS", "clip_statistics", "compare", "dataset_statistics", "reference_range",
+           "knee_angle"]
 
 FPS = 30.0
 S = {n: i for i, n in enumerate(MOTION_STATES)}
@@ -50,7 +51,7 @@ def _forward(heading: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(heading), np.sin(heading)], axis=-1)
 
 
-def _knee_angle(j: np.ndarray, side: str) -> np.ndarray:
+def knee_angle(j: np.ndarray, side: str) -> np.ndarray:
     a = j[:, J[f"{side}_hip"]] - j[:, J[f"{side}_knee"]]
     b = j[:, J[f"{side}_ankle"]] - j[:, J[f"{side}_knee"]]
     c = (a * b).sum(-1) / np.maximum(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1), 1e-9)
@@ -128,7 +129,7 @@ def clip_statistics(joints: np.ndarray, states: np.ndarray | None = None) -> dic
                 dur += (b - a) / FPS
                 dist += float(np.linalg.norm(np.diff(j[a:b + 1, J["pelvis"], :2], axis=0), axis=-1).sum())
             for side in ("left", "right"):
-                k = _knee_angle(j[s:e], side)
+                k = knee_angle(j[s:e], side)
                 turning += len(find_peaks(k, prominence=3)[0]) + len(find_peaks(-k, prominence=3)[0])
             if n >= 2 and e - s >= 2 * FPS:
                 lag = int(round((cross[-1] - cross[0]) / n))
@@ -158,7 +159,7 @@ def clip_statistics(joints: np.ndarray, states: np.ndarray | None = None) -> dic
     if lies:
         idx = np.concatenate([np.arange(s, e) for s, e in lies])
         out["lying_pelvis_motion_5s"] = _window_motion(j[:, J["pelvis"]], lies)
-        flex = 180 - np.minimum(_knee_angle(j[idx], "left"), _knee_angle(j[idx], "right"))
+        flex = 180 - np.minimum(knee_angle(j[idx], "left"), knee_angle(j[idx], "right"))
         out["lying_knee_bend"] = float(np.median(flex))
     downs, ups = _sit_events(j, st, f)
     if downs:

@@ -33,7 +33,7 @@ from trumans.sequence import ObjectTrack
 from trumans.skeleton import JOINT_INDEX
 
 __all__ = ["CarryConfig", "Interaction", "hand_track", "plan_interactions", 
-           "initial_motion", "optimise_motion", "put_down_pose", "object_tracks"]
+           "dof_value", "initial_motion", "optimise_motion", "put_down_pose", "object_tracks"]
 
 InteractionKind = Literal["carry", "open", "close"]
 
@@ -132,7 +132,7 @@ def _hinge_frame(obj) -> tuple[np.ndarray, np.ndarray]:
     return R @ obj.axis, R @ obj.hinge_point + t
 
 
-def _dof_value(obj, pose: np.ndarray) -> float:
+def dof_value(obj, pose: np.ndarray) -> float:
     """Hinge angle (rad) / slide travel (m) of ``pose`` (4, 4) relative to the scene pose."""
     if obj.dof == "hinge":
         axis, _ = _hinge_frame(obj)
@@ -150,14 +150,14 @@ def initial_motion(obj, pose0: np.ndarray, hand_pts: np.ndarray, hand_rot: np.nd
         axis, point = _hinge_frame(obj)
         lo, hi = dof_limits(obj)
         M = hinge_motion(mid, point, axis)
-        angle = np.clip(_dof_value(obj, pose0) + rotation_angles(M, axis), lo, hi)
+        angle = np.clip(dof_value(obj, pose0) + rotation_angles(M, axis), lo, hi)
         return rotation_about_axis(angle, axis, point) @ obj.pose
     if obj.dof == "slide":
         axis = None if obj.axis is None else obj.pose[:3, :3] @ obj.axis
         M = one_hand_motion(mid, axis)
         if axis is not None:
             lo, hi = dof_limits(obj)
-            s = np.clip(_dof_value(obj, pose0) + M[:, :3, 3] @ axis, lo, hi)
+            s = np.clip(dof_value(obj, pose0) + M[:, :3, 3] @ axis, lo, hi)
             M = np.tile(np.eye(4), (len(s), 1, 1))
             M[:, :3, 3] = s[:, None] * axis
             return M @ obj.pose
@@ -200,7 +200,7 @@ def optimise_motion(obj, init: np.ndarray, hand_pts: np.ndarray, fix_end: bool,
     elif obj.dof == "hinge":
         axis, point = (torch.from_numpy(v) for v in _hinge_frame(obj))
         base = torch.from_numpy(obj.pose)
-        a0 = torch.from_numpy(np.array([_dof_value(obj, p) for p in init]))
+        a0 = torch.from_numpy(np.array([dof_value(obj, p) for p in init]))
         params = torch.zeros(n, 1, dtype=torch.float64, requires_grad=True)
 
         def value(x):
@@ -212,7 +212,7 @@ def optimise_motion(obj, init: np.ndarray, hand_pts: np.ndarray, fix_end: bool,
             return Rb, (R @ (base[:3, 3] - point)[:, None])[..., 0] + point
     elif obj.dof == "slide" and obj.axis is not None:
         axis = torch.from_numpy(obj.pose[:3, :3] @ obj.axis)
-        s0 = torch.from_numpy(np.array([_dof_value(obj, p) for p in init]))
+        s0 = torch.from_numpy(np.array([dof_value(obj, p) for p in init]))
         params = torch.zeros(n, 1, dtype=torch.float64, requires_grad=True)
 
         def value(x):

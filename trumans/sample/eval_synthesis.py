@@ -30,7 +30,7 @@ from trumans.sample.sampling_args import (CFG_SCALES, GOAL_GUIDANCE, GOAL_ITERS,
                             postprocess_kwargs)
 from trumans.paths import MODELS_DIR
 
-__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS", "fid_figures", "write_windows", "read_windows"]
+__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS", "fid_figures", "write_windows", "read_windows", "load_reference"]
 
 EVAL_ROOM_SEEDS: tuple[int, ...] = (9001, 9002, 9003, 9004, 9005, 9006)
 SAME_SIZE_DRAWS = 10  # draws of train windows averaged for the real_*_same_size figures
@@ -156,7 +156,8 @@ def reference_windows(enc, data: str, train_windows: int = 3000, seed: int = 0) 
             "train_labels": ty[keep], "data_hash": np.str_(ds.hash), "split": np.str_("test")}
 
 
-def _load_reference() -> dict[str, np.ndarray] | None:
+def load_reference() -> dict[str, np.ndarray] | None:
+    """The shipped fid reference (``REFERENCE_FILE``, what ``reference_windows`` computes), or None without one."""
     if not REFERENCE_FILE.is_file():
         return None
     with np.load(REFERENCE_FILE, allow_pickle=False) as z:
@@ -182,7 +183,7 @@ def _encoder_figures(results, vocabulary: list[str], reference: str | None, enco
     if reference is None and encoder is not None:
         raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
                          "give --data DATASET (its test split is the reference)")
-    ref = reference_windows(enc, reference) if reference is not None else _load_reference()
+    ref = reference_windows(enc, reference) if reference is not None else load_reference()
     if ref is None:
         return {**out, "fid": None, "fid_note": f"no reference features: give --data DATASET or ship {REFERENCE_FILE}"}
     out["real_fid"] = round(float(enc.info.get("fid_train_vs_test", float("nan"))), 3)

@@ -29,6 +29,7 @@ __all__ = [
     "floor_footprints",
     "approach_points",
     "reachable_approaches",
+    "quads_overlap",
     "WALL_HEIGHT",
     "WALL_THICKNESS",
 ]
@@ -63,7 +64,7 @@ def _rect_quad(lo: np.ndarray, hi: np.ndarray, T: np.ndarray) -> np.ndarray:
     return c @ T[:2, :2].T + T[:2, 3]
 
 
-def _overlap(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> bool:
+def quads_overlap(a: np.ndarray, b: np.ndarray, eps: float = 1e-9) -> bool:
     """Separating-axis test for two convex quads (4, 2); touching counts as no overlap."""
     for q in (a, b):
         e = np.roll(q, -1, axis=0) - q
@@ -317,9 +318,9 @@ def make_room(seed: int, size: tuple[float, float] | None = None, furniture: lis
             if not (_inside(quad, W, D) and _inside(zone, W, D)):
                 continue
             grown = _rect_quad(g_lo - MARGIN, g_hi + MARGIN, pose)
-            if any(len(pl.quad) and (_overlap(grown, pl.quad) or _overlap(zone, pl.quad)) for pl in placed):
+            if any(len(pl.quad) and (quads_overlap(grown, pl.quad) or quads_overlap(zone, pl.quad)) for pl in placed):
                 continue
-            if any(pl.zone is not None and _overlap(quad, pl.zone) for pl in placed):
+            if any(pl.zone is not None and quads_overlap(quad, pl.zone) for pl in placed):
                 continue
             asm.place(pose)
             new_fps = [_Footprint(o.name, o.pose, *_local_rect(o)) for o, _ in local_fps]

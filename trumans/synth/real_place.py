@@ -28,7 +28,7 @@ from trumans.scene_fit import fit_scene
 from trumans.skeleton import JOINT_INDEX
 
 __all__ = ["BODY_RADIUS", "MARGIN", "ATTEMPTS", "Placement", "place_clip", "quad_distance", "footprint_quad",
-           "turn_and_move"]
+           "turn_and_move", "remove_objects"]
 
 BODY_RADIUS = 0.25  # m, the pelvis path's clearance from walls and procedural furniture
 LIMB_CLEARANCE = 0.05  # m, every joint's clearance from walls and procedural furniture
@@ -104,7 +104,7 @@ def _blockers(scene: Scene, joints: np.ndarray, fitted: list[np.ndarray]) -> lis
     return out
 
 
-def _remove(scene: Scene, names: list[str]) -> list[str]:
+def remove_objects(scene: Scene, names: list[str]) -> list[str]:
     """Remove objects ``names`` and the objects supported by them or parts of them (a cabinet's
     drawers: meta "parent"), transitively; returns all removed names (sorted)."""
     gone = set(names)
@@ -168,7 +168,7 @@ def place_clip(joints: np.ndarray, states: np.ndarray, seed: int, name: str, fps
     if best is None:
         return None
     _, attempt, scene, J, yaw, shift, fitted = best
-    removed = _remove(scene, best_blocking) if best_blocking else []
+    removed = remove_objects(scene, best_blocking) if best_blocking else []
     names = []
     for o in fitted:
         scene.objects[o.name] = o

@@ -46,7 +46,7 @@ from trumans.skeleton import JOINT_INDEX, forward_kinematics
 from trumans.track.object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
 __all__ = ["TrackerConfig", "AttachedContact", "TrackResult", "contact_probabilities", "interval_classes",
-           "attach_detach", "drive_object", "clip_to_limits", "track"]
+           "attach_detach", "attach_contact", "drive_object", "drive_contact", "clip_to_limits", "track"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 
@@ -224,8 +224,8 @@ def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
     return out
 
 
-def _drive_one(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
-               wrist_rot: np.ndarray) -> None:
+def drive_contact(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
+                  wrist_rot: np.ndarray) -> None:
     """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
     released where it was left. joints: (T, 24, 3); wrist_rot: (T, 2, 3, 3)."""
     obj = scene.objects[it.name]
@@ -238,8 +238,9 @@ def _drive_one(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray], 
         track[e:] = track[e - 1]
 
 
-def _attach(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarray, segs: tuple[ContactSegment, ...],
-            s0: int, fps: float, hand_radius: float) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
+def attach_contact(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarray,
+                   segs: tuple[ContactSegment, ...], s0: int, fps: float,
+                   hand_radius: float) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
     """A contact starting at frame ``s0`` attached to ``name`` (at ``pose``): its segments clipped to
     the held frames, the attach frame, and the contact points p_c (k, 3) with their targets
     ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points. The
@@ -263,10 +264,10 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
                  hand_radius: float) -> float:
     """``release_support_gap`` of free object ``name`` carried by this contact and let go where the
     hands let go; the other objects are where the interactions so far left them."""
-    held, _, closest, _ = _attach(queries, name, poses[name][s0], span, segs, s0, fps, hand_radius)
+    held, _, closest, _ = attach_contact(queries, name, poses[name][s0], span, segs, s0, fps, hand_radius)
     trial = {name: poses[name].copy()}
-    _drive_one(AttachedContact(name, "free", held[0].start, held[-1].end, held, closest.mean(0)), queries.scene, trial,
-               joints, wrist_rot)
+    drive_contact(AttachedContact(name, "free", held[0].start, held[-1].end, held, closest.mean(0)), queries.scene,
+                  trial, joints, wrist_rot)
     e = held[-1].end - 1
     others = {n: o.pose for n, o in queries.scene.objects.items() if o.dof == "static"}
     others.update({n: p[e] for n, p in poses.items() if n != name})
@@ -277,7 +278,7 @@ def _drive_all(interactions: list[AttachedContact], scene: Scene, base: dict[str
                wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
     poses = {n: p.copy() for n, p in base.items()}
     for it in interactions:
-        _drive_one(it, scene, poses, joints, wrist_rot)
+        drive_contact(it, scene, poses, joints, wrist_rot)
     return poses
 
 
@@ -342,7 +343,7 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
             gaps = {n: _release_gap(queries, n, poses, segs, span, s0, fps, joints, wrist_rot, config.hand_radius)
                     for n, d in cands if d <= cands[0][1] + config.ambiguity}
             name = choose_free_object(cands, gaps, config.ambiguity)
-        segs, a, closest, goal = _attach(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius)
+        segs, a, closest, goal = attach_contact(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius)
         if cls[i] == "free":
             goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
         shift = (goal - span[a - s0])[:, :2]
@@ -355,7 +356,7 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
             # first one when nothing else pins the start)
             corr[a if (c_frames[:-1] or len(a_frames)) else 0:] += step
             joints[:, :, :2] = joints0[:, :, :2] + corr[:, None]
-        _drive_one(interactions[-1], scene, poses, joints, wrist_rot)
+        drive_contact(interactions[-1], scene, poses, joints, wrist_rot)
 
     if c_frames:
         corr = corrected(c_frames, c_xy)  # eq. 2 with every control point

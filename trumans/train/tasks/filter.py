@@ -43,7 +43,8 @@ from trumans.train.config import TrainSection, build_config, load_toml, override
 from trumans.train.tasks import TaskLoss
 
 __all__ = ["FilterSection", "FilterConfig", "load_filter_config", "FilterTask", "FilterBatch", "make_batch",
-           "filter_metrics", "export_checkpoint", "real_motion_windows", "ABLATIONS", "DEFAULT_CONFIG", "CONFIG_DIR"]
+           "phase_weights", "filter_metrics", "export_checkpoint", "real_motion_windows", "ABLATIONS", "DEFAULT_CONFIG",
+           "CONFIG_DIR"]
 
 CONFIG_DIR = Path(__file__).parents[1] / "configs" / "filter"
 DEFAULT_CONFIG = "cpu"
@@ -122,7 +123,7 @@ def load_filter_config(name_or_path: str | Path) -> FilterConfig:
     return FilterConfig.from_dict(d, str(p))
 
 
-def _phase_weights(cfg: FilterSection, frac: float) -> dict[str, float]:
+def phase_weights(cfg: FilterSection, frac: float) -> dict[str, float]:
     """Regulariser weights at training progress ``frac`` in [0, 1] (appendix A.2 schedule; the pose
     term, not the paper's, throughout)."""
     on1 = frac >= cfg.simple_only
@@ -282,7 +283,7 @@ class FilterTask:
                                            category=to(b.category))
         x_hat = self.normalizer.denormalize(out.x0_hat)
         clean = to(b.clean)
-        w = _phase_weights(self.config.filter, b.progress)
+        w = phase_weights(self.config.filter, b.progress)
         terms = {"simple": out.terms["simple"], "off": loss_off(x_hat, clean), "vel": loss_vel(x_hat, clean),
                  "consist": loss_consist(x_hat, to(b.offsets)),
                  "imu": loss_imu(x_hat, clean, to(b.tracked), self.config.net.fps), "pose": loss_pose(x_hat, clean)}

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from trumans.sample.guidance import GuidanceConfig
 from trumans.sample.guidance.penetration import SceneSDF, penetration_loss
 from trumans.sample.rollout import start_context
 from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
@@ -56,7 +57,7 @@ def test_guided_episode_penetrates_less():
     sdfs, pens = SceneSDF(occ), []
     for on in (False, True):
         s = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=6, goal_guidance=20.0, goal_iters=3,
-                                                               penetration_guidance=on))
+                                                               guidance=GuidanceConfig().switched(penetration=on)))
         out = s.episode(ctx, labels, [Goal((1.3, 1.0), guide=False)], generator=torch.Generator().manual_seed(0))
         d = sdfs(torch.as_tensor(out[0, 2:], dtype=torch.float32)).numpy()
         pens.append(np.maximum(JOINT_CORE_RADIUS - d, 0).sum())

@@ -197,14 +197,15 @@ def test_moving_part_follows_the_handle_path():
 def test_no_reach_cleanup_flag():
     p = argparse.ArgumentParser()
     add_postprocess_arguments(p)
-    assert postprocess_kwargs(p.parse_args([]))["reach_cleanup"] is True
-    assert postprocess_kwargs(p.parse_args(["--no-reach-cleanup"]))["reach_cleanup"] is False
+    assert postprocess_kwargs(p.parse_args([]))["cleanup"].reach.enabled is True
+    assert postprocess_kwargs(p.parse_args(["--no-reach-cleanup"]))["cleanup"].reach.enabled is False
 
 
 @pytest.mark.parametrize("goal, reached", [([1.05, 0.6, 1.1], True), ([1.4, 0.6, 1.0], False)])
 def test_rollout_reaches_the_hand_goal_or_stretches_toward_it(goal, reached):
     from trumans.sample.plan import plan_from_dict
     from trumans.sample.rollout import sample_plan
+    from trumans.sample.cleanup.pipeline import CleanupConfig
     from trumans.sample.sampler import EpisodeSampler, SamplerConfig
     from trumans.scenes.occupancy import OccupancyGrid
     from trumans.scenes.scene import Scene
@@ -217,8 +218,9 @@ def test_rollout_reaches_the_hand_goal_or_stretches_toward_it(goal, reached):
     scene, wm, ck = Scene("open"), walkable_map(occ), tiny_checkpoint()
     goal = np.array(goal)
     plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "reach", "target": goal.tolist(), "hand": "right"}]})
-    runs = [sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=2, reach_cleanup=on)), scene, wm,
-                        plan, seed=0) for on in (False, True)]
+    unguided = dict(action_scale=1.0, goal_guidance=0.0, goal_iters=1)  # the untrained body stands
+    runs = [sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(
+        steps=2, cleanup=CleanupConfig().switched(reach=on), **unguided)), scene, wm, plan, seed=0) for on in (False, True)]
     off, on = runs
     i = next(i for i, p in enumerate(on.phases) if p.hand_goal is not None)
     frames = np.flatnonzero(on.phase[0] == i)

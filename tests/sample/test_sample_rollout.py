@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from trumans.sample.cleanup.attach_pelvis import attach_pinned_pelvis
 from trumans.sample.controller import Phase
 from trumans.sample.plan import plan_from_dict
 from trumans.sample.rollout import INCREMENTAL_SCHEDULE, sample_plan, start_context, stream
@@ -34,13 +35,14 @@ def test_episode_honours_masks_and_context(open_room):
     ctx = start_context(ck, np.array([1.0, 1.0]), 0.3, batch=2)
     labels = np.zeros((2, 16, len(SAMPLE_VOCAB)), np.float32)
     goals = [Goal((1.8, 1.2)), Goal((1.5, 1.0, 0.9), "right_wrist", 9)]
-    out = sampler.episode(ctx, labels, goals, generator=torch.Generator().manual_seed(0), attach_pelvis=False)
+    out = sampler.episode(ctx, labels, goals, generator=torch.Generator().manual_seed(0))
     assert out.shape == (2, 16, 24, 3) and np.isfinite(out).all()
     np.testing.assert_allclose(out[:, :2], ctx, atol=1e-5)  # M_trans: the context frames exactly
     np.testing.assert_allclose(out[0, -1, JOINT_INDEX["pelvis"], :2], [1.8, 1.2], atol=1e-4)  # M_goal pelvis xy
     np.testing.assert_allclose(out[1, 9, JOINT_INDEX["right_wrist"]], [1.5, 1.0, 0.9], atol=1e-4)  # hand goal
-    # by default the pinned pelvis is put back on the body: same offset from the hips as one frame before
-    att = sampler.episode(ctx, labels, goals, generator=torch.Generator().manual_seed(0))
+    # the first cleanup step puts the pinned pelvis back on the body: same offset from the hips as one frame before
+    att = attach_pinned_pelvis(sampler.episode(ctx, labels, goals, generator=torch.Generator().manual_seed(0)),
+                               np.array([g.joint == "pelvis" for g in goals]))
     hips = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
     off = att[0, :, 0, :2] - att[0][:, hips, :2].mean(1)
     np.testing.assert_allclose(off[-1], off[-2], atol=1e-5)

@@ -79,5 +79,5 @@ def test_no_support_lift_flag():
 
     p = argparse.ArgumentParser()
     add_postprocess_arguments(p)
-    assert postprocess_kwargs(p.parse_args([]))["support_lift"] is True
-    assert postprocess_kwargs(p.parse_args(["--no-support-lift"]))["support_lift"] is False
+    assert postprocess_kwargs(p.parse_args([]))["cleanup"].support_lift.enabled is True
+    assert postprocess_kwargs(p.parse_args(["--no-support-lift"]))["cleanup"].support_lift.enabled is False

@@ -17,12 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
-from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, postprocess_kwargs
+from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 from trumans.paths import MODELS_DIR
 
-__all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT"]
+__all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY"]
 
 DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
+# the sequence's ``extra`` entry with the sampler config used, JSON (``SamplerConfig.to_dict``);
+# ``SamplerConfig.from_dict(json.loads(...))`` rebuilds it
+SAMPLER_CONFIG_KEY = "sampler_config"
 FORMATS = ("npz", "bvh", "gif", "mp4", "png", "glb")
 
 
@@ -112,8 +115,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output path stem: writes STEM.npz (+ other --formats)")
     p.add_argument("--formats", default="npz,png", help=f"comma-separated among {','.join(FORMATS)} (default npz,png)")
     p.add_argument("--num-samples", type=int, default=1, help="variations sampled in one batch (default 1)")
-    p.add_argument("--steps", type=int, default=20, help="denoising steps (respaced; default 20)")
-    p.add_argument("--eta", type=float, default=0.0, help="DDIM eta (0 deterministic, 1 ancestral)")
+    from trumans.sample.sampler import SamplerConfig
+
+    d = SamplerConfig()
+    p.add_argument("--steps", type=int, default=d.steps, help=f"denoising steps (respaced; default {d.steps})")
+    p.add_argument("--eta", type=float, default=d.eta, help=f"DDIM eta (0 deterministic, 1 ancestral; default {d.eta:g})")
     add_guidance_arguments(p)
     add_postprocess_arguments(p)
     p.add_argument("--max-seconds", type=float, default=600.0, help="give up when the plan is not done by then")
@@ -169,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
 
     from trumans.sample.plan import load_plan, plan_from_dict, validate_plan
     from trumans.sample.rollout import body_pose, sample_plan
-    from trumans.sample.sampler import EpisodeSampler, SamplerConfig
+    from trumans.sample.sampler import EpisodeSampler
     from trumans.sample.scene_input import load_sample_scene
     from trumans.eval.synthesis_metrics import motion_figures
 
@@ -202,8 +208,7 @@ def run(args: argparse.Namespace) -> int:
                        heading=args.heading if args.heading is not None else plan.heading)
     validate_plan(plan, sc.scene, ckpt.vocabulary)
     body = None if args.body is None else body_pose(body_frame(args.body), f"--body {args.body}")
-    config = SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
-                           goal_guidance=args.goal_guidance, goal_iters=args.goal_iters, **postprocess_kwargs(args))
+    config = sampler_config(args)
     sampler = EpisodeSampler(ckpt, sc.grids, config, device=str(device))
     start = np.asarray(plan.start, np.float64) if plan.start is not None else sc.free_point()
     if not sc.walkmap.query(start[None])[0]:
@@ -224,7 +229,8 @@ def run(args: argparse.Namespace) -> int:
         if b == 0:
             carry = carry_figures(result.joints[b], tracks, its, info, sc.scene, result.phases)
         seq = Sequence(joints=result.joints[b], fps=result.fps, actions=result.labels[b],
-                       action_names=list(result.vocabulary), scene=sc.source, objects=tracks)
+                       action_names=list(result.vocabulary), scene=sc.source, objects=tracks,
+                       extra={SAMPLER_CONFIG_KEY: np.asarray(json.dumps(config.to_dict()))})
         stem = out if args.num_samples == 1 else out.with_name(f"{out.name}_{b:02d}")
         written += [str(p) for p in export(seq, stem, formats, scene=sc.scene).values()]
     figures = motion_figures(result, sc)

@@ -23,12 +23,15 @@ import argparse
 import json
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from trumans.sample.sampling_args import (CFG_SCALES, GOAL_GUIDANCE, GOAL_ITERS, add_guidance_arguments, add_postprocess_arguments,
-                            postprocess_kwargs)
+from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 from trumans.paths import MODELS_DIR
+
+if TYPE_CHECKING:
+    from trumans.sample.sampler import SamplerConfig
 
 __all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS", "fid_figures", "write_windows", "read_windows", "load_reference"]
 
@@ -40,9 +43,13 @@ REFERENCE_FILE = MODELS_DIR / "synthesis_reference.npz"
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", nargs="?", default=None, help="generator checkpoint (default: the shipped one)")
     p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
-    p.add_argument("--steps", type=int, default=20, help="denoising steps of the fast sampler")
-    p.add_argument("--eta", type=float, default=0.0, help="DDIM eta of the fast sampler (0 deterministic, 1 "
-                   "ancestral: with --steps 100 --goal-guidance 0 it samples what the naive sampler samples)")
+    from trumans.sample.sampler import SamplerConfig
+
+    d = SamplerConfig()
+    p.add_argument("--steps", type=int, default=d.steps, help=f"denoising steps of the fast sampler (default {d.steps})")
+    p.add_argument("--eta", type=float, default=d.eta, help="DDIM eta of the fast sampler (0 deterministic, 1 "
+                   "ancestral: with --steps 100 --goal-guidance 0 it samples what the naive sampler samples; "
+                   f"default {d.eta:g})")
     p.add_argument("--naive-episodes", type=int, default=3, help="episodes timed with the naive sampler (0 = skip)")
     add_guidance_arguments(p)
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=CHECKPOINT",
@@ -72,11 +79,10 @@ def _plans(sc, seed: int):
     return plan_from_dict(d, name=f"eval_{seed}")
 
 
-def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, reference: str | None = None,
-             guidance: tuple[float, int] = (GOAL_GUIDANCE, GOAL_ITERS), post: dict | None = None, encoder: str | None = None,
-             eta: float = 0.0, cfg_scales: tuple[float, float] = CFG_SCALES, save_windows: str | None = None) -> dict:
-    """The figures (see the module doc); ``post``: ``SamplerConfig`` cleanup fields of the fast sampler;
-    ``cfg_scales``: its classifier-free guidance scales (scene, action);
+def evaluate(ckpt_path, rooms: int, seed: int, naive_episodes: int, config: SamplerConfig | None = None,
+             reference: str | None = None, encoder: str | None = None, save_windows: str | None = None) -> dict:
+    """The figures (see the module doc); ``config``: the fast sampler's (default ``SamplerConfig()``,
+    what ``trumans sample`` does; the naive sampler takes its classifier-free guidance scales);
     ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one);
     ``save_windows``: a path for the generated windows' encoder features and labels (``write_windows``)."""
     import torch
@@ -88,6 +94,7 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     from trumans.sample.scene_input import load_sample_scene
     from trumans.eval.synthesis_metrics import motion_figures
 
+    config = SamplerConfig() if config is None else config
     ckpt = load_checkpoint(ckpt_path, kind="generator")
     torch.set_grad_enabled(False)
     per, results, times, motion_s = [], [], 0.0, 0.0
@@ -95,9 +102,7 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
         plan = _plans(sc, seed * 1000 + r)
-        sampler = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, eta=eta, goal_guidance=guidance[0],
-                                                               goal_iters=guidance[1], scene_scale=cfg_scales[0],
-                                                               action_scale=cfg_scales[1], **(post or {})))
+        sampler = EpisodeSampler(ckpt, sc.grids, config)
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
         results.append(res)
@@ -117,12 +122,11 @@ def evaluate(ckpt_path, rooms: int, steps: int, seed: int, naive_episodes: int, 
     if naive_episodes > 0:
         sc, plan, res = first
         naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True,
-                                                             scene_scale=cfg_scales[0], action_scale=cfg_scales[1]))
-        fast = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=steps, goal_guidance=guidance[0],
-                                                            goal_iters=guidance[1], scene_scale=cfg_scales[0],
-                                                            action_scale=cfg_scales[1], **(post or {})))
+                                                             goal_guidance=0.0, scene_scale=config.scene_scale,
+                                                             action_scale=config.action_scale))
+        fast = EpisodeSampler(ckpt, sc.grids, config)
         samplers = {"fast": fast, "naive": naive}
-        if guidance[0] > 0:  # the same fast sampler without goal guidance: like for like with the naive one
+        if config.goal_guidance > 0:  # the same fast sampler without goal guidance: like for like with the naive one
             samplers["unguided"] = EpisodeSampler(ckpt, sc.grids, replace(fast.config, goal_guidance=0.0))
         t = {name: [] for name in samplers}
         for rep in range(3):  # interleaved, the median of each: the machine's speed drifts
@@ -263,15 +267,13 @@ def run(args: argparse.Namespace) -> int:
     if args.motion_encoder is not None and args.data is None:
         raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
                          "give --data DATASET (its test split is the reference)")
-    guidance = (args.goal_guidance, args.goal_iters)
-    figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.steps, args.seed, args.naive_episodes,
-                    args.data, guidance, postprocess_kwargs(args), args.motion_encoder, args.eta, tuple(args.guidance),
-                    args.save_windows)
+    config = sampler_config(args)
+    figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.seed, args.naive_episodes, config,
+                    args.data, args.motion_encoder, args.save_windows)
     for spec in args.ablation:
         name, _, path = spec.partition("=")
         if not name or not path:
             raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
-        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.steps, args.seed, 0, args.data, guidance,
-                                           postprocess_kwargs(args), args.motion_encoder, args.eta, tuple(args.guidance))
+        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.seed, 0, config, args.data, args.motion_encoder)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

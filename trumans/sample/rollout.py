@@ -21,16 +21,12 @@ from trumans.model.checkpoint import Checkpoint
 from trumans.skeleton import JOINT_INDEX, heading as body_heading
 
 from trumans.sample.carry_plan import planned_object_poses
+from trumans.sample.cleanup.bones import bone_lengths_of
+from trumans.sample.cleanup.pipeline import EpisodeBodies, run_cleanup
 from trumans.sample.controller import Controller, Phase, compile_plan
-from trumans.sample.cleanup.foot import clean_feet
-from trumans.sample.plan import Plan
-from trumans.sample.cleanup.arm_pushout import push_arms_out
-from trumans.sample.cleanup.reach import clean_reach
-from trumans.sample.sampler import EpisodeSampler, Goal, bone_lengths_of, project_bones
-from trumans.sample.cleanup.scene_pushout import push_out
-from trumans.sample.cleanup.seam import blend_seam
 from trumans.sample.guidance.seat import seated_heights
-from trumans.sample.cleanup.support_lift import lift_onto_feet, support_weights
+from trumans.sample.plan import Plan
+from trumans.sample.sampler import EpisodeSampler, Goal
 
 __all__ = ["SampleResult", "start_pose", "body_pose", "start_context", "sample_plan", "stream", "INCREMENTAL_SCHEDULE"]
 
@@ -139,37 +135,32 @@ class _Episode:
 
 def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
           lengths: np.ndarray, generator: torch.Generator | None, seat_offset: float) -> _Episode:
-    """One episode for every sample, projected onto the bone ``lengths``; ``seat_offset``: the
-    body's pelvis height above a seat surface (``sit_offset``), m."""
+    """One episode for every sample: the controls, the network (with its guidance), then the
+    cleanup pipeline (``trumans.sample.cleanup.pipeline``) on the body with bone ``lengths``;
+    ``seat_offset``: the body's pelvis height above a seat surface (``sit_offset``), m."""
+    config = sampler.config
     moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
-    off = seat_offset if sampler.config.seat_guidance else 0.0
-    seat = [seated_heights(c.phases, ctl.phases, off, sampler.k) if sampler.config.seat_guidance else ()
-            for c, ctl in zip(ctrls, controllers)]
+    seat = [seated_heights(c.phases, ctl.phases, seat_offset, sampler.k, config.guidance.seat.seated_kinds)
+            if config.guidance.seat.enabled else () for c, ctl in zip(ctrls, controllers)]
     goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading, pelvis_z=z) if c.hand_goal is None else
              Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide, pelvis_z=z) for c, z in zip(ctrls, seat)]
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
-    bl = bone_lengths_of(world[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
-    raw_cv = float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9)))
-    if sampler.config.seam_blend > 0:
-        world[:, sampler.k:] = blend_seam(context, world[:, sampler.k:], sampler.config.seam_blend)
-    world = project_bones(world, lengths)
-    if sampler.config.support_lift:  # the network's legs come out shorter: back onto the feet, not onto bent knees
-        world = lift_onto_feet(world, support_weights(labels, list(sampler.ckpt.vocabulary)), sampler.k)
     # dynamic objects count where they stand until the plan moves one (then the static scene only)
     sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
-    if sampler.config.scene_pushout and sdf is not None:  # before the feet: they re-lock after it
-        world = push_out(world, sdf, sampler.k)
-    weight = np.stack([c.reach_weight for c in ctrls])  # (B, L, 2) from the plan's hand phases (controller)
-    if sampler.config.arm_pushout and sdf is not None:  # a hand still in: arm IK, except where the plan reaches
-        world = push_arms_out(world, lengths, sdf, sampler.k, keep=weight > 0)
-    if sampler.config.foot_cleanup:  # the context stays as committed; it seeds the foot locks
-        world = clean_feet(np.concatenate([context, world[:, sampler.k:]], 1), lengths, sampler.ckpt.fps, sampler.k,
-                           sdf=sdf if sampler.config.scene_pushout else None)
-    if sampler.config.reach_cleanup and (weight > 0).any():  # the acting arm onto its hand target
-        world = clean_reach(world, lengths, np.stack([c.reach_target for c in ctrls]), weight, sampler.k)
-    return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw_cv)
+    bodies = EpisodeBodies(world, context, lengths, labels, tuple(sampler.ckpt.vocabulary), sampler.ckpt.fps,
+                           np.array([g.joint == "pelvis" for g in goals]), np.stack([c.reach_weight for c in ctrls]),
+                           np.stack([c.reach_target for c in ctrls]), sdf)
+    raw: list[float] = []
+
+    def network_bones(step: str, joints: np.ndarray) -> None:  # the network's bones, its pinned pelvis attached
+        if step == "attach_pelvis":
+            bl = bone_lengths_of(joints[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
+            raw.append(float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9))))
+
+    world = run_cleanup(bodies, config.cleanup, observe=network_bones)
+    return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw[0])
 
 
 def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, num_samples: int = 1,
@@ -190,8 +181,8 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     heading = float(plan.heading) if plan.heading is not None else 0.0
     phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
                           heading=heading)
-    controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
-                   for _ in range(num_samples)]
+    controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt),
+                              reach=sampler.config.cleanup.reach, walkmap=walkmap) for _ in range(num_samples)]
     pose = start_pose(ckpt) if body is None else body_pose(body, "body")
     context = start_context(ckpt, xy, heading, num_samples, pose)
     lengths = bone_lengths_of(context[0, 0].astype(np.float64))
@@ -252,14 +243,16 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
 
     def controller_for(p: Plan, at: np.ndarray, facing: float) -> Controller:
         return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
-                                       heading=facing), ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt), walkmap=walkmap)
+                                       heading=facing), ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt),
+                          reach=sampler.config.cleanup.reach, walkmap=walkmap)
 
     ctrl = controller_for(plan, xy, float(plan.heading or 0.0))
     todo = list(schedule)
     while True:
         n = todo.pop(0) if todo else L - k
         if ctrl.done:  # hold: an empty plan keeps the last posture label
-            ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt))
+            ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt),
+                              reach=sampler.config.cleanup.reach)
         snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, list(ctrl.releases))
         ep = _step(sampler, [ctrl], context, prev, lengths, g, seat)
         new, lab = ep.new, ep.labels
@@ -277,7 +270,7 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
 
 def _advance(ctrl: Controller, n: int, pelvis_xy: np.ndarray) -> None:
     """Advance a rewound controller by n frames (the committed part of an episode)."""
-    L, k = ctrl.L, ctrl.k
+    k = ctrl.k
     saved = ctrl.L
     ctrl.L = k + n
     ctrl.next(pelvis_xy, np.zeros((k, len(ctrl.vocab)), np.float32))

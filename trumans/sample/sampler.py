@@ -5,17 +5,18 @@ Each episode of ``L`` frames is generated in the canonical frame of its first fr
 pelvis xy at the last frame or a hand joint's 3D position (``M_goal``). The scene condition is the
 local occupancy grid around the subgoal with the dynamic objects where they are now, the action
 condition the frame-wise labels with the progress indicator; both are encoded once per episode
-and reused by every denoising step. After each episode the joints are projected onto the
-skeleton's bone lengths (the body keeps its proportions over minutes); rotations for export are
-fitted afterwards (``trumans.ik.fit``).
+and reused by every denoising step. With ``goal_guidance`` > 0 every step is also steered by the
+configured guidance terms (``trumans.sample.guidance``: goal, seat, penetration). ``episode``
+returns the network's output; the corrections after it (pinned pelvis, seam, bone projection,
+support lift, push-outs, feet, reach) are ``trumans.sample.cleanup.pipeline``, run by the rollout;
+rotations for export are fitted afterwards (``trumans.ik.fit``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 import torch
-from einops import rearrange
 
 from trumans.scenes.scene_grids import SceneGrids
 from trumans.model.checkpoint import Checkpoint
@@ -24,16 +25,16 @@ from trumans.model.conditions import EpisodeCondition, episode_condition, episod
 from trumans.model.episodes import PELVIS, FeatureLayout, canonicalize, uncanonicalize
 from trumans.model.masks import joint_goal_mask, pelvis_goal_mask, transition_mask
 from trumans.model.nets import GuidedDenoiser
-from trumans.skeleton import JOINT_INDEX, NUM_JOINTS, PARENTS
+from trumans.skeleton import NUM_JOINTS
 
-from trumans.sample.guidance.penetration import penetration_loss
+from trumans.sample.cleanup.bones import bone_lengths_of, project_bones
+from trumans.sample.cleanup.pipeline import CleanupConfig
+from trumans.sample.config_data import config_from_dict
+from trumans.sample.guidance import GuidanceConfig, GuidanceInputs, GuidanceTerm, Prediction, build_terms
+from trumans.sample.guidance.base import canonical_to_world
 from trumans.sample.scene_sdf import SceneSDF
 
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
-
-HEADING_WEIGHT = 3.0  # the hip-line (heading) term against the position term of the goal guidance
-HEIGHT_WEIGHT = 1.0  # the seated pelvis height term (per frame) against the position term
-PENETRATION_WEIGHT = 1.0  # the scene-penetration term (trumans.sample.guidance.penetration) against the position term
 
 
 @dataclass(frozen=True)
@@ -44,55 +45,45 @@ class Goal:
     point: tuple[float, ...]
     joint: str = "pelvis"
     frame: int = -1
-    guide: bool = True  # goal guidance applies (``SamplerConfig.goal_guidance``); else inpainting only
+    guide: bool = True  # the goal guidance term applies (``SamplerConfig.goal_guidance``); else inpainting only
     heading: float | None = None  # world heading (rad) the body should have at the goal (sitting down)
     pelvis_z: tuple[tuple[int, float], ...] = ()  # (episode frame, world pelvis height m): seated frames
 
 
 @dataclass(frozen=True)
 class SamplerConfig:
-    """steps: denoising steps (respaced DDIM when < T); eta: DDIM noise (0 = deterministic);
-    scene_scale / action_scale: classifier-free guidance scales (1 = plain conditional);
+    """How ``trumans sample`` samples: the defaults here are the command's defaults.
+
+    steps: denoising steps (respaced DDIM when < T); eta: DDIM noise (0 = deterministic);
+    scene_scale / action_scale: classifier-free guidance scales (1 = plain conditional). Action
+    guidance 2 raised action accuracy 0.78 -> 0.85 and lowered fid_matched 21.8 -> 18.5 on 5 plan
+    seeds, at ~1.5x the sampling time and rougher seams (jerk ratio 1.24 -> 1.46; docs/sampling_log.md);
     naive: recompute the condition embeddings at every step (the reference sampler);
-    goal_guidance: step size of the spatial guidance that pulls the predicted body onto its goal
-    (0 = inpainting only; see ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step;
-    foot_cleanup: lock planted feet on the floor and re-solve the legs after each episode
-    (``trumans.sample.cleanup.foot``; applied by ``trumans.sample.rollout``); seam_blend: frames over which the
-    jump at an episode seam is blended out (``trumans.sample.cleanup.seam``; 0 = off); seat_guidance: the goal
-    guidance also pulls a seated pelvis to its seat's height (``trumans.sample.guidance.seat``);
-    penetration_guidance: the goal guidance also pushes the joints out of the scene
-    (``trumans.sample.guidance.penetration``; needs grids); scene_pushout: after each episode a smooth
-    root offset moves the new frames' body out of the scene (``trumans.sample.cleanup.scene_pushout``; applied by
-    ``trumans.sample.rollout``; needs grids); arm_pushout: then a hand still in the scene is moved out by
-    arm IK (``trumans.sample.cleanup.arm_pushout``; needs grids); reach_cleanup: after each episode the acting arm (and, out of
-    reach, the upper body) is moved onto the hand target of the plan's hand phases
-    (``trumans.sample.cleanup.reach``; applied by ``trumans.sample.rollout``); support_lift: after the projection
-    onto the body's bones the body is raised until its lowest foot is back on the floor, where the
-    feet carry it (``trumans.sample.cleanup.support_lift``; applied by ``trumans.sample.rollout``)."""
+    goal_guidance: step size of the spatial guidance (0 = inpainting only, no guidance term runs;
+    ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step, each a backward pass.
+    Three updates of size 20: one of size 80 is ~3x faster and met every target on the 6
+    evaluation rooms, but left the default room's body 9.4 cm into the chair at a sit-down
+    (docs/sampling_log.md, sampling speed);
+    guidance: the guidance terms (goal, seat, penetration; ``trumans.sample.guidance.terms``);
+    cleanup: the steps after the network, in their order (``trumans.sample.cleanup.pipeline``).
+    ``to_dict`` / ``from_dict`` give and take the whole config as plain data (unknown keys are
+    errors); ``trumans sample`` saves it with every sequence (``extra/sampler_config``)."""
 
     steps: int = 20
     eta: float = 0.0
     scene_scale: float = 1.0
-    action_scale: float = 1.0
+    action_scale: float = 2.0
     naive: bool = False
-    goal_guidance: float = 0.0
-    goal_iters: int = 1
-    foot_cleanup: bool = True
-    seam_blend: int = 3
-    seat_guidance: bool = True
-    penetration_guidance: bool = True
-    scene_pushout: bool = True
-    arm_pushout: bool = True
-    reach_cleanup: bool = True
-    support_lift: bool = True
+    goal_guidance: float = 20.0
+    goal_iters: int = 3
+    guidance: GuidanceConfig = field(default_factory=GuidanceConfig)
+    cleanup: CleanupConfig = field(default_factory=CleanupConfig)
 
     def __post_init__(self) -> None:
         if self.steps < 1:
             raise ValueError(f"steps must be >= 1, got {self.steps}")
         if not self.eta >= 0:
             raise ValueError(f"eta must be >= 0, got {self.eta}")
-        if self.seam_blend < 0:
-            raise ValueError(f"seam_blend must be >= 0 frames, got {self.seam_blend}")
         if self.goal_iters < 1:
             raise ValueError(f"goal_iters must be >= 1, got {self.goal_iters}")
         for name in ("scene_scale", "action_scale", "goal_guidance"):
@@ -100,24 +91,15 @@ class SamplerConfig:
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v}")
 
+    def to_dict(self) -> dict:
+        """Plain nested data (JSON-ready) of every field."""
+        return asdict(self)
 
-def bone_lengths_of(joints: np.ndarray) -> np.ndarray:
-    """joints (..., 24, 3) -> (..., 24) length of each joint's bone to its parent (root 0), m."""
-    par = np.asarray(PARENTS)
-    d = joints[..., 1:, :] - joints[..., par[1:], :]
-    return np.concatenate([np.zeros(joints.shape[:-2] + (1,)), np.linalg.norm(d, axis=-1)], axis=-1)
-
-
-def project_bones(joints: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """Put joints (..., 24, 3) on a skeleton with bone ``lengths`` (24,) m: from the root down, each
-    joint moves along its bone's direction to the right distance from its (already moved) parent."""
-    out = np.array(joints, dtype=np.float64, copy=True)
-    for j in range(1, NUM_JOINTS):  # topological order (parents come first)
-        p = PARENTS[j]
-        d = joints[..., j, :] - joints[..., p, :]
-        n = np.linalg.norm(d, axis=-1, keepdims=True)
-        out[..., j, :] = out[..., p, :] + lengths[j] * d / np.maximum(n, 1e-9)
-    return out.astype(np.float32)
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "sampler config") -> SamplerConfig:
+        """Inverse of ``to_dict``; keys left out keep their defaults, unknown keys and wrong types
+        are errors naming the key (``trumans.sample.config_data.config_from_dict``)."""
+        return config_from_dict(cls, d, where)
 
 
 class EpisodeSampler:
@@ -139,15 +121,15 @@ class EpisodeSampler:
         self.extent = tuple(ckpt.grid.get("extent", (1.2, 1.2, 1.2)))
         self.guided = GuidedDenoiser(self.model, config.scene_scale, config.action_scale)
         self.hip_width = 0.12  # m, the start pose's hip line length (set by the rollout for its body)
-        guide_sdf = config.penetration_guidance and config.goal_guidance > 0
-        # the scene's signed distance: for the penetration guidance and the push-outs (trumans.sample.rollout)
-        pushout = config.scene_pushout or config.arm_pushout
-        self.scene_sdf = SceneSDF(grids.static) if grids is not None and (guide_sdf or pushout) else None
+        guide_sdf = config.guidance.penetration.enabled and config.goal_guidance > 0
+        # the scene's signed distance: for the penetration guidance and the cleanup (trumans.sample.rollout)
+        cleanup_sdf = config.cleanup.uses_scene
+        self.scene_sdf = SceneSDF(grids.static) if grids is not None and (guide_sdf or cleanup_sdf) else None
         self.sdf = self.scene_sdf if guide_sdf else None
-        # with the dynamic objects (chairs, stools, doors) at their scene poses: the push-out's field
+        # with the dynamic objects (chairs, stools, doors) at their scene poses: the cleanup's field
         # while the plan has moved none of them (``trumans.sample.rollout``)
         full = getattr(grids, "occ", None) if grids is not None and getattr(grids, "points", None) else None
-        self.scene_sdf_all = SceneSDF(full) if pushout and full is not None else self.scene_sdf
+        self.scene_sdf_all = SceneSDF(full) if cleanup_sdf and full is not None else self.scene_sdf
 
     # ------------------------------------------------------------------ one episode
     def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:
@@ -184,11 +166,10 @@ class EpisodeSampler:
 
     @torch.no_grad()
     def episode(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal],
-                object_poses: dict | None = None, generator: torch.Generator | None = None,
-                attach_pelvis: bool = True) -> np.ndarray:
+                object_poses: dict | None = None, generator: torch.Generator | None = None) -> np.ndarray:
         """context: (B, k, 24, 3) world m, the last k frames so far; labels: (B, L, N_A) action
-        labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) world joints (first k = context).
-        attach_pelvis: put a pinned pelvis back on the generated body (``_attach_pinned_pelvis``)."""
+        labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) float32 world joints (first k =
+        context): the network's output, before the cleanup (``trumans.sample.cleanup.pipeline``)."""
         B = context.shape[0]
         if context.ndim != 4 or context.shape[1:] != (self.k, NUM_JOINTS, 3):
             raise ValueError(f"context must be (B, {self.k}, 24, 3), got {context.shape}")
@@ -204,8 +185,7 @@ class EpisodeSampler:
         acts = torch.as_tensor(cond.actions, dtype=torch.float32, device=self.device)
         emb = self._conditions(scene, acts)
         if self.config.goal_guidance > 0:
-            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, self._goal_targets(cond, goals), generator,
-                                     cond)
+            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, self._terms(cond, goals), generator, cond)
         else:
             x0 = self.diffusion.sample(self._model_fn(emb), (B, self.L, self.layout.dim), mask=mask, given=x_given,
                                        num_steps=self.config.steps, eta=self.config.eta, generator=generator,
@@ -214,56 +194,26 @@ class EpisodeSampler:
         cj, _ = self.layout.unpack(feats)
         world = uncanonicalize(cj, cond.origin, cond.yaw)
         world[:, : self.k] = context
-        return _attach_pinned_pelvis(world, goals) if attach_pelvis else world
+        return world
 
-    def _goal_targets(self, cond: EpisodeCondition, goals: list[Goal]) -> list[list[tuple]]:
-        """Per sample, the guidance terms (frame, feature columns, W, target): the loss is
-        |W x0[frame, columns] - target|^2 in metres (denormalised, canonical frame). A pelvis goal
-        pulls the hip midpoint's x, y (W averages the hips) and, with a heading, the hip line
-        (left minus right hip) onto the heading's left direction; a joint goal pulls that joint;
-        ``Goal.pelvis_z`` pulls the pelvis height at those frames (seated frames, frames as a tensor)."""
-        lay = self.layout
-        hips = lay.position_index("left_hip", (0, 1)) + lay.position_index("right_hip", (0, 1))
-        mean_w = torch.tensor([[0.5, 0, 0.5, 0], [0, 0.5, 0, 0.5]])
-        diff_w = torch.tensor([[1.0, 0, -1.0, 0], [0, 1.0, 0, -1.0]])
-        out = []
-        for b, g in enumerate(goals):
-            terms = []
-            if g.guide and g.joint == "pelvis":
-                goal = torch.as_tensor(cond.subgoal_canonical()[b, :2], dtype=torch.float32)
-                terms.append((self.L - 1, hips, mean_w, goal))
-                if g.heading is not None:
-                    h = g.heading - float(cond.yaw[b])  # canonical heading
-                    left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * self.hip_width
-                    terms.append((self.L - 1, hips, HEADING_WEIGHT * diff_w, HEADING_WEIGHT * left))
-            elif g.guide:
-                local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
-                terms.append((g.frame % self.L, lay.position_index(g.joint), torch.eye(3),
-                              torch.as_tensor(local, dtype=torch.float32)))
-            if g.pelvis_z:  # seated frames: the pelvis at its height above the seat (canonical z = world z)
-                frames = torch.as_tensor([f % self.L for f, _ in g.pelvis_z], dtype=torch.long)
-                z = torch.as_tensor([h for _, h in g.pelvis_z], dtype=torch.float32)
-                terms.append((frames, lay.position_index(PELVIS, (2,)), HEIGHT_WEIGHT * torch.eye(len(z)),
-                              HEIGHT_WEIGHT * z))
-            out.append(terms)
-        return out
+    def _terms(self, cond: EpisodeCondition, goals: list[Goal]) -> list[GuidanceTerm]:
+        """The configured guidance terms (``SamplerConfig.guidance``) that act in this episode."""
+        return build_terms(self.config.guidance, GuidanceInputs(cond, tuple(goals), self.layout, self.L, self.k,
+                                                                self.hip_width, self.sdf))
 
-    def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, targets, generator,
-                       cond: EpisodeCondition | None = None) -> torch.Tensor:
+    def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, terms: list[GuidanceTerm],
+                       generator, cond: EpisodeCondition) -> torch.Tensor:
         """Respaced DDIM (``GaussianDiffusion.step``) with spatial guidance (OmniControl, Xie et al.
         2024, "spatial guidance"): a sparse inpainted goal (2 of L x F entries) is weakly followed, so
-        after each step x_{t-1} moves against the gradient of the squared distance (m^2) between the
-        body's predicted x0 at the goal frame and the goal: x_{t-1} <- x_{t-1} - s grad_{x_t}."""
+        after each step x_{t-1} moves against the gradient of the summed costs (m^2) of the
+        guidance ``terms`` on the body's predicted x0: x_{t-1} <- x_{t-1} - s grad_{x_t}, ``goal_iters``
+        updates of step size s = ``goal_guidance`` per step."""
         d = self.diffusion
         B, L, F = given.shape
         mean = torch.as_tensor(self.norm.mean, dtype=torch.float32)
         std = torch.as_tensor(self.norm.std, dtype=torch.float32)
         x = torch.randn((B, L, F), generator=generator, dtype=torch.float32).to(self.device)
-        if self.sdf is not None and cond is not None:  # canonical -> world of the new frames' joints
-            c, s_ = np.cos(cond.yaw), np.sin(cond.yaw)
-            Rt = torch.as_tensor(np.stack([np.stack([c, s_, 0 * c], -1), np.stack([-s_, c, 0 * c], -1),
-                                           np.stack([0 * c, 0 * c, 1 + 0 * c], -1)], 1), dtype=torch.float32)
-            org = torch.as_tensor(cond.origin, dtype=torch.float32)
+        rotation, origin = canonical_to_world(cond)
         ts = respaced_timesteps(d.steps, self.config.steps).tolist()
         for i, t_i in enumerate(ts):
             x = torch.where(mask, given, x)
@@ -274,15 +224,10 @@ class EpisodeSampler:
                     xg = (x - grad).detach().requires_grad_(True)
                     out = model_fn(xg, t, mask=mask)
                     x0_hat, _ = d.x0_and_eps(out, t, xg)
+                    prediction = Prediction(x0_hat, mean, std, self.k, rotation, origin)
                     loss = xg.new_zeros(())
-                    for b, terms in enumerate(targets):
-                        for f, cols, W, target in terms:
-                            pred = W @ (x0_hat[b, f, cols] * std[cols] + mean[cols])
-                            loss = loss + ((pred - target) ** 2).sum()
-                    if self.sdf is not None and cond is not None:
-                        pos = (x0_hat[:, self.k:, :NUM_JOINTS * 3] * std[:NUM_JOINTS * 3] + mean[:NUM_JOINTS * 3])
-                        pos = rearrange(pos, "b l (j c) -> b l j c", c=3) @ Rt[:, None] + org[:, None, None]
-                        loss = loss + PENETRATION_WEIGHT * penetration_loss(self.sdf, pos)
+                    for term in terms:
+                        loss = loss + term.loss(prediction)
                     g, = torch.autograd.grad(loss, xg, allow_unused=True) if loss.requires_grad else (None,)
                     if g is None:
                         break
@@ -306,20 +251,3 @@ class EpisodeSampler:
             return guided(x, t, mask=mask, **cond)
         return fn
 
-
-def _attach_pinned_pelvis(world: np.ndarray, goals: list[Goal]) -> np.ndarray:
-    """The pinned pelvis x, y at the last frame is the goal, not necessarily where the generated
-    body is (a model that lags leaves it torn from the hips; that frame would become the next
-    episode's context). Put it back on the body: the last frame's pelvis keeps the previous
-    frame's offset from the hip midpoint (the goal error is then measured on the body)."""
-    hips = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
-    for b, g in enumerate(goals):
-        if g.joint == "pelvis":
-            mid = world[b][:, hips].mean(axis=1)  # (L, 3)
-            world[b, -1, PELVIS, :2] = mid[-1, :2] + world[b, -2, PELVIS, :2] - mid[-2, :2]
-    return world
-
-
-def pelvis_of(joints: np.ndarray) -> np.ndarray:
-    """(..., 24, 3) -> (..., 3) pelvis position."""
-    return joints[..., JOINT_INDEX["pelvis"], :]

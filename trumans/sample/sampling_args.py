@@ -1,63 +1,106 @@
-"""Command-line switches of the sampling-time cleanup and guidance steps, shared by
-``trumans sample`` and ``trumans eval synthesis`` (one place, the same defaults as ``SamplerConfig``)."""
+"""Command-line switches of the sampler, shared by ``trumans sample`` and ``trumans eval synthesis``.
+
+Every default comes from ``SamplerConfig`` (one place). The switches of the guidance terms and of
+the cleanup steps are generated from their tables (``trumans.sample.guidance.terms.TERMS``,
+``trumans.sample.cleanup.pipeline.STEPS``): ``--no-<flag>`` turns one off (``--no-seat-guidance``,
+``--no-foot-cleanup``, ...), a step's ``option`` is ``--<flag> VALUE`` (``--seam-blend FRAMES``), and
+``--set PATH=VALUE`` reaches any other parameter (``--set cleanup.foot.blend=4``).
+"""
 from __future__ import annotations
 
 import argparse
+import json
 
-__all__ = ["add_guidance_arguments", "add_postprocess_arguments", "postprocess_kwargs", "GOAL_GUIDANCE", "GOAL_ITERS",
-           "CFG_SCALES"]
+__all__ = ["add_guidance_arguments", "add_postprocess_arguments", "postprocess_kwargs", "sampler_config"]
 
-# The default goal guidance: three updates a step of size 20. One update of size 80 is ~3x faster
-# (one backward pass a step instead of three) and met every target on the 6 evaluation rooms, but
-# left the default room's body 9.4 cm into the chair at a sit-down (docs/sampling_log.md, sampling speed).
-GOAL_GUIDANCE = 20.0
-GOAL_ITERS = 3
-# classifier-free guidance scales (scene, action) of the sampler; 1 = plain conditional. Action
-# guidance 2 raised action accuracy 0.78 -> 0.85 and lowered fid_matched 21.8 -> 18.5 on 5 plan
-# seeds, at ~1.5x the sampling time and rougher seams (jerk ratio 1.24 -> 1.46; docs/sampling_log.md)
-CFG_SCALES = (1.0, 2.0)
+SET_ROOTS = ("guidance", "cleanup")  # the sections --set reaches; the sampler's other fields have their own flags
 
 
 def add_guidance_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--goal-guidance", type=float, default=GOAL_GUIDANCE,
-                   help="spatial guidance step pulling the body onto each episode's goal (0 = inpainting only; "
-                        f"default {GOAL_GUIDANCE:g})")
-    p.add_argument("--goal-iters", type=int, default=GOAL_ITERS,
-                   help=f"guidance updates per denoising step, each a backward pass (default {GOAL_ITERS})")
-    p.add_argument("--guidance", type=float, nargs=2, default=CFG_SCALES, metavar=("SCENE", "ACTION"),
-                   help="classifier-free guidance scales of the scene and action conditions (1 = plain conditional; "
-                        f"default {CFG_SCALES[0]:g} {CFG_SCALES[1]:g})")
-
-
-def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
     from trumans.sample.sampler import SamplerConfig
 
     d = SamplerConfig()
-    g = p.add_argument_group("sampling-time cleanup (on by default)")
-    g.add_argument("--no-foot-cleanup", dest="foot_cleanup", action="store_false",
-                   help="keep the network's feet (no foot locks, floor or leg IK; sample/foot_cleanup.py)")
-    g.add_argument("--no-support-lift", dest="support_lift", action="store_false",
-                   help="keep the pelvis where the network put it after the projection onto the body's bones (the feet "
-                        "then sink and the foot cleanup bends the knees; sample/support_lift.py)")
-    g.add_argument("--no-seat-guidance", dest="seat_guidance", action="store_false",
-                   help="do not pull a seated pelvis to its seat's height (sample/seat_guidance.py)")
-    g.add_argument("--no-penetration-guidance", dest="penetration_guidance", action="store_false",
-                   help="do not push the joints out of the scene (sample/penetration_guidance.py)")
-    g.add_argument("--no-scene-pushout", dest="scene_pushout", action="store_false",
-                   help="do not move the body out of the scene after each episode (sample/scene_pushout.py)")
-    g.add_argument("--no-arm-pushout", dest="arm_pushout", action="store_false",
-                   help="keep a hand that is still in the scene after the body push-out (no arm IK; "
-                        "trumans/sample/cleanup/arm_pushout.py)")
-    g.add_argument("--no-reach-cleanup", dest="reach_cleanup", action="store_false",
-                   help="keep the network's arm at hand goals (no arm IK / lean onto handles and grasp points; "
-                        "trumans/sample/cleanup/reach.py)")
-    g.add_argument("--seam-blend", type=int, default=d.seam_blend, metavar="FRAMES",
-                   help=f"frames over which the jump at episode seams is blended out (0 = off; default {d.seam_blend})")
+    p.add_argument("--goal-guidance", type=float, default=d.goal_guidance,
+                   help="step size of the spatial guidance pulling the body onto each episode's goal (and the other "
+                        f"guidance terms; 0 = inpainting only; default {d.goal_guidance:g})")
+    p.add_argument("--goal-iters", type=int, default=d.goal_iters,
+                   help=f"guidance updates per denoising step, each a backward pass (default {d.goal_iters})")
+    p.add_argument("--guidance", type=float, nargs=2, default=(d.scene_scale, d.action_scale),
+                   metavar=("SCENE", "ACTION"),
+                   help="classifier-free guidance scales of the scene and action conditions (1 = plain conditional; "
+                        f"default {d.scene_scale:g} {d.action_scale:g})")
+
+
+def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
+    """One ``--no-<flag>`` per guidance term and cleanup step, the steps' options and ``--set``."""
+    from trumans.sample.cleanup.pipeline import STEPS
+    from trumans.sample.guidance.terms import TERMS
+    from trumans.sample.sampler import SamplerConfig
+
+    d = SamplerConfig()
+    g = p.add_argument_group("guidance terms and post-network cleanup (all on by default; "
+                             "trumans/sample/guidance, trumans/sample/cleanup/pipeline.py)")
+    for term in TERMS:
+        g.add_argument(f"--no-{term.flag}", dest=f"guidance_{term.name}", action="store_false",
+                       help=f"guidance term '{term.name}' off: do not {term.does}")
+    for step in STEPS:
+        g.add_argument(f"--no-{step.flag}", dest=f"cleanup_{step.name}", action="store_false",
+                       help=f"cleanup step '{step.name}' off: do not {step.does}")
+        if step.option is not None:
+            default = getattr(getattr(d.cleanup, step.name), step.option)
+            g.add_argument(f"--{step.flag}", dest=f"cleanup_{step.name}_{step.option}", type=type(default),
+                           default=default, metavar=step.option.upper(), help=f"{step.option_help} (default {default})")
+    g.add_argument("--set", dest="config_set", action="append", default=[], metavar="PATH=VALUE",
+                   help="set any parameter of a guidance term or cleanup step by its path, VALUE as JSON, e.g. "
+                        "--set cleanup.foot.blend=4 --set guidance.seat.weight=2 (repeatable; the paths: the "
+                        "'guidance' and 'cleanup' entries of the sampler config saved in every sampled npz)")
+
+
+def _set_entry(text: str) -> tuple[list[str], object]:
+    path, sep, value = text.partition("=")
+    keys = path.strip().split(".")
+    if not sep or len(keys) < 2 or keys[0] not in SET_ROOTS or not all(keys):
+        raise ValueError(f"--set must be PATH=VALUE with PATH under {' or '.join(SET_ROOTS)} (like "
+                         f"cleanup.foot.blend=4), got {text!r}")
+    try:
+        return keys, json.loads(value)
+    except json.JSONDecodeError:
+        raise ValueError(f"--set {path}: VALUE must be JSON (a number, true / false, \"text\", [..]), got {value!r}") \
+            from None
+
+
+def _overrides(args: argparse.Namespace) -> dict:
+    """The ``guidance`` / ``cleanup`` entries of a ``SamplerConfig`` dict set by the switches and ``--set``."""
+    from trumans.sample.cleanup.pipeline import STEPS
+    from trumans.sample.guidance.terms import TERMS
+
+    d: dict = {"guidance": {t.name: {"enabled": bool(getattr(args, f"guidance_{t.name}"))} for t in TERMS},
+               "cleanup": {s.name: {"enabled": bool(getattr(args, f"cleanup_{s.name}"))} for s in STEPS}}
+    for s in STEPS:
+        if s.option is not None:
+            d["cleanup"][s.name][s.option] = getattr(args, f"cleanup_{s.name}_{s.option}")
+    for text in getattr(args, "config_set", None) or []:
+        keys, value = _set_entry(text)
+        node = d
+        for k in keys[:-1]:
+            node = node.setdefault(k, {})
+            if not isinstance(node, dict):
+                raise ValueError(f"--set {text!r}: {k} is a value, not a section")
+        node[keys[-1]] = value
+    return d
 
 
 def postprocess_kwargs(args: argparse.Namespace) -> dict:
-    """The ``SamplerConfig`` fields set by the switches above."""
-    return {"foot_cleanup": bool(args.foot_cleanup), "seam_blend": int(args.seam_blend),
-            "seat_guidance": bool(args.seat_guidance), "penetration_guidance": bool(args.penetration_guidance),
-            "scene_pushout": bool(args.scene_pushout), "arm_pushout": bool(args.arm_pushout), "reach_cleanup": bool(args.reach_cleanup),
-            "support_lift": bool(args.support_lift)}
+    """The ``SamplerConfig`` fields set by the switches above: {'guidance': GuidanceConfig, 'cleanup': CleanupConfig}."""
+    from trumans.sample.sampler import SamplerConfig
+
+    c = SamplerConfig.from_dict(_overrides(args), where="the command line")
+    return {"guidance": c.guidance, "cleanup": c.cleanup}
+
+
+def sampler_config(args: argparse.Namespace):
+    """The ``SamplerConfig`` of a command line with ``--steps``, ``--eta`` and the arguments above."""
+    from trumans.sample.sampler import SamplerConfig
+
+    return SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
+                         goal_guidance=args.goal_guidance, goal_iters=args.goal_iters, **postprocess_kwargs(args))

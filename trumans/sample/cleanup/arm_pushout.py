@@ -40,18 +40,22 @@ __all__ = ["ArmPushConfig", "arm_push", "push_arms_out"]
 
 @dataclass(frozen=True)
 class ArmPushConfig:
-    """margin: m added to the core radii (as the body push-out's); spread: frames over which a push
-    eases in and out; iters: push-and-solve rounds."""
+    """enabled: run the arm push-out (it needs the scene); margin: m added to the core radii (as
+    the body push-out's); spread: frames over which a push eases in and out; iters: push-and-solve
+    rounds; samples: points along the shoulder-to-joint line searched for where it enters (step 1)."""
 
+    enabled: bool = True
     margin: float = 0.01
     spread: int = 3
     iters: int = 2
+    samples: int = 64
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.margin) and self.margin >= 0):
             raise ValueError(f"margin must be a finite number >= 0 m, got {self.margin}")
-        if self.spread < 1 or self.iters < 1:
-            raise ValueError(f"spread and iters must be >= 1, got {self.spread}, {self.iters}")
+        if self.spread < 1 or self.iters < 1 or self.samples < 2:
+            raise ValueError(f"spread and iters must be >= 1 and samples >= 2, got {self.spread}, {self.iters}, "
+                             f"{self.samples}")
 
 
 def arm_push(joints: np.ndarray, sdf: SceneSDF, margin: float = 0.01, samples: int = 64) -> np.ndarray:
@@ -104,7 +108,7 @@ def push_arms_out(joints: np.ndarray, lengths: np.ndarray, sdf: SceneSDF, fixed:
     free = np.ones((B, T, 2), bool) if keep is None else ~np.asarray(keep, bool)
     free[:, :fixed] = False
     for _ in range(config.iters):
-        push = np.where(free[..., None], arm_push(J, sdf, config.margin), 0.0)
+        push = np.where(free[..., None], arm_push(J, sdf, config.margin, config.samples), 0.0)
         if not push.any():
             break
         push = np.where(free[..., None], _envelope(push, fixed, config.spread), 0.0)

@@ -73,8 +73,14 @@ class FootCleanupConfig:
     reach and the shortened runs re-locked (0 = off; a run re-locked at its new mean can leave
     reach earlier, hence more than one pass); reach_slack: m beyond the reach that a lock may be and
     still hold (the IK's clamp lifts the foot off it by about as much; releasing every lock a few mm
-    out would leave both feet in the air more often)."""
+    out would leave both feet in the air more often); enabled: run the foot cleanup; scene: with
+    the scene's field, move foot targets and knees out of furniture (steps 4, 5); support_margin /
+    support_upright: ``support_foot``'s ``margin`` / ``upright``; scene_iters / scene_max_step:
+    ``out_of_scene``'s ``iters`` / ``max_step``; knee_max_angle / knee_steps: ``knee_out_of_scene``'s
+    ``max_angle`` / ``steps``."""
 
+    enabled: bool = True
+    scene: bool = True
     enter_height: float = 0.06
     exit_height: float = 0.10
     enter_speed: float = 0.35
@@ -88,8 +94,19 @@ class FootCleanupConfig:
     lock_at_mean: bool = True
     reach_passes: int = 2
     reach_slack: float = 0.02
+    support_margin: float = 0.02
+    support_upright: float = 0.8
+    scene_iters: int = 2
+    scene_max_step: float = 0.15
+    knee_max_angle: float = float(np.pi / 3)
+    knee_steps: int = 12
 
     def __post_init__(self) -> None:
+        if not (self.support_margin >= 0 and self.support_upright >= 0 and self.scene_max_step > 0
+                and self.scene_iters >= 1 and self.knee_steps >= 1 and 0 <= self.knee_max_angle <= np.pi):
+            raise ValueError(f"need support_margin, support_upright >= 0, scene_max_step > 0, scene_iters, knee_steps "
+                             f">= 1 and knee_max_angle in [0, pi], got {self.support_margin}, {self.support_upright}, "
+                             f"{self.scene_max_step}, {self.scene_iters}, {self.knee_steps}, {self.knee_max_angle}")
         if not 0 <= self.enter_height <= self.exit_height:
             raise ValueError(f"need 0 <= enter_height <= exit_height, got {self.enter_height}, {self.exit_height}")
         if not 0 <= self.enter_speed <= self.exit_speed:
@@ -369,7 +386,8 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
     if config.support:
         l, r = LEGS["left"], LEGS["right"]
         leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
-        contact = support_foot(contact, J, float(leg), fps, fixed, speed_weight=config.support_speed_weight)
+        contact = support_foot(contact, J, float(leg), fps, fixed, margin=config.support_margin,
+                               upright=config.support_upright, speed_weight=config.support_speed_weight)
     for s, (hip, knee, ankle, toe) in enumerate(LEGS.values()):
         c = contact[..., s]
         h = _foot_height(J, ankle, toe)  # (B, T)
@@ -392,13 +410,15 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
         toe_off = J[:, :, toe] - J[:, :, ankle]
         if sdf is not None:
             target[:, fixed:] = out_of_scene(target[:, fixed:], toe_off[:, fixed:], sdf,
-                                             (float(JOINT_CORE_RADIUS[ankle]), float(JOINT_CORE_RADIUS[toe])), ~c[:, fixed:])
+                                             (float(JOINT_CORE_RADIUS[ankle]), float(JOINT_CORE_RADIUS[toe])), ~c[:, fixed:],
+                                             config.scene_iters, config.scene_max_step)
         new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
                                                  float(lengths[knee]), float(lengths[ankle]))
         if sdf is not None:  # a knee the re-solve bent into furniture turns outward
             other = LEGS["right" if s == 0 else "left"][0]
             new_knee[:, fixed:] = knee_out_of_scene(J[:, fixed:, hip], new_knee[:, fixed:], new_ankle[:, fixed:],
-                                                    J[:, fixed:, hip] - J[:, fixed:, other], sdf, float(JOINT_CORE_RADIUS[knee]))
+                                                    J[:, fixed:, hip] - J[:, fixed:, other], sdf, float(JOINT_CORE_RADIUS[knee]),
+                                                    config.knee_max_angle, config.knee_steps)
         solve = (np.abs(target - J[:, :, ankle]).max(-1) > 1e-9)[..., None]  # frames without a correction keep their leg
         J[:, :, knee] = np.where(solve, new_knee, J[:, :, knee])
         J[:, :, ankle] = np.where(solve, new_ankle, J[:, :, ankle])

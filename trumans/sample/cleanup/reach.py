@@ -54,17 +54,23 @@ PELVIS, SPINE1, NECK = JOINT_INDEX["pelvis"], JOINT_INDEX["spine1"], JOINT_INDEX
 
 @dataclass(frozen=True)
 class ReachCleanupConfig:
-    """ramp_in / ramp_out: seconds over which the correction fades in before a grasp / out after a
-    release; max_lean: the largest turn of the upper body toward an out-of-reach target, rad;
-    max_tilt: the lean stops where the trunk (pelvis -> neck) is this far from vertical, rad
-    (50 degrees: the door's first grasp, ~0.75 m from where the plan stands the body, needs it)."""
+    """enabled: run the reach cleanup; ramp_in / ramp_out: seconds over which the correction fades
+    in before a grasp / out after a release (the schedule: ``reach_schedule``, ``release_weights``,
+    which the controller applies to the plan's hand phases); max_lean: the largest turn of the upper
+    body toward an out-of-reach target, rad; max_tilt: the lean stops where the trunk (pelvis ->
+    neck) is this far from vertical, rad (50 degrees: the door's first grasp, ~0.75 m from where the
+    plan stands the body, needs it); tilt_steps: grid steps of the search for that stop (``tilt_limit``)."""
 
+    enabled: bool = True
     ramp_in: float = 0.8
     ramp_out: float = 0.6
     max_lean: float = float(np.radians(60.0))
     max_tilt: float = float(np.radians(50.0))
+    tilt_steps: int = 64
 
     def __post_init__(self) -> None:
+        if self.tilt_steps < 1:
+            raise ValueError(f"tilt_steps must be >= 1, got {self.tilt_steps}")
         if not (self.ramp_in > 0 and self.ramp_out > 0):
             raise ValueError(f"ramp_in and ramp_out must be > 0 s, got {self.ramp_in}, {self.ramp_out}")
         if not (0 <= self.max_lean <= np.pi / 2 and 0 <= self.max_tilt <= np.pi / 2):
@@ -157,7 +163,8 @@ def clean_reach(joints: np.ndarray, lengths: np.ndarray, target: np.ndarray, wei
         l1, l2 = float(lengths[el]), float(lengths[wr])
         # 2. lean the upper body toward a goal beyond the arm's reach
         theta, axis = lean_angle(J[:, :, PELVIS], J[:, :, sh], goal, l1 + l2 - 1e-3, config.max_lean)
-        theta = tilt_limit(J[:, :, NECK] - J[:, :, PELVIS], axis, np.where(act, theta, 0.0), config.max_tilt)
+        theta = tilt_limit(J[:, :, NECK] - J[:, :, PELVIS], axis, np.where(act, theta, 0.0), config.max_tilt,
+                           config.tilt_steps)
         R = rodrigues(axis, theta)  # (B, T, 3, 3); identity where theta = 0
         O = J[:, :, PELVIS][:, :, None]
         turned = O + np.einsum("btij,btnj->btni", R, J[:, :, upper] - O)

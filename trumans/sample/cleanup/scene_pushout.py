@@ -36,25 +36,31 @@ __all__ = ["PushOutConfig", "seam_spline_basis", "push_out"]
 
 @dataclass(frozen=True)
 class PushOutConfig:
-    """knot: frames between spline knots; iters: Gauss-Newton iterations at most (the active set
-    settles in 3-5); weight: the
+    """enabled: run the push-out (it needs the scene); knot: frames between spline knots; iters:
+    Gauss-Newton iterations at most (the active set settles in 3-5); weight: the
     pull to no change against the squared depths; margin: m added to every radius (the field is
     sampled from voxels: half a voxel coarse); velocity / acceleration: weights of the offset's
     squared first / second differences (m per frame), so that it moves slowly and is nearly still
     at the episode's end (the next episode starts from it; without them the offset left episodes
-    at up to 6 cm per frame and raised the seam jerk)."""
+    at up to 6 cm per frame and raised the seam jerk); halvings: times a Gauss-Newton step is
+    halved at most until the objective does not rise; tolerance: m, the largest coefficient change
+    of a step below which the iterations stop (converged or stalled)."""
 
+    enabled: bool = True
     knot: int = 4
     iters: int = 8
     weight: float = 0.01
     margin: float = 0.01
     velocity: float = 3.0
     acceleration: float = 30.0
+    halvings: int = 6
+    tolerance: float = 1e-4
 
     def __post_init__(self) -> None:
-        if self.knot < 1 or self.iters < 1:
-            raise ValueError(f"knot and iters must be >= 1, got {self.knot}, {self.iters}")
-        for name in ("weight", "margin", "velocity", "acceleration"):
+        if self.knot < 1 or self.iters < 1 or self.halvings < 0:
+            raise ValueError(f"knot and iters must be >= 1 and halvings >= 0, got {self.knot}, {self.iters}, "
+                             f"{self.halvings}")
+        for name in ("weight", "margin", "velocity", "acceleration", "tolerance"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"{name} must be a finite number >= 0, got {v}")
@@ -84,7 +90,7 @@ def push_out(joints: np.ndarray, sdf: SceneSDF, fixed: int, config: PushOutConfi
     r = torch.as_tensor(push_radii(config.margin), dtype=torch.float32)
     if not (torch.relu(r - sdf(x)) > 0).any():
         return J.copy()
-    coef = _gauss_newton(x, sdf, r.numpy().astype(np.float64), basis, config)
+    coef = _gauss_newton(x, sdf, r.numpy().astype(np.float64), basis, config, config.halvings)
     delta = np.einsum("nm,bmc->bnc", basis, coef)
     out = np.array(J, dtype=np.float64, copy=True)
     out[:, seam + 1:] += delta[:, :, None]
@@ -157,6 +163,6 @@ def _gauss_newton(x: torch.Tensor, sdf: SceneSDF, r: np.ndarray, basis: np.ndarr
         depth = np.where(ok[:, None, None], t_depth, depth)
         g = np.where(ok[:, None, None, None], t_g, g)
         cost = np.where(ok, t_cost, cost)
-        if (np.abs(step) * (scale * ok)[:, None, None]).max() < 1e-4:  # m: converged (or stalled)
+        if (np.abs(step) * (scale * ok)[:, None, None]).max() < config.tolerance:  # m: converged (or stalled)
             break
     return coef

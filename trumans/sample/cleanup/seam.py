@@ -10,9 +10,23 @@ continues the context's velocity and the blend ends without a kink. Only new fra
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["blend_seam", "seam_weights"]
+__all__ = ["SeamConfig", "blend_seam", "seam_weights"]
+
+
+@dataclass(frozen=True)
+class SeamConfig:
+    """enabled: blend the seam jump out; frames: new frames over which it is blended (0 = off)."""
+
+    enabled: bool = True
+    frames: int = 3
+
+    def __post_init__(self) -> None:
+        if self.frames < 0:
+            raise ValueError(f"seam frames must be >= 0, got {self.frames}")
 
 
 def seam_weights(n: int, frames: int) -> np.ndarray:

@@ -17,20 +17,32 @@ IK then bends the longer legs down to the floor, as a taller person sits), eased
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT
 
 from trumans.sample.cleanup.common import smoothstep
 
-__all__ = ["SEATED_ACTIONS", "support_weights", "lowest_foot_height", "lift_onto_feet"]
+__all__ = ["SEATED_ACTIONS", "SupportLiftConfig", "support_weights", "lowest_foot_height", "lift_onto_feet"]
 
 SEATED_ACTIONS = ("sit", "lie", "lie_down", "get_up")  # the seat or bed carries the body (weight 0)
 
 
-def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...]) -> np.ndarray:
+@dataclass(frozen=True)
+class SupportLiftConfig:
+    """enabled: raise the body back onto its feet; seated_actions: the actions whose frames the
+    seat or bed carries (weight 0; ``support_weights``)."""
+
+    enabled: bool = True
+    seated_actions: tuple[str, ...] = SEATED_ACTIONS
+
+
+def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...],
+                    seated: tuple[str, ...] = SEATED_ACTIONS) -> np.ndarray:
     """labels (..., L, N_A) (0 off, 1 + progress on; columns ``vocabulary``) -> (..., L) in [0, 1]:
-    how much the feet carry the body on each frame (module doc)."""
+    how much the feet carry the body on each frame (module doc); ``seated``: the actions with weight 0."""
     labels = np.asarray(labels, dtype=np.float64)
     if labels.shape[-1] != len(vocabulary):
         raise ValueError(f"labels have {labels.shape[-1]} actions but the vocabulary {len(vocabulary)}")
@@ -43,7 +55,7 @@ def support_weights(labels: np.ndarray, vocabulary: list[str] | tuple[str, ...])
     def progress(name: str) -> np.ndarray:
         return np.clip(labels[..., vocab.index(name)] - 1.0, 0.0, 1.0)
 
-    for name in SEATED_ACTIONS:
+    for name in seated:
         w[on(name)] = 0.0
     if "sit_down" in vocab:
         w = np.where(on("sit_down"), 1.0 - smoothstep(progress("sit_down")), w)

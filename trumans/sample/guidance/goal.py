@@ -1,0 +1,69 @@
+"""Goal term of the sampler's guidance (OmniControl, Xie et al. 2024, "spatial guidance").
+
+An inpainted goal (2 of L x F entries) is followed only weakly, so the guidance pulls the predicted
+body onto it: for a pelvis goal the hip midpoint's x, y at the last frame onto the subgoal and, with
+a goal heading (sitting down), the hip line (left minus right hip, ``hip_width`` long) onto the
+heading's left direction, weighted ``heading_weight`` against the position; for a hand goal that
+joint's 3D position at its frame. Costs are squared distances in metres in the episode's canonical
+frame. Goals with ``guide=False`` are inpainted only.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from trumans.model.conditions import subgoal_to_canonical
+
+from trumans.sample.guidance.base import GuidanceInputs, Prediction
+
+__all__ = ["GoalTermConfig", "GoalTerm"]
+
+
+@dataclass(frozen=True)
+class GoalTermConfig:
+    """enabled: pull the body onto its episode goal; heading_weight: the hip-line (heading) term
+    against the position term."""
+
+    enabled: bool = True
+    heading_weight: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.heading_weight) and self.heading_weight >= 0):
+            raise ValueError(f"heading_weight must be a finite number >= 0, got {self.heading_weight}")
+
+
+class GoalTerm:
+    """sum over samples and targets of |W x0[frame, columns] - target|^2 (module doc)."""
+
+    def __init__(self, targets: list[tuple[int, int, list[int], torch.Tensor, torch.Tensor]]) -> None:
+        self.targets = targets  # (sample, frame, feature columns, W, target)
+
+    @classmethod
+    def build(cls, config: GoalTermConfig, inputs: GuidanceInputs) -> GoalTerm | None:
+        """The term for ``inputs``' guided goals, or None when none is guided."""
+        lay, L, cond = inputs.layout, inputs.L, inputs.cond
+        hips = lay.position_index("left_hip", (0, 1)) + lay.position_index("right_hip", (0, 1))
+        mean_w = torch.tensor([[0.5, 0, 0.5, 0], [0, 0.5, 0, 0.5]])
+        diff_w = torch.tensor([[1.0, 0, -1.0, 0], [0, 1.0, 0, -1.0]])
+        targets = []
+        for b, g in enumerate(inputs.goals):
+            if g.guide and g.joint == "pelvis":
+                goal = torch.as_tensor(cond.subgoal_canonical()[b, :2], dtype=torch.float32)
+                targets.append((b, L - 1, hips, mean_w, goal))
+                if g.heading is not None:
+                    h = g.heading - float(cond.yaw[b])  # canonical heading
+                    left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * inputs.hip_width
+                    targets.append((b, L - 1, hips, config.heading_weight * diff_w, config.heading_weight * left))
+            elif g.guide:
+                local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
+                targets.append((b, g.frame % L, lay.position_index(g.joint), torch.eye(3),
+                                torch.as_tensor(local, dtype=torch.float32)))
+        return cls(targets) if targets else None
+
+    def loss(self, prediction: Prediction) -> torch.Tensor:
+        loss = prediction.x0.new_zeros(())
+        for b, f, cols, W, target in self.targets:
+            loss = loss + ((W @ prediction.features(b, f, cols) - target) ** 2).sum()
+        return loss

@@ -9,8 +9,8 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from trumans.track.objects import dof_limits
-from trumans.sample.carry import CarryConfig, dof_value, initial_motion, object_tracks, optimise_motion, \
+from trumans.track.objects import dof_limits, dof_value
+from trumans.sample.carry import CarryConfig, initial_motion, object_tracks, optimise_motion, \
     plan_interactions
 from trumans.sample.carry_metrics import carry_figures
 from trumans.sample.carry_plan import GRASP_SPAN, OPEN_FRACTION, articulated_pose, surface_point

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from trumans.sample.carry import dof_value
+from trumans.track.objects import dof_value
 from trumans.track.interactions import AttachedContact, attach_contact, attach_detach, clip_to_limits, drive_contact
 from trumans.track.object_choice import ObjectQueries
 from trumans.scenes.procedural import make_room

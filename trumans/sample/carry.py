@@ -26,14 +26,14 @@ import numpy as np
 import torch
 
 from trumans.scenes.raycast import to_o3d_scene
-from trumans.track.objects import (dof_limits, free_motion, hinge_motion, one_hand_motion, rotation_about_axis,
-                                  rotation_angles, signed_angle)
+from trumans.track.objects import (dof_limits, dof_value, free_motion, hinge_frame, hinge_motion, one_hand_motion,
+                                   rotation_about_axis, rotation_angles)
 from trumans.rotations import rodrigues, skew, unit
 from trumans.sequence import ObjectTrack
 from trumans.skeleton import JOINT_INDEX
 
 __all__ = ["CarryConfig", "Interaction", "hand_track", "plan_interactions", 
-           "dof_value", "initial_motion", "optimise_motion", "put_down_pose", "object_tracks"]
+           "initial_motion", "optimise_motion", "put_down_pose", "object_tracks"]
 
 InteractionKind = Literal["carry", "open", "close"]
 
@@ -127,19 +127,6 @@ def plan_interactions(phase: np.ndarray, phases: list, joints: np.ndarray,
     return sorted(out, key=lambda it: it.start), missed
 
 
-def _hinge_frame(obj) -> tuple[np.ndarray, np.ndarray]:
-    R, t = obj.pose[:3, :3], obj.pose[:3, 3]
-    return R @ obj.axis, R @ obj.hinge_point + t
-
-
-def dof_value(obj, pose: np.ndarray) -> float:
-    """Hinge angle (rad) / slide travel (m) of ``pose`` (4, 4) relative to the scene pose."""
-    if obj.dof == "hinge":
-        axis, _ = _hinge_frame(obj)
-        return float(signed_angle(obj.pose[:3, 0], pose[:3, 0], axis))
-    return float((pose[:3, 3] - obj.pose[:3, 3]) @ (obj.pose[:3, :3] @ obj.axis)) if obj.axis is not None else 0.0
-
-
 def initial_motion(obj, pose0: np.ndarray, hand_pts: np.ndarray, hand_rot: np.ndarray) -> np.ndarray:
     """(n, 4, 4) world poses driven by the hand from ``pose0`` (iReplica supp. §10, reused from
     ``trumans.track.objects``), clipped to the dof limits. hand_pts (n, 2, 3), hand_rot (n, 3, 3)."""
@@ -147,7 +134,7 @@ def initial_motion(obj, pose0: np.ndarray, hand_pts: np.ndarray, hand_rot: np.nd
     if obj.dof == "free":
         return free_motion(hand_rot, mid) @ pose0
     if obj.dof == "hinge":
-        axis, point = _hinge_frame(obj)
+        axis, point = hinge_frame(obj)
         lo, hi = dof_limits(obj)
         M = hinge_motion(mid, point, axis)
         angle = np.clip(dof_value(obj, pose0) + rotation_angles(M, axis), lo, hi)
@@ -198,7 +185,7 @@ def optimise_motion(obj, init: np.ndarray, hand_pts: np.ndarray, fix_end: bool,
             x = x * free
             return torch.linalg.matrix_exp(skew(x[:, :3])) @ R0, t0 + x[:, 3:]
     elif obj.dof == "hinge":
-        axis, point = (torch.from_numpy(v) for v in _hinge_frame(obj))
+        axis, point = (torch.from_numpy(v) for v in hinge_frame(obj))
         base = torch.from_numpy(obj.pose)
         a0 = torch.from_numpy(np.array([dof_value(obj, p) for p in init]))
         params = torch.zeros(n, 1, dtype=torch.float64, requires_grad=True)

@@ -23,7 +23,7 @@ from trumans.rotations import axis_angle_to_matrix
 from trumans.skeleton import JOINT_INDEX
 
 __all__ = [
-    "dof_limits", "rotation_angles",
+    "dof_limits", "dof_value", "hinge_frame", "rotation_angles",
     "signed_angle",
     "hand_points",
     "two_hand_motion",
@@ -148,3 +148,17 @@ def rotation_angles(M: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """Rotation angles (n,) about ``axis`` of (n, 4, 4) motions that rotate about it."""
     ref = np.cross(axis, [1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.cross(axis, [0.0, 1.0, 0.0])
     return np.unwrap(signed_angle(np.broadcast_to(ref, (len(M), 3)), M[:, :3, :3] @ ref, axis))
+
+
+def hinge_frame(obj) -> tuple[np.ndarray, np.ndarray]:
+    """A hinged object's world (axis (3,), point (3,)) at its scene pose."""
+    R, t = obj.pose[:3, :3], obj.pose[:3, 3]
+    return R @ obj.axis, R @ obj.hinge_point + t
+
+
+def dof_value(obj, pose: np.ndarray) -> float:
+    """Hinge angle (rad) / slide travel (m) of ``pose`` (4, 4) relative to the scene pose."""
+    if obj.dof == "hinge":
+        axis, _ = hinge_frame(obj)
+        return float(signed_angle(obj.pose[:3, 0], pose[:3, 0], axis))
+    return float((pose[:3, 3] - obj.pose[:3, 3]) @ (obj.pose[:3, :3] @ obj.axis)) if obj.axis is not None else 0.0

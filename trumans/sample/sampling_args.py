@@ -94,7 +94,7 @@ def postprocess_kwargs(args: argparse.Namespace) -> dict:
     """The ``SamplerConfig`` fields set by the switches above: {'guidance': GuidanceConfig, 'cleanup': CleanupConfig}."""
     from trumans.sample.sampler import SamplerConfig
 
-    c = SamplerConfig.from_dict(_overrides(args), where="the command line")
+    c = SamplerConfig.from_dict(_overrides(args), where="config")
     return {"guidance": c.guidance, "cleanup": c.cleanup}
 
 

@@ -372,3 +372,13 @@ def test_post_steps_follow_the_options_and_the_category():
     assert RefineOptions(hinge=False, hand_link=False).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"]
     assert RefineOptions(rest_pooling=False, hinge=True).post_steps("door") == ["body_drift", "foot_lock"]  # the hinge needs pooled rests
     assert RefineOptions(body_drift=False, foot_lock=False, rest_pooling=False).post_steps("door") == []
+
+
+def test_a_track_never_observed_is_refused_not_invented(tmp_path):
+    filt = HOIFilter.load(_ckpt(tmp_path / "f.pt"))
+    with pytest.raises(ValueError, match="body is missing \\(NaN\\) on every frame"):
+        filt.refine_frames(np.full((40, FRAME_DIM), np.nan, np.float32), 30.0, "box")
+    _, f = _tracked(T=40)
+    f[:, 216:225] = np.nan  # the object is never seen
+    with pytest.raises(ValueError, match="object's pose is missing \\(NaN\\) on every frame"):
+        filt.refine_frames(f, 30.0, "box")

@@ -18,7 +18,7 @@ import torch
 
 from trumans.refine.body_drift import remove_body_drift
 from trumans.refine.filter import FilterModel, filter_window, category_indices, configure_skip, prepare_windows, sample_x0
-from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, fill_missing, frames_from_sequence, from_frame,
+from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
 from trumans.refine.object_rest import RestConfig, pool_rest
 from trumans.refine.foot_lock import lock_feet
@@ -160,6 +160,12 @@ class HOIFilter:
             raise ValueError(f"a tracked sequence needs at least 2 frames, got {T}")
         if not np.isfinite(fps) or fps <= 0:
             raise ValueError(f"fps must be a positive number, got {fps}")
+        if not np.isfinite(f[:, JOINTS].reshape(T, -1, 3)).all(-1).any():  # nothing to refine from
+            raise ValueError("the tracked body is missing (NaN) on every frame; the filter fills gaps from what was "
+                             "tracked around them - give a sequence with observed frames")
+        if not np.isfinite(f[:, OBJ_T]).all(-1).any() or not np.isfinite(f[:, OBJ_R]).all(-1).any():
+            raise ValueError("the tracked object's pose is missing (NaN) on every frame; give at least one observed "
+                             "pose (or refine without that object)")
         if drop_failures:  # at the input's rate: resampling would blur exact repeats and blend flipped with unflipped
             f = unflip_object(drop_frozen_frames(f))
         # model frames from time 0 over the whole duration (the last may end just past it)

@@ -107,3 +107,28 @@ def test_a_npy_header_declaring_more_than_the_file_holds_is_refused_before_loadi
         check_npy_size(bomb)
     with pytest.raises(ValueError, match="declares"):
         read_release(tmp_path)
+
+
+def test_release_objects_sharing_a_name_are_all_kept_and_nan_data_is_refused(tmp_path):
+    import json as _json
+
+    folder = tmp_path / "rel"
+    _write_release(folder)
+    flag = np.load(folder / "object_flag.npy")
+    flag[:, 1] = 0  # the second object is present too
+    np.save(folder / "object_flag.npy", flag)
+    (folder / "object_names.json").write_text(_json.dumps(["chair", "chair"]))
+    rel = read_release(folder, action_names=["a", "b", "c"])
+    objs = rel.sequences[0].objects
+    assert sorted(objs) == ["chair", "chair_1"] and {o.category for o in objs.values()} == {"chair"}
+
+    mat = np.load(folder / "object_mat.npy")
+    mat[5, 0, 0, 3] = np.nan
+    np.save(folder / "object_mat.npy", mat)
+    with pytest.raises(ValueError, match="object_mat.npy holds NaN or inf for object 'chair' at frame 5"):
+        read_release(folder, action_names=["a", "b", "c"])
+    labels = np.load(folder / "action_label.npy")
+    labels[3, 1] = np.nan
+    np.save(folder / "action_label.npy", labels)
+    with pytest.raises(ValueError, match="action_label.npy holds NaN or inf \\(first at frame 3, column 1\\)"):
+        read_release(folder, action_names=["a", "b", "c"])

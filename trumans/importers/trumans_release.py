@@ -122,6 +122,10 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
             action_names = [f"action_{i:02d}" for i in range(actions.shape[1])]
         if len(action_names) != actions.shape[1]:
             raise ValueError(f"{len(action_names)} action names given for {actions.shape[1]} label columns")
+        if not np.isfinite(actions).all():
+            t, a = np.argwhere(~np.isfinite(actions))[0]
+            raise ValueError(f"action_label.npy holds NaN or inf (first at frame {t}, column {a}); labels must be "
+                             f"finite (0 off, 1 + progress on)")
     scene_flag = _load(folder, "scene_flag.npy", required=False)
     if scene_flag is not None:
         if scene_flag.shape != (n,) or scene_flag.dtype.kind not in "iu":
@@ -149,6 +153,19 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
         names_file = folder / "object_names.json"
         obj_names = (_read_names(names_file, obj_flag.shape[1]) if names_file.is_file()
                      else [f"object_{i:02d}" for i in range(obj_flag.shape[1])])
+        obj_categories = list(obj_names)  # the release names an object by its category
+        if len(set(obj_names)) < len(obj_names):  # a sequence keys its objects by name: one would be lost
+            seen: dict[str, int] = {}
+            for k, nm in enumerate(obj_names):
+                seen[nm] = seen.get(nm, 0) + 1
+                if seen[nm] > 1:
+                    obj_names[k] = f"{nm}_{seen[nm] - 1}"
+        if obj_flag.dtype.kind not in "iu":
+            raise ValueError(f"object_flag.npy must hold integers (-1 absent, else the row of object_mat.npy), "
+                             f"got {obj_flag.dtype}")
+        if obj_mat.ndim != 4 or obj_flag.max(initial=-1) >= obj_mat.shape[1]:
+            raise ValueError(f"object_flag.npy refers to row {int(obj_flag.max())} of object_mat.npy, which holds "
+                             f"{obj_mat.shape[1] if obj_mat.ndim == 4 else '?'} per frame")
 
     C = Y_UP_TO_Z_UP
     joints_z = joints.astype(np.float64) @ C.T
@@ -161,12 +178,16 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
                 present = flags[:, o] >= 0
                 idx = np.where(present, flags[:, o], 0)
                 M = obj_mat[np.arange(s, e), idx].astype(np.float64)  # (T, 4, 4), row-vector form
+                if not np.isfinite(M[present]).all():
+                    t = s + int(np.flatnonzero(~np.isfinite(M).all((1, 2)) & present)[0])
+                    raise ValueError(f"object_mat.npy holds NaN or inf for object {obj_names[o]!r} at frame {t}, "
+                                     f"where object_flag.npy says it is present")
                 pose = np.tile(np.eye(4), (e - s, 1, 1))
                 pose[:, :3, :3] = C @ np.swapaxes(M[:, :3, :3], 1, 2) @ C.T  # column-vector, z-up
                 pose[:, :3, 3] = M[:, :3, 3] @ C.T
                 first = int(np.argmax(present))
                 pose[~present] = pose[first]  # absent frames hold the first seen pose
-                objects[obj_names[o]] = ObjectTrack(pose=pose.astype(np.float32), category=obj_names[o])
+                objects[obj_names[o]] = ObjectTrack(pose=pose.astype(np.float32), category=obj_categories[o])
         seq = Sequence(
             joints=joints_z[s:e].astype(np.float32),
             fps=fps,

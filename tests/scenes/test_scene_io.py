@@ -129,3 +129,21 @@ def test_import_scene_file_flattened(tmp_path):
         import_mesh(tmp_path / "missing.obj")
     with pytest.raises(ValueError, match="up must be"):
         import_mesh(tmp_path / "two.glb", up="x")
+
+
+def test_scene_mesh_paths_stay_inside_the_scene_folder(tmp_path):
+    import json as _json
+    import os
+
+    room = tmp_path / "room"
+    save_scene(make_scene(), room)
+    doc = _json.loads((room / "scene.json").read_text())
+    outside = tmp_path / "secret.ply"
+    trimesh.creation.box((1, 1, 1)).export(outside)
+    os.symlink(outside, room / "link.ply")
+    for bad in (str(outside), "../secret.ply", "link.ply", "../nowhere.ply"):
+        d = _json.loads(_json.dumps(doc))
+        d["static"][0]["mesh"] = bad
+        (room / "scene.json").write_text(_json.dumps(d))
+        with pytest.raises(ValueError, match="leaves the scene folder"):
+            load_scene(room)

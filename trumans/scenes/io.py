@@ -225,7 +225,13 @@ def _entries(doc: dict, key: str, path: Path) -> list[dict]:
 
 
 def _load_mesh(folder: Path, rel: str, where: str) -> trimesh.Trimesh:
+    """The mesh ``rel`` of a scene folder; a path that leaves the folder (absolute, ``..``, a link out)
+    is refused before anything is read, and the message never says whether such a path exists."""
     path = folder / rel
+    root = folder.resolve()
+    if Path(rel).is_absolute() or not path.resolve().is_relative_to(root):
+        raise ValueError(f"{where}: mesh path {rel!r} leaves the scene folder; scene.json mesh paths are relative "
+                         f"to the folder and stay inside it (copy the mesh into the folder)")
     if not path.is_file():
         raise FileNotFoundError(f"{where}: mesh file {path} is missing")
     mesh = import_mesh(path)

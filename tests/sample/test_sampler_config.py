@@ -28,7 +28,6 @@ from trumans.sample.rollout import start_context
 from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
 from trumans.sample.sampling_args import add_postprocess_arguments, postprocess_kwargs, sampler_config
 from trumans.sample.scene_sdf import SceneSDF
-from trumans.scenes.scene_grids import SceneGrids
 from trumans.sequence import load_sequence
 
 from helpers import SAMPLE_VOCAB, box_room, tiny_checkpoint

@@ -1,7 +1,8 @@
 """Long motions: a plan rolled out episode by episode, as a batch or as a stream (TRUMANS §4.1, §5.4).
 
-``sample_plan`` runs the closed-loop controller (``trumans.sample.controller``) and the episode sampler
-(``trumans.sample.sampler``) until the plan is done and returns every frame. ``stream`` is the real-time
+``sample_plan`` runs the closed-loop controller (``trumans.sample.controller``), the episode sampler
+(``trumans.sample.sampler``) and the cleanup after it (``trumans.sample.cleanup.pipeline``) episode by
+episode until the plan is done and returns every frame. ``stream`` is the real-time
 form: a Python generator that yields new frames as soon as they are made and accepts a new plan
 at any time through ``send``; after a new plan it commits 2, then 4, then 8 new frames per
 episode before going back to full episodes (the paper's incremental schedule, §5.4), so the body

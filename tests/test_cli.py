@@ -37,3 +37,13 @@ def test_seeds_outside_what_the_generators_take_are_clear_errors(capsys):
         assert console_main(["data", "synth", "--out", "unused", "--seed", seed]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--seed" in err[0] and ("[0, 4294967295]" in err[0] or "whole number" in err[0])
+
+
+def test_train_refuses_init_and_resume_together(tmp_path, capsys):
+    from trumans.cli import console_main
+
+    assert console_main(["train", "--data", str(tmp_path), "--out", str(tmp_path / "run"), "--init",
+                         str(tmp_path / "x.pt"), "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert "--init" in err and "--resume" in err and "give one of them" in err
+    assert not (tmp_path / "run").exists()

@@ -47,6 +47,9 @@ def run(args: argparse.Namespace) -> int:
     from trumans.train.loop import train
     from trumans.train.tasks import make_task
 
+    if args.init is not None and args.resume:
+        raise ValueError("--init starts a new run from a checkpoint's weights and --resume continues the run in "
+                         "--out; give one of them")
     if args.threads is not None:
         if args.threads < 1:
             raise ValueError(f"--threads must be >= 1, got {args.threads}")

@@ -346,8 +346,9 @@ class Controller:
     """Closed-loop episode controls for compiled ``phases``; see the module doc.
 
     vocabulary: the model's action names; L, k: episode and transition frames; speed: walking
-    speed, m/s; fps: the model's frame rate; walkmap: the plan's walk map (None: subgoals are not
-    kept in line of sight)."""
+    speed, m/s; fps: the model's frame rate; reach: the reach cleanup's config, whose ramps schedule
+    the reach weights of the hand phases (the rollout passes ``SamplerConfig.cleanup.reach``);
+    walkmap: the plan's walk map (None: subgoals are not kept in line of sight)."""
 
     def __init__(self, phases: list[Phase], vocabulary: list[str], L: int, k: int, fps: float,
                  speed: float = 1.0, arrive_m: float = 0.25, reach: ReachCleanupConfig = ReachCleanupConfig(),
@@ -433,7 +434,6 @@ class Controller:
         labels = np.zeros((L, len(self.vocab)), np.float32)
         labels[:k] = prev_labels
         phase_of = np.full(L, -1, np.int64)
-        new = L - k
         step_m = self.speed / self.fps
         goal = hand_goal = None
         hand, hand_frame, guide, heading = "right_wrist", -1, True, None

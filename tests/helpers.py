@@ -59,12 +59,11 @@ def box_room() -> OccupancyGrid:
 
 def standing_body(T: int) -> np.ndarray:
     """(1, T, 24, 3) rest pose with the feet on the floor (lowest foot joint at its rest height)."""
-    from trumans.sample.cleanup.foot import LEGS
+    from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT
 
     rot = np.broadcast_to(np.eye(3), (T, 24, 3, 3)).copy()
     P, _ = forward_kinematics(rot, np.zeros((T, 3)), rest_offsets())
-    L, R = LEGS["left"], LEGS["right"]
-    low = min((P[0, [L[2], R[2]], 2] - 0.08).min(), (P[0, [L[3], R[3]], 2] - 0.04).min())
+    low = (P[0, list(FOOT_JOINTS), 2] - FOOT_REST_HEIGHT).min()
     P[..., 2] -= low
     return P[None]
 

@@ -15,7 +15,7 @@ from trumans.sample.cleanup.pipeline import STEPS, CleanupConfig, EpisodeBodies,
 from trumans.sample.cleanup.scene_pushout import PushOutConfig
 from trumans.sample.cleanup.seam import SeamConfig, blend_seam
 from trumans.sample.cleanup.support_lift import SupportLiftConfig
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 from trumans.skeleton import JOINT_INDEX
 
 from helpers import SAMPLE_VOCAB, box_room, standing_body

@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 import torch
 
-from trumans.sample.cleanup.foot import LEGS, FootCleanupConfig, clean_feet, foot_contacts, support_foot, two_bone_positions
+from trumans.ik.limb import two_bone_positions
+from trumans.sample.cleanup.foot import FootCleanupConfig, clean_feet, foot_contacts, support_foot
+from trumans.skeleton import LEG_CHAINS
 from trumans.sample.sampler import bone_lengths_of
 from trumans.eval.synthesis_metrics import floor_err_cm, foot_skate_near_floor_cm
 from trumans.skeleton import rest_offsets, forward_kinematics
@@ -16,7 +18,7 @@ FPS = 30.0
 def _sliding_planted_foot(T: int = 40) -> np.ndarray:
     """Standing body whose whole left leg slides 1 cm/frame forward and sinks 3 cm (a skating foot)."""
     J = standing_body(T)
-    left = list(LEGS["left"][1:])
+    left = list(LEG_CHAINS[0][1:])
     J[0, :, left, 0] += 0.01 * np.arange(T)[:, None]
     J[0, :, left, 2] -= 0.03
     return J  # the left shin and thigh are not rigid any more: the hip->knee bone changes length
@@ -36,7 +38,7 @@ def test_two_bone_positions_keeps_lengths_and_reaches():
 
 def test_contacts_have_hysteresis():
     J = np.repeat(standing_body(1), 30, axis=1)
-    ankle, toe = LEGS["left"][2:]
+    ankle, toe = LEG_CHAINS[0][2:]
     lift = np.r_[np.zeros(10), np.full(5, 0.08), np.full(5, 0.2), np.full(10, 0.08)]  # 0.08: between thresholds
     J[:, :, [ankle, toe], 2] += lift[:, None]
     c = foot_contacts(J, FPS)[0, :, 0]
@@ -48,7 +50,7 @@ def test_contacts_have_hysteresis():
 def test_clean_feet_pins_planted_foot_and_keeps_bones():
     J = standing_body(40)
     lengths = bone_lengths_of(J[0, 0])
-    ankle, toe = LEGS["left"][2:]
+    ankle, toe = LEG_CHAINS[0][2:]
     moved = J.copy()  # the whole body slides forward 6 cm/s and sinks 3 cm: both feet skate under the floor
     moved[..., 0] += 0.002 * np.arange(40)[:, None]
     moved[..., 2] -= 0.03
@@ -61,14 +63,14 @@ def test_clean_feet_pins_planted_foot_and_keeps_bones():
     np.testing.assert_allclose(low, 0.0, atol=1e-6)  # on the floor, not under it
     assert floor_err_cm(out[0])[1] < 1e-4
     assert foot_skate_near_floor_cm(out[0]) < 0.1
-    untouched = [j for j in range(24) if j not in LEGS["left"][1:] + LEGS["right"][1:]]
+    untouched = [j for j in range(24) if j not in LEG_CHAINS[0][1:] + LEG_CHAINS[1][1:]]
     np.testing.assert_array_equal(out[..., untouched, :], moved[..., untouched, :])
 
 
 def test_context_frames_are_fixed_and_seed_the_lock():
     J = standing_body(30)
     lengths = bone_lengths_of(J[0, 0])
-    ankle, toe = LEGS["right"][2:]
+    ankle, toe = LEG_CHAINS[1][2:]
     moved = J.copy()
     moved[:, 10:, [ankle, toe], 1] += 0.005 * np.arange(1, 21)[:, None]  # the new frames drift the planted foot
     out = clean_feet(moved, lengths, FPS, fixed=10)
@@ -79,7 +81,7 @@ def test_context_frames_are_fixed_and_seed_the_lock():
 def test_swing_foot_is_left_free_and_bad_input_raises():
     J = np.repeat(standing_body(1), 20, axis=1)
     lengths = bone_lengths_of(J[0, 0])
-    ankle, toe = LEGS["left"][2:]
+    ankle, toe = LEG_CHAINS[0][2:]
     J[:, :, [ankle, toe], 0] += 0.05 * np.arange(20)[:, None]  # 1.5 m/s, a step in the air
     J[:, :, [ankle, toe], 2] += 0.15
     out = clean_feet(J, lengths, FPS)
@@ -97,12 +99,12 @@ def _crouched(T: int) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     rot = np.broadcast_to(np.eye(3), (T, 24, 3, 3)).copy()
-    for (hip, knee, ankle, _), bend in zip(LEGS.values(), (1.0, 1.0)):
+    for (hip, knee, ankle, _), bend in zip(LEG_CHAINS, (1.0, 1.0)):
         rot[:, hip] = Rotation.from_rotvec([0.0, -0.35 * bend, 0.0]).as_matrix()
         rot[:, knee] = Rotation.from_rotvec([0.0, 0.7 * bend, 0.0]).as_matrix()
         rot[:, ankle] = Rotation.from_rotvec([0.0, -0.35 * bend, 0.0]).as_matrix()
     P, _ = forward_kinematics(rot, np.zeros((T, 3)), rest_offsets())
-    L, R = LEGS["left"], LEGS["right"]
+    L, R = LEG_CHAINS[0], LEG_CHAINS[1]
     P[..., 2] -= min((P[0, [L[2], R[2]], 2] - 0.08).min(), (P[0, [L[3], R[3]], 2] - 0.04).min())
     return P[None]
 
@@ -111,7 +113,7 @@ def _shuffle_step(T: int = 30) -> np.ndarray:
     """Crouched body whose left foot stands (frames 0-9), shuffles 30 cm forward 1 cm over the
     floor in 7 frames (1.3 m/s, a low swing), and stands again: a step that never leaves the floor."""
     J = _crouched(T)
-    ankle, toe = LEGS["left"][2:]
+    ankle, toe = LEG_CHAINS[0][2:]
     x = np.r_[np.zeros(10), np.linspace(0.0, 0.3, 8)[1:-1], np.full(T - 16, 0.3)]
     J[0, :, [ankle, toe], 0] += x[None, :]
     J[0, 10:16, [ankle, toe], 2] += 0.01
@@ -121,7 +123,7 @@ def _shuffle_step(T: int = 30) -> np.ndarray:
 def test_low_swing_between_plants_is_lifted_and_lands_on_its_lock():
     J = _shuffle_step()
     lengths = bone_lengths_of(J[0, 0])
-    ankle, toe = LEGS["left"][2:]
+    ankle, toe = LEG_CHAINS[0][2:]
     assert foot_skate_near_floor_cm(J[0]) > 10  # by the benchmark's definition the shuffle is a 40 cm slide
     out = clean_feet(J, lengths, FPS, fixed=0)
     low = np.minimum(out[0, :, ankle, 2] - 0.08, out[0, :, toe, 2] - 0.04)
@@ -143,7 +145,7 @@ def test_low_swing_between_plants_is_lifted_and_lands_on_its_lock():
 def test_swing_across_an_episode_seam_rises_then_lands_without_a_jump():
     J = _shuffle_step()
     lengths = bone_lengths_of(J[0, 0])
-    ankle, toe = LEGS["left"][2:]
+    ankle, toe = LEG_CHAINS[0][2:]
     first = clean_feet(J[:, :13], lengths, FPS)  # the window ends mid-swing (frames 10-12 in the air)
     second = clean_feet(np.concatenate([first[:, -2:], J[:, 13:]], 1), lengths, FPS, fixed=2)
     out = np.concatenate([first, second[:, 2:]], 1)
@@ -160,7 +162,7 @@ def test_support_foot_plants_the_lower_foot_only_when_upright():
     whose hips are low (sitting down) gets no support foot."""
     T = 20
     J = np.repeat(standing_body(1), T, axis=1)
-    (_, _, la, lt), (_, _, ra, rt) = LEGS["left"], LEGS["right"]
+    (_, _, la, lt), (_, _, ra, rt) = LEG_CHAINS[0], LEG_CHAINS[1]
     # left foot 3 cm up for frames 0-9, then 5 cm; the right the other way round (1 cm differences within
     # the margin never switch); both feet slide 3 cm a frame, too fast to count as planted
     J[0, :, la, 2] += np.r_[np.full(10, 0.03), np.full(10, 0.05)]
@@ -172,7 +174,7 @@ def test_support_foot_plants_the_lower_foot_only_when_upright():
         J[0, :, j, 0] += 0.03 * np.arange(T)
     assert not foot_contacts(J, FPS).any()
     lengths = bone_lengths_of(J[0, 0])
-    leg = lengths[LEGS["left"][1]] + lengths[LEGS["left"][2]]
+    leg = lengths[LEG_CHAINS[0][1]] + lengths[LEG_CHAINS[0][2]]
     c = support_foot(foot_contacts(J, FPS), J, float(leg), FPS)[0]
     assert (c.sum(-1) == 1).all()
     assert c[:10, 0].all()  # left lower by 2 cm
@@ -189,7 +191,7 @@ def test_support_removes_flight_phases():
     air after the cleanup with support; without it each swing gets its clearance arc and both lift."""
     T = 30
     J = np.repeat(standing_body(1), T, axis=1)
-    (_, _, la, lt), (_, _, ra, rt) = LEGS["left"], LEGS["right"]
+    (_, _, la, lt), (_, _, ra, rt) = LEG_CHAINS[0], LEG_CHAINS[1]
     t = np.arange(T)
     for (a, b), (t0, t1) in (((la, lt), (6, 20)), ((ra, rt), (3, 17))):  # slides 3 cm a frame over [t0, t1)
         x = 0.03 * np.clip(t - t0, 0, t1 - t0)
@@ -234,7 +236,7 @@ def _shuffling_crouch(T: int = 80, k: int = 2, speed: float = 0.005) -> np.ndarr
     """A body 5 cm lower than standing (knees bent) sliding forward ``speed`` m/frame over the new
     frames with both feet on the floor (a shuffle: slow enough to count as planted at ``FPS``)."""
     J = standing_body(T)
-    feet = [j for leg in LEGS.values() for j in leg[2:]]
+    feet = [j for leg in LEG_CHAINS for j in leg[2:]]
     J[0, :, [j for j in range(24) if j not in feet], 2] -= 0.05
     J[0, :, :, 0] += speed * np.clip(np.arange(T) - (k - 1), 0, None)[:, None]
     return J
@@ -252,7 +254,7 @@ def test_a_lock_out_of_the_legs_reach_ends_its_contact_run():
     out = clean_feet(J, lengths, FPS, fixed=k)
     stuck = clean_feet(J, lengths, FPS, fixed=k, config=FootCleanupConfig(reach_passes=0))
     slack = FootCleanupConfig().reach_slack  # a lock this far beyond the reach still holds, the clamp lifting it as much
-    for hip, knee, ankle, toe in LEGS.values():
+    for hip, knee, ankle, toe in LEG_CHAINS:
         reach = lengths[knee] + lengths[ankle]
         lock = J[0, k - 1, ankle] - [0.0, 0.0, min(J[0, k - 1, ankle, 2] - 0.08, J[0, k - 1, toe, 2] - 0.04)]
         dist = np.linalg.norm(J[0, :, hip] - lock, axis=-1)
@@ -268,7 +270,7 @@ def test_a_lock_out_of_the_legs_reach_ends_its_contact_run():
         stretch = lambda P: np.linalg.norm(P[0, first:, ankle] - P[0, first:, hip], axis=-1)  # noqa: E731
         assert stretch(out).min() < reach - 0.05  # the released leg bends again under the body
         assert stretch(stuck).min() > reach - 2e-3  # without the release it is dragged at full stretch
-    legs = [j for leg in LEGS.values() for j in leg[1:3]]  # the knee and ankle bones, re-solved on every new frame
+    legs = [j for leg in LEG_CHAINS for j in leg[1:3]]  # the knee and ankle bones, re-solved on every new frame
     np.testing.assert_allclose(bone_lengths_of(out[0, k:])[:, legs], np.broadcast_to(lengths[legs], (T - k, 4)), atol=1e-6)
     with pytest.raises(ValueError, match="reach_passes"):
         FootCleanupConfig(reach_passes=-1)

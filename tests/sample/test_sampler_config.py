@@ -27,7 +27,7 @@ from trumans.sample.guidance.seat import SeatTerm, SeatTermConfig
 from trumans.sample.rollout import start_context
 from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
 from trumans.sample.sampling_args import add_postprocess_arguments, postprocess_kwargs, sampler_config
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 from trumans.sequence import load_sequence
 
 from helpers import SAMPLE_VOCAB, box_room, tiny_checkpoint

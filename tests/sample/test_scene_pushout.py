@@ -6,7 +6,8 @@ import pytest
 import torch
 
 from trumans.scenes.occupancy import OccupancyGrid
-from trumans.sample.cleanup.foot import LEGS, clean_feet
+from trumans.sample.cleanup.foot import clean_feet
+from trumans.skeleton import LEG_CHAINS
 from trumans.sample.guidance.penetration import SceneSDF
 from trumans.sample.sampler import bone_lengths_of
 from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out, push_radii, seam_spline_basis
@@ -87,10 +88,10 @@ def test_planted_feet_stay_where_they_stood_after_push_out_and_foot_cleanup():
     J = _walk_into_box(k=k)  # the feet skate with the body into the box
     lengths = bone_lengths_of(J[0, 0])
     out = clean_feet(push_out(J, sdf, fixed=k), lengths, FPS, fixed=k)
-    legs = [j for leg in LEGS.values() for j in leg[1:]]  # the straight test legs re-bend to reach the locks
+    legs = [j for leg in LEG_CHAINS for j in leg[1:]]  # the straight test legs re-bend to reach the locks
     upper = [j for j in range(24) if j not in legs]
     assert _depth(sdf, out)[..., upper].max() < 0.015
-    for hip, knee, ankle, toe in LEGS.values():  # locked where the context stood them
+    for hip, knee, ankle, toe in LEG_CHAINS:  # locked where the context stood them
         np.testing.assert_allclose(out[0, k:, ankle, :2], np.broadcast_to(J[0, k - 1, ankle, :2], (36, 2)), atol=5e-3)
 
 

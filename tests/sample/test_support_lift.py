@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from trumans.sample.cleanup.foot import FOOT_REST
+from trumans.skeleton import FOOT_REST_HEIGHT
 from trumans.sample.cleanup.support_lift import lift_onto_feet, lowest_foot_height, support_weights
 from trumans.skeleton import JOINT_INDEX
 
@@ -33,9 +33,9 @@ def test_weights_follow_the_posture():
 def _body(feet_z: float, T: int = 5) -> np.ndarray:
     """(1, T, 24, 3): joints 1 m up, the lowest foot joint ``feet_z`` from its rest height."""
     J = np.ones((1, T, 24, 3))
-    J[..., [LA, RA], 2] = FOOT_REST[0] + 0.2
-    J[..., LT, 2] = FOOT_REST[1] + feet_z
-    J[..., RT, 2] = FOOT_REST[1] + 0.3
+    J[..., [LA, RA], 2] = FOOT_REST_HEIGHT[0] + 0.2
+    J[..., LT, 2] = FOOT_REST_HEIGHT[2] + feet_z
+    J[..., RT, 2] = FOOT_REST_HEIGHT[2] + 0.3
     return J
 
 

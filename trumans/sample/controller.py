@@ -98,11 +98,6 @@ class EpisodeControl:
     reach_target: np.ndarray | None = None
 
 
-def _rot_z(yaw: float) -> np.ndarray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s], [s, c]])
-
-
 def _world(obj, local_xy) -> np.ndarray:
     """Object-frame point (2,) or (3,) -> world (same length)."""
     p = np.zeros(3)

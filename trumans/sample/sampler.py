@@ -32,7 +32,7 @@ from trumans.sample.cleanup.pipeline import CleanupConfig
 from trumans.sample.config_data import config_from_dict
 from trumans.sample.guidance import GuidanceConfig, GuidanceInputs, GuidanceTerm, Prediction, build_terms
 from trumans.sample.guidance.base import canonical_to_world
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 

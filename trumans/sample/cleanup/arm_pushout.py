@@ -32,8 +32,8 @@ import torch
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import gaussian_filter1d
 
-from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, push_radii
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, push_radii, smoothstep
+from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["ArmPushConfig", "arm_push", "push_arms_out"]
 
@@ -92,8 +92,7 @@ def _envelope(push: np.ndarray, fixed: int, spread: int) -> np.ndarray:
     pick = np.linalg.norm(win, axis=3).argmax(-1)  # (B, T, 2)
     peak = np.take_along_axis(win, pick[:, :, :, None, None], -1)[..., 0]
     smooth = gaussian_filter1d(peak, spread / 2.0, axis=1, mode="constant", truncate=2.0)  # within 2 * spread
-    s = np.clip((np.arange(T) - (fixed - 1)) / spread, 0.0, 1.0)
-    return smooth * (s * s * (3.0 - 2.0 * s))[None, :, None, None]
+    return smooth * smoothstep((np.arange(T) - (fixed - 1)) / spread)[None, :, None, None]
 
 
 def push_arms_out(joints: np.ndarray, lengths: np.ndarray, sdf: SceneSDF, fixed: int = 0,

@@ -45,16 +45,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from trumans.contacts.rule import JOINT_CORE_RADIUS
-from trumans.skeleton import JOINT_INDEX
+from trumans.ik.limb import two_bone_positions
+from trumans.skeleton import FOOT_REST_HEIGHT, LEG_CHAINS
 
-from trumans.sample.cleanup.common import episode_joints
+from trumans.sample.cleanup.common import episode_joints, smoothstep
 
 __all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene",
-           "clean_feet", "two_bone_positions", "FOOT_REST"]
+           "clean_feet"]
 
-# (hip, knee, ankle, toe) per leg
-LEGS = {side: tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("hip", "knee", "ankle", "foot")) for side in ("left", "right")}
-FOOT_REST = np.array([0.08, 0.04])  # resting heights of the ankle / toe joints above the floor, m (synthesis_metrics)
+ANKLE_REST, TOE_REST = FOOT_REST_HEIGHT[0], FOOT_REST_HEIGHT[2]  # m above the floor (trumans.skeleton)
 
 
 @dataclass(frozen=True)
@@ -122,7 +121,7 @@ class FootCleanupConfig:
 
 def _foot_height(joints: np.ndarray, ankle: int, toe: int) -> np.ndarray:
     """(..., T) height of the lower of ankle / toe above its resting height, m."""
-    return np.minimum(joints[..., ankle, 2] - FOOT_REST[0], joints[..., toe, 2] - FOOT_REST[1])
+    return np.minimum(joints[..., ankle, 2] - ANKLE_REST, joints[..., toe, 2] - TOE_REST)
 
 
 def foot_contacts(joints: np.ndarray, fps: float, config: FootCleanupConfig = FootCleanupConfig(),
@@ -132,7 +131,7 @@ def foot_contacts(joints: np.ndarray, fps: float, config: FootCleanupConfig = Fo
     B, T = joints.shape[:2]
     out = np.zeros((B, T, 2), dtype=bool)
     init = np.broadcast_to(np.asarray(initial, dtype=bool), (B, 2))
-    for s, (_, _, ankle, toe) in enumerate(LEGS.values()):
+    for s, (_, _, ankle, toe) in enumerate(LEG_CHAINS):
         h = _foot_height(joints, ankle, toe)  # (B, T)
         mid = 0.5 * (joints[..., ankle, :2] + joints[..., toe, :2])
         v = np.zeros((B, T))
@@ -158,7 +157,7 @@ def support_foot(contact: np.ndarray, joints: np.ndarray, leg_length: float, fps
     feet both slide too fast to count as planted stands on the one nearer the floor. Sitting down,
     crouching and lying are left to the detected contacts."""
     B, T, _ = contact.shape
-    legs = list(LEGS.values())
+    legs = list(LEG_CHAINS)
     h = np.stack([_foot_height(joints, a, t) for _, _, a, t in legs], -1)  # (B, T, 2)
     hip_z = 0.5 * (joints[..., legs[0][0], 2] + joints[..., legs[1][0], 2])
     low_ankle = np.minimum(joints[..., legs[0][2], 2], joints[..., legs[1][2], 2])
@@ -182,27 +181,6 @@ def support_foot(contact: np.ndarray, joints: np.ndarray, leg_length: float, fps
     out[..., 0] |= add & (foot == 0)
     out[..., 1] |= add & (foot == 1)
     return out
-
-
-def two_bone_positions(hip: np.ndarray, knee: np.ndarray, target: np.ndarray, l1: float, l2: float
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Analytic two-bone IK on positions (..., 3): the knee at distance l1 from the hip and l2 from
-    the ankle, in the plane of the current bend (law of cosines). Returns (knee, ankle); the ankle
-    is the target clamped to the reach [|l1 - l2|, l1 + l2] (1 mm short of full extension)."""
-    d = target - hip
-    dist = np.linalg.norm(d, axis=-1, keepdims=True)
-    f = d / np.maximum(dist, 1e-9)
-    D = np.clip(dist, abs(l1 - l2) + 1e-4, l1 + l2 - 1e-3)
-    ankle = hip + f * D
-    a = (l1 ** 2 - l2 ** 2 + D ** 2) / (2 * D)  # hip -> knee foot point along the hip-ankle line
-    r = np.sqrt(np.maximum(l1 ** 2 - a ** 2, 0.0))
-    bend = knee - hip
-    perp = bend - (bend * f).sum(-1, keepdims=True) * f
-    n = np.linalg.norm(perp, axis=-1, keepdims=True)
-    fallback = np.cross(f, np.array([0.0, 0.0, 1.0]))  # straight leg: bend sideways of vertical, rarely used
-    perp = np.where(n > 1e-6, perp / np.maximum(n, 1e-12), fallback / np.maximum(
-        np.linalg.norm(fallback, axis=-1, keepdims=True), 1e-12))
-    return hip + f * a + perp * r, ankle
 
 
 def _fade(contact: np.ndarray, fixed: int, blend: int) -> tuple[np.ndarray, np.ndarray]:
@@ -254,7 +232,7 @@ def _swing_paths(ankle: np.ndarray, target: np.ndarray, height: np.ndarray, cont
     low0 = np.maximum(np.take_along_axis(low_t, a0c, axis=1), 0.0) * moving
     h00, h10, h01 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u, 3 * u ** 2 - 2 * u ** 3
     xy = h00 * p0[..., :2] + h10 * m0[..., :2] + h01 * p1[..., :2]  # cubic Hermite, landing at rest
-    w = u[..., 0] ** 2 * (3 - 2 * u[..., 0])
+    w = smoothstep(u[..., 0])
     dz0, dz1 = (p0 - take(ankle, a0c))[..., 2], (p1 - take(ankle, a1c))[..., 2]
     z = ankle[..., 2] + (1 - w) * dz0 + w * dz1  # the network's height with the anchors' corrections
     step = np.linalg.norm(p1[..., :2] - p0[..., :2], axis=-1)
@@ -384,11 +362,11 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
     B, T = J.shape[:2]
     contact = foot_contacts(J, fps, config)
     if config.support:
-        l, r = LEGS["left"], LEGS["right"]
+        l, r = LEG_CHAINS
         leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
         contact = support_foot(contact, J, float(leg), fps, fixed, margin=config.support_margin,
                                upright=config.support_upright, speed_weight=config.support_speed_weight)
-    for s, (hip, knee, ankle, toe) in enumerate(LEGS.values()):
+    for s, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
         c = contact[..., s]
         h = _foot_height(J, ankle, toe)  # (B, T)
         A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
@@ -415,7 +393,7 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
         new_knee, new_ankle = two_bone_positions(J[:, :, hip], J[:, :, knee], target,
                                                  float(lengths[knee]), float(lengths[ankle]))
         if sdf is not None:  # a knee the re-solve bent into furniture turns outward
-            other = LEGS["right" if s == 0 else "left"][0]
+            other = LEG_CHAINS[1 - s][0]
             new_knee[:, fixed:] = knee_out_of_scene(J[:, fixed:, hip], new_knee[:, fixed:], new_ankle[:, fixed:],
                                                     J[:, fixed:, hip] - J[:, fixed:, other], sdf, float(JOINT_CORE_RADIUS[knee]),
                                                     config.knee_max_angle, config.knee_steps)

@@ -47,7 +47,7 @@ from trumans.sample.cleanup.reach import ReachCleanupConfig, clean_reach
 from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out
 from trumans.sample.cleanup.seam import SeamConfig, blend_seam
 from trumans.sample.cleanup.support_lift import SupportLiftConfig, lift_onto_feet, support_weights
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["EpisodeBodies", "CleanupStep", "STEPS", "CleanupConfig", "run_cleanup"]
 

@@ -29,7 +29,7 @@ import torch
 from scipy.interpolate import BSpline
 
 from trumans.sample.cleanup.common import episode_joints, push_radii
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["PushOutConfig", "seam_spline_basis", "push_out"]
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from trumans.sample.cleanup.common import smoothstep
+
 __all__ = ["SeamConfig", "blend_seam", "seam_weights"]
 
 
@@ -35,8 +37,7 @@ def seam_weights(n: int, frames: int) -> np.ndarray:
         raise ValueError(f"frames must be >= 0, got {frames}")
     if frames == 0:
         return np.zeros(n)
-    s = np.clip(np.arange(n) / frames, 0.0, 1.0)
-    return 1.0 - s * s * (3.0 - 2.0 * s)
+    return 1.0 - smoothstep(np.arange(n) / frames)
 
 
 def blend_seam(context: np.ndarray, new: np.ndarray, frames: int = 4) -> np.ndarray:

@@ -23,7 +23,7 @@ from trumans.model.conditions import EpisodeCondition
 from trumans.model.episodes import FeatureLayout
 from trumans.skeleton import NUM_JOINTS
 
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 
 if TYPE_CHECKING:
     from trumans.sample.sampler import Goal

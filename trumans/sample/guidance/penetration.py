@@ -1,5 +1,5 @@
 """Scene-penetration term of the sampler's guidance: the scene's signed distance field
-(``trumans.sample.scene_sdf.SceneSDF``) sampled at the predicted joints.
+(``trumans.scenes.sdf.SceneSDF``) sampled at the predicted joints.
 
 The term for joints x (.., 24, 3) world m is sum_j relu(r_j - sdf(x_j))^2 with the body's core
 radius r_j (``trumans.contacts.rule.JOINT_CORE_RADIUS``): a joint closer to a surface than its body
@@ -18,7 +18,7 @@ import torch
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 
 from trumans.sample.guidance.base import GuidanceInputs, Prediction
-from trumans.sample.scene_sdf import SceneSDF
+from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["penetration_loss", "PenetrationTermConfig", "PenetrationTerm"]
 

@@ -1,10 +1,10 @@
-"""The scene's signed distance field, shared by the penetration guidance
-(``trumans.sample.guidance.penetration``) and the push-outs and foot cleanup after the network
-(``trumans.sample.cleanup``).
+"""The scene's signed distance field as a differentiable torch volume (a scene query like
+``distance``): the generator's penetration guidance and its push-outs and foot cleanup after the
+network read it (``trumans.sample.guidance``, ``trumans.sample.cleanup``).
 
 The field: Euclidean distance transforms of the occupied and free voxels (scipy.ndimage),
 positive outside, negative inside, m; floor voxels (centre below ``floor_z``) count as free, the
-floor being the foot cleanup's job (``trumans.sample.cleanup.foot``).
+floor being left to whoever handles feet (the generator's foot cleanup).
 """
 from __future__ import annotations
 

@@ -23,6 +23,7 @@ from trumans.sample.carry_metrics import carry_figures
 from trumans.sample.cli import DEFAULT_CHECKPOINT
 from trumans.sample.plan import plan_from_dict, validate_plan
 from trumans.sample.rollout import sample_plan
+from trumans.sample.cleanup import CleanupConfig
 from trumans.sample.sampler import EpisodeSampler, SamplerConfig
 from trumans.sample.scene_input import load_sample_scene
 from trumans.model.checkpoint import load_checkpoint
@@ -48,7 +49,8 @@ def main() -> None:
     ckpt = load_checkpoint(DEFAULT_CHECKPOINT, kind="generator")
     sc = load_sample_scene("default")
     modes = {"on": (True,), "off": (False,), "both": (False, True)}[args.reach]
-    samplers = {on: EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=20, reach_cleanup=on)) for on in modes}
+    samplers = {on: EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=20, goal_guidance=0.0, action_scale=1.0,
+                                                                     cleanup=CleanupConfig().switched(reach=on))) for on in modes}
     report: dict = {}
     for name, d in PLANS.items():
         plan = plan_from_dict(d, name=name)

@@ -41,6 +41,11 @@ def random_checkpoint(name: str) -> Checkpoint:
                       k=cfg.data.transition_frames, grid={"n": cfg.data.grid, "extent": list(cfg.data.extent)})
 
 
+# the network alone, as the authors' sampler: no goal guidance, plain conditional (trumans sample's default
+# is guided, 20 x 3, with action guidance 2: docs/generate.md)
+UNGUIDED = dict(goal_guidance=0.0, action_scale=1.0)
+
+
 def time_episode(ck: Checkpoint, config: SamplerConfig, repeats: int, device: str) -> float:
     s = EpisodeSampler(ck, None, config, device=device)
     ctx = start_context(ck, np.array([0.0, 0.0]), 0.0)
@@ -70,9 +75,9 @@ def main(argv: list[str] | None = None) -> int:
     for name in a.configs:
         ck = random_checkpoint(name)
         T = ck.diffusion_config.steps
-        naive = time_episode(ck, SamplerConfig(steps=T, eta=1.0, naive=True), max(1, a.repeats // 2), a.device)
-        fast = time_episode(ck, SamplerConfig(steps=a.steps), a.repeats, a.device)
-        full = time_episode(ck, SamplerConfig(steps=T, eta=1.0), max(1, a.repeats // 2), a.device)
+        naive = time_episode(ck, SamplerConfig(steps=T, eta=1.0, naive=True, **UNGUIDED), max(1, a.repeats // 2), a.device)
+        fast = time_episode(ck, SamplerConfig(steps=a.steps, **UNGUIDED), a.repeats, a.device)
+        full = time_episode(ck, SamplerConfig(steps=T, eta=1.0, **UNGUIDED), max(1, a.repeats // 2), a.device)
         out[name] = {"params_M": round(sum(v.numel() for v in ck.model_state.values()) / 1e6, 2),
                      "naive_s_per_episode": round(naive, 4), f"fast_{a.steps}_steps_s_per_episode": round(fast, 4),
                      f"encoders_once_{T}_steps_s_per_episode": round(full, 4),

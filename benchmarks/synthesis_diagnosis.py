@@ -101,7 +101,7 @@ def main() -> int:
         sc = load_sample_scene(f"room:{room_seed}")
         plan = _plans(sc, args.seed * 1000 + r)
         cfg = SamplerConfig(steps=args.steps, goal_guidance=args.goal_guidance, goal_iters=args.goal_iters,
-                            **postprocess_kwargs(args))
+                            scene_scale=args.guidance[0], action_scale=args.guidance[1], **postprocess_kwargs(args))
         res = sample_plan(ckpt, EpisodeSampler(ckpt, sc.grids, cfg), sc.scene, sc.walkmap, plan, seed=args.seed + r)
         J = res.joints[0].astype(np.float64)
         old = motion_figures(res, sc, sit_offset=seat_clearance(offsets_from_joints(start_pose(ckpt)[None])))

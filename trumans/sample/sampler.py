@@ -32,22 +32,10 @@ from trumans.sample.cleanup.pipeline import CleanupConfig
 from trumans.sample.config_data import config_from_dict
 from trumans.sample.guidance import GuidanceConfig, GuidanceInputs, GuidanceTerm, Prediction, build_terms
 from trumans.sample.guidance.base import canonical_to_world
+from trumans.sample.episode_goal import Goal
 from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
-
-
-@dataclass(frozen=True)
-class Goal:
-    """An episode goal (M_goal): ``joint`` 'pelvis' with ``point`` (2,) world xy at the last
-    frame, or a joint name with ``point`` (3,) world m at episode frame ``frame``."""
-
-    point: tuple[float, ...]
-    joint: str = "pelvis"
-    frame: int = -1
-    guide: bool = True  # the goal guidance term applies (``SamplerConfig.goal_guidance``); else inpainting only
-    heading: float | None = None  # world heading (rad) the body should have at the goal (sitting down)
-    pelvis_z: tuple[tuple[int, float], ...] = ()  # (episode frame, world pelvis height m): seated frames
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from trumans.skeleton import NUM_JOINTS
 from trumans.scenes.sdf import SceneSDF
 
 if TYPE_CHECKING:
-    from trumans.sample.sampler import Goal
+    from trumans.sample.episode_goal import Goal
 
 __all__ = ["Prediction", "GuidanceTerm", "GuidanceInputs", "canonical_to_world"]
 

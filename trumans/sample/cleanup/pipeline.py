@@ -121,7 +121,7 @@ def _seam(ep: EpisodeBodies, config: SeamConfig) -> np.ndarray:
 
 
 def _bone_projection(ep: EpisodeBodies, config: BoneProjectionConfig) -> np.ndarray:
-    return project_bones(ep.joints, ep.lengths)
+    return project_bones(ep.joints, ep.lengths, rigid_trunk=config.rigid_trunk)
 
 
 def _support_lift(ep: EpisodeBodies, config: SupportLiftConfig) -> np.ndarray:

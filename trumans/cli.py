@@ -2,8 +2,9 @@
 
 Each subcommand lives in the package that owns it, as a module with
 ``add_arguments(parser: argparse.ArgumentParser) -> None`` and ``run(args) -> int``; ``COMMANDS``
-is the one table of them. Modules are imported when the parser is built, so ``import trumans``
-never imports the jobs.
+is the one table of them. Only the module of the command being run is imported (``trumans --help``
+and a group's help import none), so ``import trumans`` never imports the jobs and a command does
+not pay for the others' imports.
 
 Errors (``console_main``), one channel for every command:
 - expected failures (bad arguments, missing or corrupt files, bad values, a locked output folder,
@@ -51,7 +52,26 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{message} (see `{self.prog} --help`)")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _selected(argv: list[str] | None) -> tuple[str, ...] | None:
+    """The command path that ``argv`` names (its leading words), () for none, None to load every one."""
+    if argv is None:
+        return None
+    words = []
+    for a in argv:
+        if a.startswith("-"):
+            break
+        words.append(a)
+    best: tuple[str, ...] = ()
+    for path, _, _ in COMMANDS:
+        if tuple(words[:len(path)]) == path and len(path) > len(best):
+            best = path
+    return best
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of every command; with ``argv``, only the named command's module is imported
+    (the others are listed with their one-line help)."""
+    selected = _selected(argv)
     parser = _Parser(prog="trumans", description="Human-scene interaction motion framework.")
     from . import __version__
 
@@ -66,9 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
                 group_parsers[key] = gp
                 groups[key] = gp.add_subparsers(dest="_".join(key) + "_command", metavar="SUBCOMMAND")
         sub = groups[path[:-1]].add_parser(path[-1], help=help_, description=help_)
-        mod = importlib.import_module(module)
-        mod.add_arguments(sub)
-        sub.set_defaults(_run=mod.run)
+        if selected is None or selected == path:
+            mod = importlib.import_module(module)
+            mod.add_arguments(sub)
+            sub.set_defaults(_run=mod.run)
     for key, gp in group_parsers.items():
         gp.set_defaults(_run=_usage(gp))
     parser.set_defaults(_run=_usage(parser))
@@ -84,7 +105,8 @@ def _usage(p: argparse.ArgumentParser):
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
     return int(args._run(args) or 0)
 
 

@@ -47,3 +47,15 @@ def test_train_refuses_init_and_resume_together(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--init" in err and "--resume" in err and "give one of them" in err
     assert not (tmp_path / "run").exists()
+
+
+def test_a_refused_training_run_leaves_no_run_folder(tmp_path, capsys):
+    from trumans.cli import console_main
+
+    out = tmp_path / "run"
+    assert console_main(["train", "--data", str(tmp_path / "missing"), "--out", str(out)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not out.exists()
+    out.mkdir()  # a folder the user made is left in place
+    assert console_main(["train", "--data", str(tmp_path / "missing"), "--out", str(out)]) == 2
+    assert out.is_dir()

@@ -15,6 +15,7 @@ import gc
 import hashlib
 import json
 import math
+import shutil
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -152,8 +153,9 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
     lock = None
     net = None  # the DDP wrapper: its reducer holds the process group and must go before it
     finished = False  # every rank reached the end: cleanup may meet at a barrier
+    out = Path(out_dir)
+    created = info.is_main and not out.exists()  # a refused run removes the run folder it made
     try:
-        out = Path(out_dir)
         if info.is_main:  # one writer per run folder; a killed run's temp files (.checkpoint.pt.*.tmp) go
             lock = FolderLock(out, "trumans train").acquire()
             sweep_temp_files(out)
@@ -309,6 +311,13 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
             train_episodes=n_train, val_episodes=n_val, parameters=n_params,
             world_size=info.world, weights_sha256=digest, ranks_in_sync=in_sync, checkpoint=str(ckpt_path),
             loss_png=str(out / LOSS_PNG))
+    except BaseException:
+        if lock is not None:
+            lock.release()
+            lock = None
+        if created and not (out / CHECKPOINT_NAME).exists():
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     finally:
         if lock is not None:
             lock.release()

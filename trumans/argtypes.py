@@ -6,7 +6,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["int_in", "float_in", "positive_int", "nonneg_int", "positive_float", "nonneg_float", "fraction", "seed"]
+__all__ = ["int_in", "float_in", "positive_int", "nonneg_int", "positive_float", "nonneg_float", "fraction", "seed", "device"]
 
 
 def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -53,3 +53,22 @@ positive_float = float_in(0.0, lo_open=True)
 nonneg_float = float_in(0.0)
 fraction = float_in(0.0, 1.0)
 seed = int_in(0, 2**32 - 1)  # --seed: every random generator (numpy, torch) takes it whole
+
+
+def device(text: str) -> str:
+    """A torch device this machine has: ``cpu``, ``cuda`` or ``cuda:N`` (refused, naming the fix, when
+    torch has no CUDA or no such GPU)."""
+    import torch
+
+    name = text.strip().lower()
+    if name == "cpu":
+        return name
+    if name == "cuda" or (name.startswith("cuda:") and name[5:].isdigit()):
+        if not torch.cuda.is_available():
+            raise argparse.ArgumentTypeError(f"{text!r}: this machine's torch has no CUDA; use --device cpu")
+        index = int(name[5:]) if ":" in name else 0
+        if index >= torch.cuda.device_count():
+            raise argparse.ArgumentTypeError(f"{text!r}: there are {torch.cuda.device_count()} CUDA devices; "
+                                             f"choose cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
+        return name
+    raise argparse.ArgumentTypeError(f"{text!r} is not a device; give cpu, cuda or cuda:N")

@@ -73,3 +73,19 @@ def test_missing_or_wrong_checkpoint(tmp_path, capsys):
     (tmp_path / "junk.pt").write_bytes((tmp_path / "junk.npy").read_bytes())
     rc = console_main(["sample", "--checkpoint", str(tmp_path / "junk.pt"), "--out", str(tmp_path / "y")])
     assert rc == 2 and "not a readable trumans checkpoint" in capsys.readouterr().err
+
+
+def test_sample_refuses_bombs_and_missing_devices_before_any_work(tmp_path, capsys):
+    from trumans.cli import console_main
+
+    cases = {"--max-seconds": ("inf", "(0.0, 86400.0]"), "--num-samples": ("1000000", "[1, 256]"),
+             "--device": ("cuda:7", "cuda"), "--seed": (str(2 ** 64), "[0, 4294967295]")}
+    for flag, (value, said) in cases.items():
+        if flag == "--device":
+            import torch
+            if torch.cuda.device_count() > 7:
+                continue
+        assert console_main(["sample", "--out", str(tmp_path / "x"), flag, value]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and flag in err[0] and said in err[0]
+    assert not any(tmp_path.iterdir())

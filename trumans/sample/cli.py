@@ -19,8 +19,11 @@ import numpy as np
 
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 from trumans.paths import MODELS_DIR
+from trumans import argtypes
 
-__all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY"]
+__all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY", "MAX_SAMPLES"]
+
+MAX_SAMPLES = 256  # --num-samples: one batch of bodies, each a few MB per episode
 
 DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
 # the sequence's ``extra`` entry with the sampler config used, JSON (``SamplerConfig.to_dict``);
@@ -114,7 +117,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--close", dest="close", action=_StepAction, metavar="NAME", help="close a door or drawer")
     p.add_argument("--out", required=True, help="output path stem: writes STEM.npz (+ other --formats)")
     p.add_argument("--formats", default="npz,png", help=f"comma-separated among {','.join(FORMATS)} (default npz,png)")
-    p.add_argument("--num-samples", type=int, default=1, help="variations sampled in one batch (default 1)")
+    p.add_argument("--num-samples", type=argtypes.int_in(1, MAX_SAMPLES), default=1,
+                   help=f"variations sampled in one batch (default 1, at most {MAX_SAMPLES})")
     from trumans.sample.sampler import SamplerConfig
 
     d = SamplerConfig()
@@ -122,9 +126,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eta", type=float, default=d.eta, help=f"DDIM eta (0 deterministic, 1 ancestral; default {d.eta:g})")
     add_guidance_arguments(p)
     add_postprocess_arguments(p)
-    p.add_argument("--max-seconds", type=float, default=600.0, help="give up when the plan is not done by then")
-    p.add_argument("--device", default="cpu", help="torch device (cpu, cuda, cuda:1)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-seconds", type=argtypes.float_in(0.0, 86400.0, lo_open=True), default=600.0,
+                   help="give up when the plan is not done by then (seconds of motion, at most a day)")
+    p.add_argument("--device", type=argtypes.device, default="cpu", help="torch device (cpu, cuda, cuda:1)")
+    p.add_argument("--seed", type=argtypes.seed, default=0)
     p.add_argument("--json", action="store_true", help="print one JSON object of figures as the last line")
     p.add_argument("--no-progress", action="store_true")
 

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
+from trumans import argtypes
 from trumans.paths import MODELS_DIR
 
 if TYPE_CHECKING:
@@ -59,7 +60,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--motion-encoder", default=None, metavar="PATH",
                    help="motion encoder of fid / diversity / action_acc (default: the shipped one; needs --data)")
     add_postprocess_arguments(p)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=argtypes.seed, default=0)
     p.add_argument("--save-windows", default=None, metavar="PATH",
                    help="also write the generated windows' motion-encoder features and labels (.npz) there, "
                         "e.g. to pool seeds: python benchmarks/pooled_fid.py")

@@ -366,12 +366,19 @@ def test_foot_skate_counts_slides_over_the_truths_planted_runs():
 
 
 def test_post_steps_follow_the_options_and_the_category():
+    from dataclasses import replace
+
+    from trumans.refine.post_steps import PostStepsConfig
+
+    d = PostStepsConfig()
+    hinge_any = replace(d, hinge=replace(d.hinge, any_category=True))
     assert RefineOptions().post_steps("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge"]
     assert RefineOptions().post_steps("cup") == ["body_drift", "foot_lock", "rest_pooling", "hand_link"]
-    assert RefineOptions(hinge=True).post_steps("cup")[-1] == "hinge"
-    assert RefineOptions(hinge=False, hand_link=False).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"]
-    assert RefineOptions(rest_pooling=False, hinge=True).post_steps("door") == ["body_drift", "foot_lock"]  # the hinge needs pooled rests
-    assert RefineOptions(body_drift=False, foot_lock=False, rest_pooling=False).post_steps("door") == []
+    assert RefineOptions(post=hinge_any).post_steps("cup")[-1] == "hinge"
+    assert RefineOptions(post=replace(d.switched(hinge=False), rest_pooling=replace(d.rest_pooling, hand_link=False))
+                         ).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"]
+    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == ["body_drift", "foot_lock"]  # the hinge needs pooled rests
+    assert RefineOptions(post=d.switched(body_drift=False, foot_lock=False, rest_pooling=False)).post_steps("door") == []
 
 
 def test_a_track_never_observed_is_refused_not_invented(tmp_path):

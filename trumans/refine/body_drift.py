@@ -46,8 +46,10 @@ class DriftConfig:
     """Speeds in m/s, durations in s, lengths in m (module doc). The defaults are the best of a grid
     on the dataset's val split (speed 0.15-0.25, knots 0.33-1 s, ridge 0.3-3, robust 1-2 cm; then
     floor_band 1-20 cm, flat from 5 to 12; README). flat_floor: the stances within ``floor_band_m``
-    of a foot joint's lowest share one height (module doc)."""
+    of a foot joint's lowest share one height (module doc). enabled: whether the post-step runs
+    (``trumans.refine.post_steps``); as ``LockConfig.stance`` only the stance detection is read."""
 
+    enabled: bool = True
     speed_m_s: float = 0.2
     smooth_s: float = 0.17
     min_stance_s: float = 0.17

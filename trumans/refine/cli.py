@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from trumans.refine.post_args import add_post_step_arguments, post_steps_config
 from trumans.track import cli as track_cli
 from trumans.summary import print_summary
 from trumans import argtypes
@@ -30,24 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
     p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="sampling seed")
-    p.add_argument("--no-rest-pooling", action="store_true",
-                   help="keep the filter's object pose in every frame (default: one pose per rest of the object, "
-                        "pooled over the whole rest; trumans.refine.object_rest)")
-    p.add_argument("--no-hand-link", action="store_true",
-                   help="pool each rest of the object on its own (default: a move held rigidly by a wrist follows "
-                        "the wrist and ties the rests on either side; trumans.refine.object_rest)")
-    hinge = p.add_mutually_exclusive_group()
-    hinge.add_argument("--hinge", dest="hinge", action="store_const", const=True, default=None,
-                       help="the object turns about one fixed hinge: fit it to the whole sequence after rest pooling (default: for "
-                            "hinged categories, door; trumans.refine.object_hinge)")
-    hinge.add_argument("--no-hinge", dest="hinge", action="store_const", const=False,
-                       help="no hinge fit, whatever the category")
-    p.add_argument("--no-foot-lock", action="store_true",
-                   help="keep the filter's feet (default: each planted foot joint is held at one point per stance, "
-                        "the legs following by IK; trumans.refine.foot_lock)")
-    p.add_argument("--no-drift-correction", action="store_true",
-                   help="keep the filter's body position (default: the whole-body drift's changes seen by the "
-                        "planted feet are removed; trumans.refine.body_drift)")
+    add_post_step_arguments(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.add_argument("--interactions", action="store_true",
                    help="contact-driven interaction tracking (iReplica) instead of the filter")
@@ -62,9 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from trumans.refine.pipeline import HOIFilter, RefineOptions
 
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
-                         rest_pooling=not args.no_rest_pooling, hand_link=not args.no_hand_link,
-                         body_drift=not args.no_drift_correction, hinge=args.hinge,
-                         foot_lock=not args.no_foot_lock)
+                         post=post_steps_config(args))
     seq = load_sequence(args.input, allow_missing=True)
     filt = HOIFilter.load(args.checkpoint)
     t0 = time.perf_counter()

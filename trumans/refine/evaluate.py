@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from trumans.refine.filter import category_indices
+from trumans.refine.post_args import add_post_step_arguments, post_steps_config
 from trumans.eval.metrics import foot_skate_planted_cm
 from trumans.skeleton import HAND_JOINTS
 from trumans.summary import print_summary
@@ -64,16 +65,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode", choices=("noise", "sdedit"), default="noise", help="sampling start (default noise)")
     p.add_argument("--ablation", default=None, metavar="CHECKPOINT", help="a second checkpoint to report as 'ablation'")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="corruption and sampling seed")
-    p.add_argument("--no-rest-pooling", action="store_true", help="refine without pooling the object's rests "
-                                                                "(trumans.refine.object_rest)")
-    p.add_argument("--no-hand-link", action="store_true", help="pool each rest of the object on its own, moves "
-                                                             "not driven by the wrists (trumans.refine.object_rest)")
-    p.add_argument("--no-foot-lock", action="store_true", help="refine without holding planted feet still "
-                                                               "(trumans.refine.foot_lock)")
-    p.add_argument("--no-hinge", action="store_true", help="no hinge fit for hinged categories (door; "
-                                                           "trumans.refine.object_hinge)")
-    p.add_argument("--no-drift-correction", action="store_true", help="refine without removing the body drift seen "
-                                                                    "by the planted feet (trumans.refine.body_drift)")
+    add_post_step_arguments(p)
     p.add_argument("--category", action="append", default=[], metavar="NAME",
                    help="only test clips of this object category (repeatable; default: every category)")
     p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
@@ -189,9 +181,9 @@ def evaluate(filt, clean: np.ndarray, cats: list[str], corruption, savgol_window
         for tr, cat in zip(tracked, cats):
             filt.refine_frames(tr, filt.fps, cat, options)
         fig["frames_per_s_per_clip"] = frames / max(time.perf_counter() - t0, 1e-9)
-    if rest_ablation and (options.rest_pooling or options.body_drift):
+    if rest_ablation and (options.post.rest_pooling.enabled or options.post.body_drift.enabled):
         plain = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats),
-                                 replace(options, rest_pooling=False, body_drift=False))
+                                 replace(options, post=options.post.switched(rest_pooling=False, body_drift=False)))
         fig["mpjpe_out_no_drift_mm"] = float(np.mean([1000 * np.linalg.norm(_joints(o) - _joints(cl), axis=-1).mean()
                                                       for o, cl in zip(plain, clean)]))
         fig["mpjpe_out_drift_oracle_mm"] = _drift_oracle_mm(filt, tracked, clean, cats, parts["body_drift"], options)
@@ -213,13 +205,14 @@ def _drift_oracle_mm(filt, tracked: np.ndarray, clean: np.ndarray, cats: list[st
     from trumans.refine.foot_lock import lock_feet
 
     raw = filt.refine_many(list(tracked), [filt.fps] * len(tracked), list(cats),
-                           replace(options, rest_pooling=False, body_drift=False, foot_lock=False))
+                           replace(options, post=options.post.switched(rest_pooling=False, body_drift=False,
+                                                                        foot_lock=False)))
     errs = []
     for o, d, cl in zip(raw, body_drift, clean):
         g = o.copy()
         g[:, :72] = (_joints(o) - (d - d.mean(0))[:, None]).reshape(len(o), -1)
-        if options.foot_lock:
-            g = lock_feet(g, filt.fps)
+        if options.post.foot_lock.enabled:
+            g = lock_feet(g, filt.fps, options.post.foot_lock)
         errs.append(1000 * np.linalg.norm(_joints(g) - _joints(cl), axis=-1).mean())
     return float(np.mean(errs))
 
@@ -286,10 +279,7 @@ def run(args: argparse.Namespace) -> int:
     from trumans.refine.pipeline import HOIFilter, RefineOptions
 
     filt = HOIFilter.load(args.checkpoint)
-    opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, rest_pooling=not args.no_rest_pooling,
-                         hand_link=not args.no_hand_link, hinge=False if args.no_hinge else None,
-                         foot_lock=not args.no_foot_lock,
-                         body_drift=not args.no_drift_correction)
+    opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, post=post_steps_config(args))
     data = args.data or filt.ckpt.data.get("path")
     if not data or not Path(data).is_dir():
         raise FileNotFoundError(f"the checkpoint's dataset {data!r} is not on this machine; pass --data DIR "
@@ -311,8 +301,10 @@ def run(args: argparse.Namespace) -> int:
     res = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "data": str(Path(args.data)), "seed": args.seed,
            "categories": sorted(set(cats)),
            "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
-    res["rest_pooling"], res["hand_link"], res["body_drift"] = opts.rest_pooling, opts.hand_link, opts.body_drift
-    res["hinge"], res["foot_lock"] = opts.hinge is not False, opts.foot_lock
+    post = opts.post
+    res["rest_pooling"], res["hand_link"], res["body_drift"] = post.rest_pooling.enabled, post.rest_pooling.hand_link, post.body_drift.enabled
+    res["hinge"], res["foot_lock"] = post.hinge.enabled, post.foot_lock.enabled
+    res["post_config"] = post.to_dict()
     res.update(evaluate(filt, test_clean, cats, CorruptionConfig(), sg, args.seed, opts, per_clip_speed=True,
                         rest_ablation=True))
     res["no_imu"] = evaluate(filt, test_clean, cats, CorruptionConfig().without_imu(), sg, args.seed, opts)

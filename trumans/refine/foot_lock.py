@@ -37,14 +37,19 @@ class LockConfig:
     """fade_s: seconds over which a stance's correction fades in before it and out after it;
     stance: how stances are found (the body-drift fit's detection). Chosen on 40 val clips (fade 0.1
     / 0.2 s, speed 0.2 / 0.25 / 0.3 m/s, shortest stance 0.1 / 0.17 s): skate 4.3 -> 1.6 cm per planted
-    foot joint, mpjpe unchanged (18.79 -> 18.80 mm); faster thresholds lock more and cost mpjpe."""
+    foot joint, mpjpe unchanged (18.79 -> 18.80 mm); faster thresholds lock more and cost mpjpe.
+    enabled: whether the post-step runs (``trumans.refine.post_steps``)."""
 
+    enabled: bool = True
     fade_s: float = 0.2
     stance: DriftConfig = DriftConfig()
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.fade_s) and self.fade_s >= 0):
             raise ValueError(f"lock fade_s must be >= 0, got {self.fade_s}")
+        if not self.stance.enabled:
+            raise ValueError("lock stance is the stance detection only: its enabled must stay true (switch the "
+                             "foot lock off with the lock's own enabled, the drift fit with body_drift.enabled)")
 
 
 def _corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:

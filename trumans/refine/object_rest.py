@@ -60,8 +60,9 @@ class RestConfig:
     weight 0.05-1, fade 0.03-1 s; README). fade_s: what the rests leave at a driven move's ends is
     faded out over this long inside the move. held_*: the held-move test (``held_mask``): half its
     window, and how far the wrist must move within the window (best of a grid on val: window
-    0.33-1.33 s, move 0.03-0.12 m)."""
+    0.33-1.33 s, move 0.03-0.12 m). enabled: whether the post-step runs (``trumans.refine.post_steps``)."""
 
+    enabled: bool = True
     lo_m_s: float = 0.2
     hi_m_s: float = 0.25
     smooth_s: float = 0.3

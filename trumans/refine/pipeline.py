@@ -5,25 +5,24 @@ frames overlapping by ``overlap`` (``trumans.refine.windows``; a short one is pa
 frames), each window is put in its own canonical frame computed from the tracked input, denoised
 as a batch, turned back to the world, blended across the overlaps, and resampled back to the
 input's frames. Sampling starts from noise conditioned on the tracked input (the paper) or,
-with ``mode="sdedit"``, from the tracked input noised to ``strength`` (Meng et al. 2022).
+with ``mode="sdedit"``, from the tracked input noised to ``strength`` (Meng et al. 2022). Between
+the blend and the resampling back, the clip goes through the post-steps at the filter's rate
+(``trumans.refine.post_steps``: body drift, foot lock, object rests, hinge; ``RefineOptions.post``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 import torch
 
-from trumans.refine.body_drift import remove_body_drift
 from trumans.refine.filter import FilterModel, filter_window, category_indices, configure_skip, prepare_windows, sample_x0
 from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
-from trumans.refine.object_rest import RestConfig, pool_rest
-from trumans.refine.foot_lock import lock_feet
-from trumans.refine.object_hinge import HINGED_CATEGORIES, fit_hinge
 from trumans.refine.outliers import drop_frozen_frames, drop_object_flips, unflip_object
+from trumans.refine.post_steps import PostStepsConfig, RefinedClip, run_post_steps
 from trumans.refine.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
 from trumans.sequence import Sequence
@@ -42,13 +41,9 @@ class RefineOptions:
     network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames as
     missing, turn object rotations flipped by π about an own axis back (read from the whole sequence) and
     treat other rotations that flip and back within a second as missing, before filtering
-    (``trumans.refine.outliers``); rest_pooling: one object pose per rest, pooled over the whole rest
-    after filtering (``trumans.refine.object_rest``); hand_link: with rest pooling, moves held rigidly by a
-    wrist follow it and tie the rests on either side (``RestConfig.hand_link``); body_drift: remove the whole-body drift's
-    changes seen by the planted feet after filtering (``trumans.refine.body_drift``); hinge: with rest pooling, turn
-    the object about one hinge fitted to the whole sequence (``trumans.refine.object_hinge``; None = for the
-    hinged categories, ``HINGED_CATEGORIES``); foot_lock: hold each planted foot joint at one point
-    per stance, the legs following by IK (``trumans.refine.foot_lock``)."""
+    (``trumans.refine.outliers``); post: the post-steps after filtering, each with its switch and
+    parameters (``trumans.refine.post_steps``: body drift, foot lock, rest pooling with the hand
+    link, hinge for the hinged categories)."""
 
     num_steps: int = 2
     mode: Mode = "noise"
@@ -57,20 +52,12 @@ class RefineOptions:
     batch: int = 256
     seed: int = 0
     drop_failures: bool = True
-    rest_pooling: bool = True
-    hand_link: bool = True
-    body_drift: bool = True
-    hinge: bool | None = None
-    foot_lock: bool = True
+    post: PostStepsConfig = field(default_factory=PostStepsConfig)
 
     def post_steps(self, category: str) -> list[str]:
-        """The steps after the network these options run for an object of ``category``, in order."""
-        steps = ["body_drift"] if self.body_drift else []
-        steps += ["foot_lock"] if self.foot_lock else []
-        if self.rest_pooling:
-            steps += ["rest_pooling"] + (["hand_link"] if self.hand_link else [])
-            steps += ["hinge"] if self.hinge or (self.hinge is None and category in HINGED_CATEGORIES) else []
-        return steps
+        """The steps after the network these options run for an object of ``category``, in order,
+        with the sub-switches that are on (``PostStepsConfig.steps_for``; ``trumans refine`` reports it)."""
+        return self.post.steps_for(category)
 
     def __post_init__(self) -> None:
         if self.mode not in ("noise", "sdedit"):
@@ -136,15 +123,7 @@ class HOIFilter:
             i += n
             blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
-            steps = options.post_steps(c)  # the same list `trumans refine` reports
-            if "body_drift" in steps:
-                blended = remove_body_drift(blended, self.fps)
-            if "foot_lock" in steps:  # after the drift fit, which reads the same stances as drift
-                blended = lock_feet(blended, self.fps)
-            if "rest_pooling" in steps:  # after the body drift: moves follow the corrected wrists
-                blended = pool_rest(blended, p["tracked"], self.fps, RestConfig(hand_link="hand_link" in steps))
-            if "hinge" in steps:
-                blended = fit_hinge(blended, p["tracked"])
+            blended = run_post_steps(RefinedClip(blended, p["tracked"], self.fps, c), options.post)
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 

@@ -1,54 +1,5 @@
-"""Frozen config dataclasses from plain data (a dict, as JSON gives it): the inverse of
-``dataclasses.asdict`` for the sampler's configs (``SamplerConfig.from_dict``).
-
-Keys left out keep the defaults; an unknown key, a wrong type (a number for a switch, text for a
-number) or a non-finite number is a ValueError naming its path. Field types: bool, int, float,
-tuple[str, ...] and nested config dataclasses.
-"""
-from __future__ import annotations
-
-import math
-from dataclasses import fields, is_dataclass, replace
-from typing import Any, get_args, get_origin, get_type_hints
+"""Config dataclasses from plain data: moved to ``trumans.config_data`` (shared with the refine
+post-steps, which must not import ``trumans.sample``); this name stays for the sampler's imports."""
+from trumans.config_data import config_from_dict
 
 __all__ = ["config_from_dict"]
-
-
-def config_from_dict(cls: type, data: Any, where: str = "config", base: Any = None):
-    """An instance of config dataclass ``cls`` from ``data`` (module doc); ``base``: the instance
-    whose values the keys left out keep (default ``cls()``)."""
-    if not isinstance(data, dict):
-        raise ValueError(f"{where} must be a mapping of keys to values, got {data!r}")
-    base = cls() if base is None else base
-    hints = get_type_hints(cls)
-    known = [f.name for f in fields(cls)]
-    unknown = sorted(set(data) - set(known))
-    if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; known keys: {known}")
-    values = {}
-    for key, value in data.items():
-        t, at = hints[key], f"{where}.{key}"
-        if is_dataclass(t):
-            values[key] = config_from_dict(t, value, at, getattr(base, key))
-        elif t is bool:
-            if not isinstance(value, bool):
-                raise ValueError(f"{at} must be true or false, got {value!r}")
-            values[key] = value
-        elif t is int:
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise ValueError(f"{at} must be a whole number, got {value!r}")
-            values[key] = value
-        elif t is float:
-            if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-                raise ValueError(f"{at} must be a finite number, got {value!r}")
-            values[key] = float(value)
-        elif get_origin(t) is tuple and get_args(t)[0] is str:
-            if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-                raise ValueError(f"{at} must be a list of names, got {value!r}")
-            values[key] = tuple(value)
-        else:  # a field type this reader does not know: a bug of the config, not of the data
-            raise TypeError(f"{at}: config_from_dict cannot read a field of type {t!r}")
-    try:
-        return replace(base, **values)
-    except ValueError as e:
-        raise ValueError(f"{where}: {e}") from e

@@ -9,7 +9,8 @@ the cleanup steps are generated from their tables (``trumans.sample.guidance.ter
 from __future__ import annotations
 
 import argparse
-import json
+
+from trumans.config_data import set_entries
 
 __all__ = ["add_guidance_arguments", "add_postprocess_arguments", "postprocess_kwargs", "sampler_config"]
 
@@ -56,19 +57,6 @@ def add_postprocess_arguments(p: argparse.ArgumentParser) -> None:
                         "'guidance' and 'cleanup' entries of the sampler config saved in every sampled npz)")
 
 
-def _set_entry(text: str) -> tuple[list[str], object]:
-    path, sep, value = text.partition("=")
-    keys = path.strip().split(".")
-    if not sep or len(keys) < 2 or keys[0] not in SET_ROOTS or not all(keys):
-        raise ValueError(f"--set must be PATH=VALUE with PATH under {' or '.join(SET_ROOTS)} (like "
-                         f"cleanup.foot.blend=4), got {text!r}")
-    try:
-        return keys, json.loads(value)
-    except json.JSONDecodeError:
-        raise ValueError(f"--set {path}: VALUE must be JSON (a number, true / false, \"text\", [..]), got {value!r}") \
-            from None
-
-
 def _overrides(args: argparse.Namespace) -> dict:
     """The ``guidance`` / ``cleanup`` entries of a ``SamplerConfig`` dict set by the switches and ``--set``."""
     from trumans.sample.cleanup.pipeline import STEPS
@@ -79,15 +67,7 @@ def _overrides(args: argparse.Namespace) -> dict:
     for s in STEPS:
         if s.option is not None:
             d["cleanup"][s.name][s.option] = getattr(args, f"cleanup_{s.name}_{s.option}")
-    for text in getattr(args, "config_set", None) or []:
-        keys, value = _set_entry(text)
-        node = d
-        for k in keys[:-1]:
-            node = node.setdefault(k, {})
-            if not isinstance(node, dict):
-                raise ValueError(f"--set {text!r}: {k} is a value, not a section")
-        node[keys[-1]] = value
-    return d
+    return set_entries(d, getattr(args, "config_set", None) or [], SET_ROOTS, "cleanup.foot.blend=4")
 
 
 def postprocess_kwargs(args: argparse.Namespace) -> dict:

@@ -1,0 +1,190 @@
+"""The HOI filter's post-steps: one ordered pipeline, one config.
+
+After the network's windows are blended (``HOIFilter.refine_many``), the refined clip at the
+filter's rate goes through ``STEPS`` in this order (``run_post_steps``):
+
+1. ``body_drift`` - the whole-body drift's changes seen by the planted feet are removed
+   (``body_drift.py``). First: it moves every joint, and the steps after it read the corrected body.
+2. ``foot_lock`` - each planted foot joint is held at one point per stance, the legs following by
+   IK (``foot_lock.py``). After the drift fit, which reads the same stances: the lock pins the
+   feet where the drift-corrected body stands.
+3. ``rest_pooling`` - one object pose per rest, pooled over the whole rest; with ``hand_link``,
+   moves held rigidly by a wrist follow it and tie the rests on either side (``object_rest.py``).
+   After the body drift: the moves follow the corrected wrists.
+4. ``hinge`` - the object turns about one hinge fitted to the whole sequence, for the hinged
+   categories (``object_hinge.py``; ``HingeConfig.categories``, or every object with
+   ``any_category``). Last, and only after rest pooling (``needs``): it reduces the pooled
+   rotations to one degree of freedom.
+
+Every step has one signature, ``apply(clip: RefinedClip, config) -> frames (T, 235)``, and its own
+frozen config with an ``enabled`` switch; ``PostStepsConfig`` nests them under the step names, so
+every parameter of every step is set in one place (``RefineOptions.post``), and ``trumans refine`` /
+``trumans eval refine`` generate their ``--no-<flag>`` switches from ``STEPS``
+(``trumans.refine.post_args``). The names a clip's run reports (``PostStepsConfig.steps_for``, what
+``trumans refine --json`` prints as ``post_steps``) are the steps that run, each followed by its
+sub-switches that are on (``rest_pooling``, ``hand_link``). No step imports another.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, Callable
+
+import numpy as np
+
+from trumans.config_data import config_from_dict
+from trumans.refine.body_drift import DriftConfig, remove_body_drift
+from trumans.refine.foot_lock import LockConfig, lock_feet
+from trumans.refine.frame import FRAME_DIM
+from trumans.refine.object_hinge import HingeConfig, fit_hinge
+from trumans.refine.object_rest import RestConfig, pool_rest
+
+__all__ = ["RefinedClip", "SubSwitch", "PostStep", "STEPS", "PostStepsConfig", "run_post_steps"]
+
+
+@dataclass(frozen=True)
+class RefinedClip:
+    """One refined clip as the post-steps see it, at the filter's rate.
+
+    frames: (T, 235) world frame vectors, the blended filter output (then each step's output);
+    tracked: (T, 235) the tracked input resampled to the same frames (NaN = missing); fps: the
+    filter's frames per second; category: the object's category."""
+
+    frames: np.ndarray
+    tracked: np.ndarray
+    fps: float
+    category: str
+
+    def __post_init__(self) -> None:
+        F, R = np.shape(self.frames), np.shape(self.tracked)
+        if len(F) != 2 or F[1] != FRAME_DIM or R != F:
+            raise ValueError(f"frames and tracked must both be (T, {FRAME_DIM}), got {F} and {R}")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number, got {self.fps}")
+
+
+@dataclass(frozen=True)
+class SubSwitch:
+    """A boolean field of a step's config with its own ``--no-<flag>`` switch (``does``: one line for
+    the help); reported after its step's name when on."""
+
+    field: str
+    flag: str
+    does: str
+
+
+def _always(config: Any, category: str) -> bool:
+    return True
+
+
+@dataclass(frozen=True)
+class PostStep:
+    """A post-step: name (its ``PostStepsConfig`` field and its reported name), flag (``--no-<flag>``),
+    its config class, ``apply(clip, config) -> frames (T, 235)``, what it does (one line, for the
+    help); optionally ``applies(config, category)`` (the categories it runs for), ``needs`` (a step
+    that must run for this one to), ``subs`` (sub-switches) and ``force`` (a boolean config field
+    that ``--<flag>`` sets, ``force_help`` its help)."""
+
+    name: str
+    flag: str
+    config: type
+    apply: Callable[[RefinedClip, Any], np.ndarray]
+    does: str
+    applies: Callable[[Any, str], bool] = _always
+    needs: str | None = None
+    subs: tuple[SubSwitch, ...] = ()
+    force: str | None = None
+    force_help: str = ""
+
+
+def _body_drift(clip: RefinedClip, config: DriftConfig) -> np.ndarray:
+    return remove_body_drift(clip.frames, clip.fps, config)
+
+
+def _foot_lock(clip: RefinedClip, config: LockConfig) -> np.ndarray:
+    return lock_feet(clip.frames, clip.fps, config)
+
+
+def _rest_pooling(clip: RefinedClip, config: RestConfig) -> np.ndarray:
+    return pool_rest(clip.frames, clip.tracked, clip.fps, config)
+
+
+def _hinge(clip: RefinedClip, config: HingeConfig) -> np.ndarray:
+    return fit_hinge(clip.frames, clip.tracked, config)
+
+
+STEPS: tuple[PostStep, ...] = (
+    PostStep("body_drift", "drift-correction", DriftConfig, _body_drift,
+             "remove the whole-body drift's changes seen by the planted feet (trumans.refine.body_drift)"),
+    PostStep("foot_lock", "foot-lock", LockConfig, _foot_lock,
+             "hold each planted foot joint at one point per stance, the legs following by IK "
+             "(trumans.refine.foot_lock)"),
+    PostStep("rest_pooling", "rest-pooling", RestConfig, _rest_pooling,
+             "pool one object pose over each rest of the object (the filter's pose stays in every frame; "
+             "trumans.refine.object_rest)",
+             subs=(SubSwitch("hand_link", "hand-link",
+                             "let a move held rigidly by a wrist follow the wrist and tie the rests on either side "
+                             "(each rest is pooled on its own; trumans.refine.object_rest)"),)),
+    PostStep("hinge", "hinge", HingeConfig, _hinge,
+             "fit a hinge, whatever the category (trumans.refine.object_hinge)",
+             applies=HingeConfig.applies_to, needs="rest_pooling", force="any_category",
+             force_help="the object turns about one fixed hinge: fit it to the whole sequence after rest pooling "
+                        "(default: for the hinged categories, door; trumans.refine.object_hinge)"),
+)
+
+
+@dataclass(frozen=True)
+class PostStepsConfig:
+    """One config per post-step (``STEPS``, in their order), each with ``enabled``."""
+
+    body_drift: DriftConfig = field(default_factory=DriftConfig)
+    foot_lock: LockConfig = field(default_factory=LockConfig)
+    rest_pooling: RestConfig = field(default_factory=RestConfig)
+    hinge: HingeConfig = field(default_factory=HingeConfig)
+
+    def switched(self, **enabled: bool) -> PostStepsConfig:
+        """A copy with the named steps switched on / off, e.g. ``switched(foot_lock=False, hinge=False)``."""
+        names = [s.name for s in STEPS]
+        unknown = sorted(set(enabled) - set(names))
+        if unknown:
+            raise ValueError(f"unknown post-steps {unknown}; the steps: {names}")
+        return replace(self, **{k: replace(getattr(self, k), enabled=bool(v)) for k, v in enabled.items()})
+
+    def runs(self, category: str) -> list[str]:
+        """The names of the steps that run for an object of ``category``, in order."""
+        out: list[str] = []
+        for step in STEPS:
+            cfg = getattr(self, step.name)
+            if cfg.enabled and step.applies(cfg, category) and (step.needs is None or step.needs in out):
+                out.append(step.name)
+        return out
+
+    def steps_for(self, category: str) -> list[str]:
+        """What a run for ``category`` reports: the steps that run, each followed by its sub-switches
+        that are on (e.g. ``['body_drift', 'foot_lock', 'rest_pooling', 'hand_link', 'hinge']``)."""
+        by_name = {s.name: s for s in STEPS}
+        return [n for name in self.runs(category)
+                for n in [name] + [s.field for s in by_name[name].subs if getattr(getattr(self, name), s.field)]]
+
+    def to_dict(self) -> dict:
+        """Plain data (``from_dict`` reads it back)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "post") -> PostStepsConfig:
+        """From plain data; keys left out keep the defaults, unknown keys are errors naming the key
+        (``trumans.config_data.config_from_dict``)."""
+        return config_from_dict(cls, d, where)
+
+
+def run_post_steps(clip: RefinedClip, config: PostStepsConfig) -> np.ndarray:
+    """``clip.frames`` through the steps that run for ``clip.category`` (``PostStepsConfig.runs``),
+    in order -> (T, 235) world frame vectors at ``clip.fps``."""
+    frames = clip.frames
+    for name in config.runs(clip.category):
+        step = next(s for s in STEPS if s.name == name)
+        frames = step.apply(replace(clip, frames=frames), getattr(config, name))
+    return frames
+
+
+assert [s.name for s in STEPS] == [f.name for f in fields(PostStepsConfig)], "STEPS and PostStepsConfig disagree"
+assert all(s.config is type(getattr(PostStepsConfig(), s.name)) for s in STEPS), "a step's config class is not its field's"

@@ -282,3 +282,11 @@ def test_frame_rates_and_frame_counts_outside_the_budget_are_refused_before_read
     with pytest.raises(ValueError, match="limit of"):
         resample_times(MAX_FRAMES, 30.0, 60.0)
     assert len(resample_times(31, 30.0, 10.0)) == 11
+
+
+def test_a_utf8_byte_order_mark_is_read_past(tmp_path):
+    text = ("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n"
+            " End Site\n {\n  OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.0333333\n0 0 0\n0 1 0\n")
+    p = tmp_path / "bom.bvh"
+    p.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert read_bvh(p).num_frames == 2

@@ -123,7 +123,7 @@ def read_bvh(path: str | Path) -> BvhData:
         raise FileNotFoundError(f"BVH file {path} does not exist")
     if not path.is_file():
         raise IsADirectoryError(f"{path} is a directory, not a BVH file; pass the path of a .bvh file")
-    text = path.read_text(errors="replace")
+    text = path.read_text(encoding="utf-8-sig", errors="replace")  # a UTF-8 byte order mark is not content
     m = re.search(r"^\s*MOTION\s*$", text, flags=re.MULTILINE)
     if not text.lstrip().upper().startswith("HIERARCHY"):
         raise ValueError(f"{path} is not a BVH file: it must start with HIERARCHY")

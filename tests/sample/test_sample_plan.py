@@ -310,3 +310,15 @@ def off_line_within(wm, line: np.ndarray, slack: float) -> bool:
 
     idx = np.clip(wm.index(line), 0, np.asarray(wm.walkable.shape) - 1)
     return bool((off_walkable(wm)[idx[:, 0], idx[:, 1]] <= slack + 1e-9).all())
+
+
+def test_a_reach_target_out_of_a_persons_reach_is_refused():
+    from trumans.sample.plan import MAX_REACH_HEIGHT, Plan, Step, validate_plan
+    from trumans.scenes.procedural import make_room
+
+    room = make_room(seed=0)
+    vocab = ["walk", "reach", "sit_down", "sit", "stand_up"]
+    validate_plan(Plan(steps=[Step("reach", target=(1.0, 1.0, 1.2))]), room, vocab)
+    for z in (50.0, -0.5, MAX_REACH_HEIGHT + 0.1):
+        with pytest.raises(ValueError, match="out of a standing person's reach"):
+            validate_plan(Plan(steps=[Step("reach", target=(1.0, 1.0, z))]), room, vocab)

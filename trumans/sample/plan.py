@@ -36,6 +36,7 @@ __all__ = ["Step", "Plan", "STEP_KINDS", "load_plan", "plan_from_dict", "validat
 
 StepKind = Literal["goto", "sit_on", "lie_on", "stand_up", "get_up", "reach", "act", "open", "close",
                    "pick_up", "put_down"]
+MAX_REACH_HEIGHT = 2.4  # m above the floor: what a standing person can reach
 STEP_KINDS: tuple[str, ...] = ("goto", "sit_on", "lie_on", "stand_up", "get_up", "reach", "act", "open", "close",
                                "pick_up", "put_down")
 _FIELDS: dict[str, set[str]] = {
@@ -188,6 +189,11 @@ def validate_plan(plan: Plan, scene, vocabulary: list[str]) -> None:
                 raise ValueError(f"{where}: {n!r} has no seat (meta 'seat_center'); choose a chair, stool, sofa or bed")
             if s.kind == "lie_on" and "lie_center" not in meta:
                 raise ValueError(f"{where}: {n!r} has no lying surface (meta 'lie_center')")
+        if s.kind == "reach" and not isinstance(s.target, str) and s.target is not None:
+            z = float(s.target[2])
+            if not 0.0 <= z <= MAX_REACH_HEIGHT:
+                raise ValueError(f"{where}: target height {z:g} m is out of a standing person's reach; give a "
+                                 f"point between the floor and {MAX_REACH_HEIGHT:g} m")
         if s.kind == "act":
             if s.action not in vocab:
                 raise ValueError(f"{where}: unknown action {s.action!r}; the model knows {', '.join(vocabulary)}")

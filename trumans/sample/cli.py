@@ -96,7 +96,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", default="default",
                    help="scene folder, mesh file, 'default' (the default room) or room:SEED (a procedural room)")
     p.add_argument("--up", choices=("z", "y"), default="z", help="up axis of a mesh file given as --scene")
-    p.add_argument("--plan", default=None, help="plan file (.json or .toml); see docs/generate.md, "Plans"")
+    p.add_argument("--plan", default=None, help="plan file (.json or .toml); see the Plans section of docs/generate.md")
     p.add_argument("--start", default=None, help="start floor point X,Y (m); default: the plan's, else the room centre")
     p.add_argument("--heading", type=float, default=None, help="start heading (rad, from +x)")
     p.add_argument("--body", default=None, metavar="SEQ.npz[:FRAME]",

@@ -1,6 +1,7 @@
 """trumans: human-scene interaction motion (TRUMANS, I'm-HOI filter, iReplica tracking).
 
 Core library: skeleton & rotations, sequences & actions, diffusion, networks, data, metrics.
+One-call API (``trumans.api``, imported on first use): ``generate``, ``refine_tracked``, ``track_interactions``.
 """
 from .skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, forward_kinematics, heading, rest_offsets
 from .sequence import ObjectTrack, Sequence, load_sequence, save_sequence
@@ -9,4 +10,14 @@ __version__ = "0.1.0"
 __all__ = [
     "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "forward_kinematics", "heading", "rest_offsets",
     "ObjectTrack", "Sequence", "load_sequence", "save_sequence", "__version__",
+    "generate", "refine_tracked", "track_interactions",
 ]
+_API = ("generate", "refine_tracked", "track_interactions")  # trumans.api, imported on first use (PEP 562)
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'trumans' has no attribute {name!r}")

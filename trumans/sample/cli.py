@@ -18,17 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
-from trumans.paths import MODELS_DIR
+from trumans.sample.generate import DEFAULT_CHECKPOINT, MAX_SAMPLES, SAMPLER_CONFIG_KEY, default_plan
 from trumans import argtypes
 
-__all__ = ["add_arguments", "run", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY", "MAX_SAMPLES"]
-
-MAX_SAMPLES = 256  # --num-samples: one batch of bodies, each a few MB per episode
-
-DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
-# the sequence's ``extra`` entry with the sampler config used, JSON (``SamplerConfig.to_dict``);
-# ``SamplerConfig.from_dict(json.loads(...))`` rebuilds it
-SAMPLER_CONFIG_KEY = "sampler_config"
+__all__ = ["add_arguments", "run", "steps_from_flags", "body_frame", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY",
+           "MAX_SAMPLES", "default_plan"]
 FORMATS = ("npz", "bvh", "gif", "mp4", "png", "glb")
 
 
@@ -150,99 +144,32 @@ def body_frame(spec: str) -> np.ndarray:
     return np.asarray(joints[frame])
 
 
-def default_plan(sc) -> dict:
-    """Walk to a seat, sit, get up, walk elsewhere, a hand action: >= 30 s in most rooms."""
-    from trumans.sample.controller import seat_target
-
-    seats = [o for o in sc.scene.objects.values() if o.category in ("chair", "sofa", "stool") and "seat_center" in o.meta]
-    if not seats:
-        raise ValueError(f"scene {sc.source} has no chair, sofa or stool for the default plan; give --plan or steps")
-    start = sc.free_point()
-    seat = min(seats, key=lambda o: -np.linalg.norm(seat_target(o)[0][:2] - start))  # the farthest seat
-    far = np.argwhere(sc.walkmap.walkable)
-    pts = sc.walkmap.centers(far)
-    d = np.linalg.norm(pts - start, axis=1)
-    away = pts[int(np.argmax(np.where(d < 3.0, d, 0.0)))]
-    return {"start": start.tolist(), "heading": 0.0, "steps": [
-        {"do": "sit_on", "object": seat.name, "seconds": 8.0},
-        {"do": "stand_up"},
-        {"do": "goto", "to": away.tolist()},
-        {"do": "act", "action": "drink", "seconds": 5.0},
-        {"do": "goto", "to": start.tolist()},
-    ]}
-
-
 def run(args: argparse.Namespace) -> int:
-    import torch
-
-    from trumans.model.checkpoint import load_checkpoint
-    from trumans.sequence import Sequence
-
-    from trumans.sample.plan import load_plan, plan_from_dict, validate_plan
-    from trumans.sample.rollout import body_pose, sample_plan
-    from trumans.sample.sampler import EpisodeSampler
-    from trumans.sample.scene_input import load_sample_scene
-    from trumans.eval.synthesis_metrics import motion_figures
+    from trumans.sample.generate import generate_sequences
+    from trumans.sample.plan import plan_from_dict
+    from trumans.viz.export import export
 
     formats = {f.strip() for f in args.formats.split(",") if f.strip()}
     bad = formats - set(FORMATS)
     if bad or not formats:
         raise ValueError(f"--formats must name some of {','.join(FORMATS)}, got {args.formats!r}")
-    if args.num_samples < 1:
-        raise ValueError(f"--num-samples must be >= 1, got {args.num_samples}")
-    if not args.max_seconds > 0:
-        raise ValueError(f"--max-seconds must be > 0, got {args.max_seconds}")
-    try:
-        device = torch.device(args.device)
-    except RuntimeError:
-        raise ValueError(f"--device {args.device!r} is not a torch device; use cpu or cuda[:N]") from None
-    ckpt = load_checkpoint(args.checkpoint or DEFAULT_CHECKPOINT, kind="generator")
-    sc = load_sample_scene(args.scene, up=args.up)
     flags = list(getattr(args, "plan_steps", None) or [])
     if args.plan and flags:
         raise ValueError("give either --plan FILE or step flags (--goto, --sit-on, ...), not both")
-    if args.plan:
-        plan = load_plan(args.plan)
-    elif flags:
-        plan = plan_from_dict({"steps": steps_from_flags(flags)}, name="flags")
-    else:
-        plan = plan_from_dict(default_plan(sc), name="default")
-    if args.start is not None or args.heading is not None:
-        from dataclasses import replace
-        plan = replace(plan, start=tuple(_xy(args.start, 2, "--start")) if args.start else plan.start,
-                       heading=args.heading if args.heading is not None else plan.heading)
-    validate_plan(plan, sc.scene, ckpt.vocabulary)
-    body = None if args.body is None else body_pose(body_frame(args.body), f"--body {args.body}")
-    config = sampler_config(args)
-    sampler = EpisodeSampler(ckpt, sc.grids, config, device=str(device))
-    start = np.asarray(plan.start, np.float64) if plan.start is not None else sc.free_point()
-    if not sc.walkmap.query(start[None])[0]:
-        raise ValueError(f"start {np.round(start, 2).tolist()} is not on walkable floor; give another --start")
-    result = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, num_samples=args.num_samples, seed=args.seed,
-                         max_seconds=args.max_seconds, progress=not args.no_progress, start_xy=start,
-                         body=body)
+    plan = args.plan or (plan_from_dict({"steps": steps_from_flags(flags)}, name="flags") if flags else None)
+    body = None if args.body is None else body_frame(args.body)
+    gen = generate_sequences(plan, args.scene, checkpoint=args.checkpoint, seed=args.seed,
+                             num_samples=args.num_samples, config=sampler_config(args),
+                             start=None if args.start is None else _xy(args.start, 2, "--start"),
+                             heading=args.heading, body=body, up=args.up, device=args.device,
+                             max_seconds=args.max_seconds, progress=not args.no_progress)
     out = Path(args.out)
     written: list[str] = []
-    from trumans.viz.export import export
-
-    from trumans.sample.carry import object_tracks
-    from trumans.sample.carry_metrics import carry_figures
-
-    carry: dict = {}
-    for b in range(args.num_samples):
-        tracks, its, info = object_tracks(result.joints[b], result.phase[b], result.phases, sc.scene)  # §4.2
-        if b == 0:
-            carry = carry_figures(result.joints[b], tracks, its, info, sc.scene, result.phases)
-        seq = Sequence(joints=result.joints[b], fps=result.fps, actions=result.labels[b],
-                       action_names=list(result.vocabulary), scene=sc.source, objects=tracks,
-                       extra={SAMPLER_CONFIG_KEY: np.asarray(json.dumps(config.to_dict()))})
+    scene = gen.scene
+    for b, seq in enumerate(gen.sequences):
         stem = out if args.num_samples == 1 else out.with_name(f"{out.name}_{b:02d}")
-        written += [str(p) for p in export(seq, stem, formats, scene=sc.scene).values()]
-    figures = motion_figures(result, sc)
-    summary = {"plan": plan.name, "scene": sc.source, "samples": args.num_samples, "frames": int(result.joints.shape[1]),
-               "seconds_of_motion": round(result.joints.shape[1] / result.fps, 2), "episodes": result.episodes,
-               "seconds_per_episode": round(result.seconds_per_episode, 4),
-               "realtime_factor": round(result.realtime_factor, 2), **figures, **carry, "written": written}
+        written += [str(p) for p in export(seq, stem, formats, scene=scene).values()]
+    summary = {**gen.figures, "written": written}
     if args.json:
         print(json.dumps(summary))
     else:

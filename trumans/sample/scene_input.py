@@ -17,11 +17,10 @@ from trumans.scenes.occupancy import OccupancyGrid, scene_occupancy
 from trumans.scenes.procedural import make_room
 from trumans.scenes.scene import Scene
 from trumans.scenes.scene_grids import SceneGrids
+from trumans.scenes.spec import DEFAULT_ROOM_SEED, procedural_seed, procedural_spec
 from trumans.scenes.walkability import WalkMap, nearest_walkable, walkable_map
 
 __all__ = ["SampleScene", "load_sample_scene", "DEFAULT_ROOM_SEED"]
-
-DEFAULT_ROOM_SEED = 2  # the default room: a procedural room with a chair, a sofa, a bed, a table and cups
 
 
 @dataclass
@@ -30,7 +29,7 @@ class SampleScene:
     occupancy: OccupancyGrid
     walkmap: WalkMap
     grids: SceneGrids
-    source: str
+    source: str  # the scene's spec, loadable again: 'room:SEED', a scene folder or a mesh file
 
     def free_point(self) -> np.ndarray:
         """(2,) a walkable floor point near the room's centre, m."""
@@ -47,14 +46,15 @@ def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", defa
     """spec: None / 'default' (the default procedural room), 'room:SEED' (another procedural room),
     a scene folder (scene.json), or a mesh file trimesh reads (a scan or room model; ``up`` 'y'
     converts a y-up file). Raises FileNotFoundError / ValueError naming the problem."""
-    if spec in (None, "", "default") or (isinstance(spec, str) and spec.startswith("room:")):
-        seed = default_seed if spec in (None, "", "default") else _seed(spec)
+    seed = procedural_seed(spec)
+    if seed is not None:
+        seed = default_seed if spec in (None, "", "default") else seed
         scene = make_room(seed)
         folder = Path(cache_dir) / scene.name if cache_dir is not None else None
         if folder is not None:
             folder.mkdir(parents=True, exist_ok=True)
         occ = scene_occupancy(scene, folder, voxel=voxel)
-        source = f"procedural room {seed}"
+        source = procedural_spec(seed)  # a spec this function loads again (``trumans view`` reads it from the npz)
     else:
         path = Path(spec)
         if path.is_dir():
@@ -80,9 +80,3 @@ def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", defa
                          f"is the mesh z-up (use --up y for a y-up file) and in metres?")
     return SampleScene(scene, occ, wm, SceneGrids(occ, scene), source)
 
-
-def _seed(spec: str) -> int:
-    try:
-        return int(spec.split(":", 1)[1])
-    except ValueError:
-        raise ValueError(f"scene {spec!r}: write room:SEED with an integer seed, e.g. room:3") from None

@@ -11,6 +11,7 @@ import numpy as np
 from trumans.scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 from trumans.argtypes import positive_int
 from trumans.dataset import INDEX_FILE, load_index
+from trumans.scenes.spec import SCENE_UP_KEY, procedural_seed
 from trumans.sequence import load_sequence
 
 from .render import SceneView, render_animation, render_topdown
@@ -23,7 +24,11 @@ if TYPE_CHECKING:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("seq", nargs="+", help="sequence .npz; several are shown side by side (e.g. original and augmented)")
-    p.add_argument("--scene", help="scene folder (default: found from the sequence's 'scene' field and the dataset index)")
+    p.add_argument("--scene", help="scene folder, mesh file, 'default' or room:SEED (as for `trumans sample`); default: "
+                                   "the scene the sequence records (a sampled npz) or, for a dataset sequence, the "
+                                   "dataset index's scene folder")
+    p.add_argument("--up", choices=("z", "y"), default=None,
+                   help="up axis of a mesh file given as --scene (default: as recorded by `trumans sample`, else z)")
     p.add_argument("--out", help="output prefix (default: next to the first sequence)")
     p.add_argument("--format", choices=["gif", "mp4"], default="gif", help="animation format (default gif)")
     p.add_argument("--camera", choices=["fixed", "follow"], default="fixed", help="fixed camera or follow the body")
@@ -60,6 +65,35 @@ def scene_view(sc: Scene) -> SceneView:
     return SceneView(static=static, dynamic=dynamic)
 
 
+def sequence_scene_view(seq_path: Path, seq, explicit: str | None, up: str | None) -> SceneView | None:
+    """The scene to draw under a sequence: ``explicit`` (--scene) or the sequence's own ``scene`` field,
+    each a scene folder, a mesh file, 'default' or 'room:SEED' (a relative path is tried from the current
+    folder, then beside the sequence); a dataset sequence's scene id is looked up in the dataset index.
+    ``up``: a mesh file's up axis (default: the sequence's recorded ``scene_up``, else z). None when
+    the sequence names no scene that can be found (only ``explicit`` must exist)."""
+    spec = explicit if explicit else (seq.scene or "")
+    if not spec:
+        return None
+    seed = procedural_seed(spec)
+    if seed is not None:
+        from trumans.scenes.procedural import make_room
+
+        return scene_view(make_room(seed))
+    candidates = [Path(spec)] + ([] if explicit or Path(spec).is_absolute() else [seq_path.parent / spec])
+    for path in candidates:
+        if path.is_dir():
+            return load_scene_view(path)
+        if path.is_file():
+            from trumans.scenes.io import import_mesh
+
+            axis = up or (str(seq.extra[SCENE_UP_KEY]) if SCENE_UP_KEY in seq.extra else "z")
+            return SceneView(static=[import_mesh(path, up=axis)], dynamic={})
+    if explicit:
+        raise FileNotFoundError(f"--scene {explicit}: no such scene folder or mesh file; give a scene folder, a mesh "
+                                f"file, 'default' or room:SEED")
+    return load_scene_view(find_scene_dir(seq_path, seq.scene, None))
+
+
 def load_scene_view(folder: Path | None) -> SceneView | None:
     """Meshes from ``scene.json`` (when present) and the grid from ``occupancy.npz`` (when present)."""
     if folder is None:
@@ -81,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     paths = [Path(p) for p in args.seq]
     seqs = [load_sequence(p) for p in paths]
     # each sequence in its own scene (an augmented sequence lives in its changed scene)
-    scenes = [load_scene_view(find_scene_dir(p, s.scene, args.scene)) for p, s in zip(paths, seqs)]
+    scenes = [sequence_scene_view(p, s, args.scene, args.up) for p, s in zip(paths, seqs)]
     scene = scenes[0]
     prefix = Path(args.out) if args.out else paths[0].with_suffix("")
     written = {"topdown": str(render_topdown(seqs[0], prefix.with_name(prefix.name + "_top.png"), scene))}

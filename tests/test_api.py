@@ -1,0 +1,84 @@
+"""The one-call Python API (``trumans.generate``, ``refine_tracked``, ``track_interactions``) and the
+scene a sampled sequence records, which ``trumans view`` draws again."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import trumans
+from trumans.cli import console_main
+from trumans.model.checkpoint import save_checkpoint
+from trumans.sample.generate import generate_sequences
+from trumans.sequence import load_sequence
+
+from helpers import SAMPLE_VOCAB, tiny_checkpoint
+
+
+@pytest.fixture(scope="module")
+def ckpt_path(tmp_path_factory):
+    path = tmp_path_factory.mktemp("ck") / "gen.pt"
+    save_checkpoint(path, tiny_checkpoint())
+    return str(path)
+
+
+def test_import_trumans_does_not_import_the_jobs():
+    code = "import sys, trumans; print(any(m.startswith(('trumans.sample', 'trumans.refine', 'trumans.track', 'trumans.api')) for m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "False"
+    with pytest.raises(AttributeError, match="no attribute 'nonsense'"):
+        trumans.nonsense  # noqa: B018
+
+
+def test_generate_equals_the_command(ckpt_path, tmp_path):
+    plan = [{"do": "goto", "to": [2.4, 3.4]}]
+    seq = trumans.generate(plan=plan, scene="room:2", start=(2.4, 2.5), seed=3, checkpoint=ckpt_path,
+                           config=None, progress=False)
+    rc = console_main(["sample", "--checkpoint", ckpt_path, "--scene", "room:2", "--start", "2.4,2.5", "--goto",
+                       "2.4,3.4", "--seed", "3", "--out", str(tmp_path / "walk"), "--formats", "npz", "--no-progress"])
+    assert rc == 0
+    ref = load_sequence(tmp_path / "walk.npz")
+    np.testing.assert_array_equal(seq.joints, ref.joints)
+    assert seq.scene == ref.scene == "room:2" and list(seq.action_names) == SAMPLE_VOCAB
+
+
+def test_generate_refuses_bad_arguments_before_sampling(ckpt_path):
+    with pytest.raises(ValueError, match="num_samples"):
+        generate_sequences(None, "room:2", checkpoint=ckpt_path, num_samples=0)
+    with pytest.raises(TypeError, match="plan must be"):
+        trumans.generate(plan=3.5, scene="room:2", checkpoint=ckpt_path)
+    with pytest.raises(ValueError, match="not on walkable floor"):
+        trumans.generate(plan=[{"do": "goto", "to": [100.0, 100.0]}], scene="room:2", checkpoint=ckpt_path)
+
+
+def test_view_draws_the_scene_a_sample_records(ckpt_path, tmp_path):
+    from trumans.viz.cli import sequence_scene_view
+
+    seq = trumans.generate(plan=[{"do": "goto", "to": [2.4, 3.0]}], scene="room:2", start=(2.4, 2.5),
+                           checkpoint=ckpt_path)
+    view = sequence_scene_view(tmp_path / "x.npz", seq, None, None)
+    assert view is not None and len(view.static) > 3  # the room's walls and furniture, not a floating figure
+    bounds = np.concatenate([m.bounds for m in view.static])
+    assert bounds[:, 2].max() > 2.0  # walls
+    # an explicit spec wins; a missing explicit scene is an error naming the forms
+    assert sequence_scene_view(tmp_path / "x.npz", seq, "default", None) is not None
+    with pytest.raises(FileNotFoundError, match="room:SEED"):
+        sequence_scene_view(tmp_path / "x.npz", seq, str(tmp_path / "nowhere"), None)
+    with pytest.raises(ValueError, match="integer seed"):
+        sequence_scene_view(tmp_path / "x.npz", seq, "room:x", None)
+
+
+def test_view_command_renders_a_sampled_npz_with_its_scene(ckpt_path, tmp_path, capsys):
+    import json
+
+    out = tmp_path / "walk"
+    assert console_main(["sample", "--checkpoint", ckpt_path, "--scene", "room:2", "--start", "2.4,2.5", "--goto",
+                         "2.4,3.0", "--out", str(out), "--formats", "npz", "--no-progress"]) == 0
+    assert console_main(["view", str(out) + ".npz", "--no-animation", "--json"]) == 0
+    written = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    from PIL import Image
+
+    img = np.asarray(Image.open(written["topdown"]).convert("L"), np.float64)
+    assert img.std() > 10  # walls and furniture drawn, not a blank canvas with a path

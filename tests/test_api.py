@@ -82,3 +82,18 @@ def test_view_command_renders_a_sampled_npz_with_its_scene(ckpt_path, tmp_path, 
 
     img = np.asarray(Image.open(written["topdown"]).convert("L"), np.float64)
     assert img.std() > 10  # walls and furniture drawn, not a blank canvas with a path
+
+
+def test_the_readme_python_example_runs(tmp_path, monkeypatch):
+    """The README's ``From Python`` block, run as written (shipped model) from an empty folder."""
+    from helpers import REPO_ROOT
+
+    text = (REPO_ROOT / "README.md").read_text()
+    block = text.split("### From Python", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "out").mkdir()
+    exec(compile(block, "README.md", "exec"), {})
+    seq = load_sequence(tmp_path / "out" / "api_walk.npz")
+    assert seq.scene == "room:2" and seq.joints.shape[1:] == (24, 3)
+    final = seq.joints[-1, 0, :2]
+    assert np.linalg.norm(final - [2.4, 3.4]) < 0.3  # it walked to its goal

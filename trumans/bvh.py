@@ -8,8 +8,10 @@ Conventions owned here:
 - Position channels: where a joint has them (the root; some files give other joints 6 channels)
   the channel values *replace* the joint's OFFSET as its translation (as Blender does); a missing
   axis keeps the OFFSET's value. Joints without position channels are translated by their OFFSET.
-- ``write_bvh`` writes our skeleton (``trumans.skeleton.JOINT_NAMES``) in metres, **y-up**, as
-  Blender/MotionBuilder expect: ``(X, Y, Z)_bvh = (y, z, x)_ours`` (left, up, forward); the root has
+- ``write_bvh`` writes our skeleton (``trumans.skeleton.JOINT_NAMES``) in metres, **y-up**, in the
+  project's one y-up frame (``trumans.rotations.Y_UP_TO_Z_UP``, also the GLB's and mesh import's):
+  ``(X, Y, Z)_bvh = (x, z, -y)_ours``, which Blender's BVH importer (forward -Z, up Y) turns back into
+  our world exactly, so a BVH and a GLB of one sequence overlay in one scene; the root has
   6 channels ``Xposition Yposition Zposition Zrotation Xrotation Yrotation``, others 3 (ZXY);
   leaf joints get an End Site. ``trumans.importers.bvh.import_bvh(..., up="y")`` converts back to our z-up.
 """
@@ -24,13 +26,19 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .limits import check_fps, check_frames
+from .rotations import Y_UP_TO_Z_UP
 from .sequence import atomic_write
 from .skeleton import JOINT_NAMES, NUM_JOINTS, children
 
-__all__ = ["BvhData", "read_bvh", "write_bvh", "Y_UP_FROM_Z_UP"]
+__all__ = ["BvhData", "read_bvh", "write_bvh", "Y_UP_FROM_Z_UP", "CORPUS_Y_UP_FROM_Z_UP", "CORPUS_FROM_PROJECT_TURN"]
 
-# (X, Y, Z)_bvh = C @ (x, y, z)_ours : left, up, forward (det +1, a cyclic permutation).
-Y_UP_FROM_Z_UP: np.ndarray = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+# (X, Y, Z)_bvh = C @ (x, y, z)_ours = (x, z, -y): the project's y-up frame (module doc)
+Y_UP_FROM_Z_UP: np.ndarray = Y_UP_TO_Z_UP.T
+# the CMU corpus build's turn of its y-up takes, (X, Y, Z)_file = (y, z, x)_ours (a cyclic permutation): which
+# horizontal file axis becomes our x is arbitrary for a take; kept so the corpus rebuild stays byte-identical
+CORPUS_Y_UP_FROM_Z_UP: np.ndarray = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+# row-vector turn from the project's frame of a y-up take to the corpus' (+90 deg about z): p_corpus = p @ this
+CORPUS_FROM_PROJECT_TURN: np.ndarray = Y_UP_TO_Z_UP @ CORPUS_Y_UP_FROM_Z_UP
 _AXES = {"X": 0, "Y": 1, "Z": 2}
 
 

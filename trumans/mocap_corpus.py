@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .bvh import CORPUS_FROM_PROJECT_TURN, CORPUS_Y_UP_FROM_Z_UP
 from .motion_labels import MOTION_STATES
 from trumans.paths import DATA_DIR
 
@@ -146,9 +147,10 @@ def convert_clip(path: str | Path, name: str, description: str = "", fps: float 
         if kf is None:
             raise ValueError(f"{path}: no animation")
         names, P = fbx.joint_positions(scene, t0 + np.arange(int(round((t1 - t0) * kf)) + 1) / kf)
+        P = P @ CORPUS_FROM_PROJECT_TURN  # the corpus keeps its own horizontal axes (trumans.bvh.CORPUS_Y_UP_FROM_Z_UP)
         src_fps = kf
     elif path.suffix.lower() == ".bvh":
-        from .bvh import Y_UP_FROM_Z_UP
+        Y_UP_FROM_Z_UP = CORPUS_Y_UP_FROM_Z_UP
 
         b = read_bvh(path)
         Pw, Gw = b.forward_kinematics()

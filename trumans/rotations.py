@@ -18,7 +18,7 @@ import numpy as np
 import torch
 from scipy.spatial.transform import Rotation
 
-__all__ = [
+__all__ = ["Y_UP_TO_Z_UP", 
     "matrix_to_6d",
     "sixd_to_matrix",
     "matrix_to_quat",
@@ -33,6 +33,11 @@ __all__ = [
     "skew",
     "rodrigues",
 ]
+
+# The one y-up <-> z-up turn of the project (mesh import, BVH and GLB export, TRUMANS-release import):
+# +90 deg about x, y-up (x, y, z) -> z-up (x, -z, y); det = +1. Its transpose takes our z-up world to
+# the y-up files (x, y, z) -> (x, z, -y), which Blender's and three.js' importers turn back exactly.
+Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 def matrix_to_6d(R: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:

@@ -228,3 +228,24 @@ def test_bad_requests_fail_clearly(tmp_path):
         export(seq, tmp_path / "x", {"npz"}, tmp_path / "nowhere")
     assert not list(tmp_path.iterdir())
     assert set(FORMATS) == {"npz", "bvh", "gif", "mp4", "png", "glb"}
+
+
+def test_bvh_and_glb_of_one_sequence_share_one_world_frame(tmp_path):
+    """One y-up frame for every export: the BVH's joints (file units, file axes) lie where the GLB's
+    joints lie (glTF's y-up world), within 1 mm, and both are the npz turned by ``Y_UP_TO_Z_UP.T``."""
+    from trumans.bvh import read_bvh
+    from trumans.rotations import Y_UP_TO_Z_UP
+
+    seq, sc = _scene_and_seq()
+    out = export(seq, tmp_path / "run", {"glb", "bvh"}, sc)
+    gltf, bin_ = _read_glb(out["glb"])
+    names = [n.get("name") for n in gltf["nodes"]]
+    jnode = [names.index(n) for n in JOINT_NAMES]
+    bvh = read_bvh(out["bvh"])
+    P_bvh, _ = bvh.forward_kinematics()
+    P_bvh = P_bvh[:, [bvh.names.index(n) for n in JOINT_NAMES]]
+    for f in (0, seq.num_frames - 1):
+        world = _node_matrices(gltf, bin_, f)
+        P_glb = np.stack([world[n][:3, 3] for n in jnode])
+        assert np.abs(P_glb - P_bvh[f]).max() < 1e-3
+        np.testing.assert_allclose(P_bvh[f], seq.joints[f] @ Y_UP_TO_Z_UP, atol=1e-3)  # (x, y, z) -> (x, z, -y)

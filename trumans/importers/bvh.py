@@ -59,7 +59,7 @@ def import_bvh(
     if ends:  # End Sites as joints "<joint>_end"
         E = np.stack([Pw[:, j] + Gw[:, j] @ bvh.end_sites[j] for j in ends], axis=1)
         Pw = np.concatenate([Pw, E], axis=1)
-    # file axes -> ours: y-up files use (x, y, z) = (Z, X, Y); z-up files are taken as they are
+    # file axes -> ours: y-up files use (x, y, z) = (X, -Z, Y) (trumans.rotations.Y_UP_TO_Z_UP); z-up files as they are
     C = Y_UP_FROM_Z_UP.T if up == "y" else np.eye(3)
     Pw = Pw @ C.T
     if unit_scale is None:

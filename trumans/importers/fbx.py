@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from trumans.rotations import Y_UP_TO_Z_UP
 from scipy.spatial.transform import Rotation
 
 from .fbx_curves import FBX_TICKS, curves_v6, curves_v7
@@ -278,13 +280,13 @@ def _topological(models: list[FbxModel], path) -> list[FbxModel]:
 
 
 def up_axis_matrix(up_axis: int, up_sign: int = 1) -> np.ndarray:
-    """(3, 3) rotation taking file axes to ours (z up): y-up files use ``(x, y, z) = (Z, X, Y)``
-    (the BVH convention), x-up ``(Y, Z, X)``, z-up identity; a negative up sign turns the body
-    half a turn about the forward axis (det +1 throughout)."""
+    """(3, 3) rotation taking file axes to ours (z up): y-up files use the project's one y-up turn
+    ``(x, y, z) = (X, -Z, Y)`` (``trumans.rotations.Y_UP_TO_Z_UP``, as BVH and mesh import), x-up
+    ``(Y, Z, X)``, z-up identity; a negative up sign turns the body half a turn about the x axis
+    (det +1 throughout)."""
     if up_axis not in (0, 1, 2):
         raise ValueError(f"UpAxis must be 0, 1 or 2, got {up_axis}")
-    perm = {2: [0, 1, 2], 1: [2, 0, 1], 0: [1, 2, 0]}[up_axis]
-    C = np.eye(3)[perm]
+    C = Y_UP_TO_Z_UP.copy() if up_axis == 1 else np.eye(3)[{2: [0, 1, 2], 0: [1, 2, 0]}[up_axis]]
     if up_sign < 0:
         C = np.diag([1.0, -1.0, -1.0]) @ C
     return C

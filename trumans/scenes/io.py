@@ -25,6 +25,8 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+
+from trumans.rotations import Y_UP_TO_Z_UP  # y-up (x, y, z) -> z-up (x, -z, y)
 import trimesh
 
 from trumans.scenes.occupancy import OCCUPANCY_FILE
@@ -36,8 +38,6 @@ __all__ = ["save_scene", "load_scene", "import_mesh", "SCENE_FILE", "Y_UP_TO_Z_U
 SCENE_FILE = "scene.json"
 FORMAT, VERSION = "trumans-scene", 1
 
-# y-up -> z-up: +90 deg about x, (x, y, z) -> (x, -z, y); det = +1 (a proper rotation).
-Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 def import_mesh(path: str | Path, up: Literal["y", "z"] = "z", scale: float = 1.0) -> trimesh.Trimesh:

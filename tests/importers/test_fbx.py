@@ -234,7 +234,8 @@ def test_cli_imports_fbx(tmp_path):
     assert main(["data", "import", "--format", "fbx", str(CMU_FBX), "--out", str(out), "--fps", "30",
                  "--feet-on-floor"]) == 0
     index = json.loads((out / "index.json").read_text())
-    assert index["counts"] == {"sequences": 1, "frames": 14} and index["fps"] == 30.0
+    # 12 keys at 24 fps less the Daz T-pose key (dropped before resampling): 10/24 s -> 13 frames at 30 fps
+    assert index["counts"] == {"sequences": 1, "frames": 13} and index["fps"] == 30.0
     seq = load_sequence(out / "sequences" / "cmu_13_10_daz_first12keys.npz")
     assert abs(floor_height(seq.joints)) < 1e-3
 

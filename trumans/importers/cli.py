@@ -33,6 +33,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="BVH/FBX: move each motion vertically so its feet stand on z = 0 (without it, feet "
                         "more than 10 cm off the floor are reported)")
     p.add_argument("--fps", type=positive_float, help="resample to this frame rate (default: keep the file's)")
+    p.add_argument("--labels", choices=["motion", "none"], default="motion",
+                   help="BVH/FBX: action labels; motion (default): every frame labelled with its body state "
+                        "(stand, walk, turn, sit_down, sit, stand_up, lie_down, lie, get_up) read from the motion, "
+                        "so `trumans train` can use the data; none: no labels")
+    p.add_argument("--keep-first-frame", action="store_true",
+                   help="BVH/FBX: keep a first frame that is a converter's synthetic T-pose (dropped by default)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="seed of the train/val/test split")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line")
 
@@ -77,12 +83,14 @@ def _read_joint_map(arg: str | None) -> dict[str, str] | None:
 
 
 def split_by_group(groups: list[str], seed: int, fracs: tuple[float, float] = (0.8, 0.1)) -> list[str]:
-    """Assign each item the split of its group (e.g. scene): returns 'train' | 'val' | 'test' per item."""
+    """Assign each item the split of its group (e.g. scene): returns 'train' | 'val' | 'test' per item.
+    Three or more groups: at least one val and one test group; two: one train, one val (training needs a
+    validation split); one: train."""
     uniq = sorted(set(groups))
     rng = np.random.default_rng(seed)
     order = [uniq[i] for i in rng.permutation(len(uniq))]
     n = len(order)
-    n_val = max(1, round(fracs[1] * n)) if n >= 3 else 0
+    n_val = max(1, round(fracs[1] * n)) if n >= 3 else (1 if n == 2 else 0)
     n_test = max(1, round((1 - fracs[0] - fracs[1]) * n)) if n >= 3 else 0
     which = {g: ("val" if i < n_val else "test" if i < n_val + n_test else "train") for i, g in enumerate(order)}
     return [which[g] for g in groups]
@@ -119,7 +127,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     settings = {"format": args.format, "src": [str(Path(p).resolve()) for p in args.src], "seed": args.seed,
                 "action_names": args.action_names, "joint_map": args.joint_map, "unit_scale": args.unit_scale,
-                "up": args.up, "fps": args.fps, "skeleton": args.skeleton, "feet_on_floor": args.feet_on_floor}
+                "up": args.up, "fps": args.fps, "skeleton": args.skeleton, "feet_on_floor": args.feet_on_floor,
+                "labels": args.labels, "keep_first_frame": args.keep_first_frame}
     # read and check everything first: a refused import leaves --out untouched
     if args.format == "trumans":
         from .trumans_release import read_release
@@ -137,17 +146,31 @@ def run(args: argparse.Namespace) -> int:
     else:
         from trumans.importers.bvh import import_bvh
         from trumans.importers.fbx import import_fbx
+        from trumans.importers.joint_maps import place_on_floor
+        from trumans.importers.labels import drop_converter_tpose, label_sequence
 
         joint_map = _read_joint_map(args.joint_map)
         skeleton = None if args.skeleton == "candidates" else args.skeleton
         named = []
         for src in args.src:
+            # read at the file's rate: a converter's T-pose key is dropped before resampling can blend it in
+            fps = args.fps if args.keep_first_frame else None
             if args.format == "bvh":
-                seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=args.fps,
+                seq = import_bvh(src, joint_map=joint_map, unit_scale=args.unit_scale, up=args.up, fps=fps,
                                  skeleton=skeleton, feet_on_floor=args.feet_on_floor)
             else:
-                seq = import_fbx(src, joint_map=joint_map, unit_scale=args.unit_scale, fps=args.fps,
+                seq = import_fbx(src, joint_map=joint_map, unit_scale=args.unit_scale, fps=fps,
                                  skeleton=skeleton, feet_on_floor=args.feet_on_floor)
+            if not args.keep_first_frame:
+                seq, dropped = drop_converter_tpose(seq)
+                if dropped and args.feet_on_floor:  # the floor height without the T-pose frame
+                    seq = place_on_floor(seq, True, source=src)
+                if args.fps:
+                    from trumans.resample import resample_sequence
+
+                    seq = resample_sequence(seq, args.fps)
+            if args.labels == "motion":
+                seq = label_sequence(seq)
             named.append((Path(src).stem, seq))
         stems = [s for s, _ in named]
         if len(set(stems)) != len(stems):

@@ -42,16 +42,14 @@ class Generation:
 def default_plan(sc) -> dict:
     """Walk to a seat, sit, get up, walk elsewhere, a hand action: >= 30 s in most rooms."""
     from trumans.sample.controller import seat_target
+    from trumans.sample.plan import far_point
 
     seats = [o for o in sc.scene.objects.values() if o.category in ("chair", "sofa", "stool") and "seat_center" in o.meta]
     if not seats:
         raise ValueError(f"scene {sc.source} has no chair, sofa or stool for the default plan; give a plan or steps")
     start = sc.free_point()
     seat = min(seats, key=lambda o: -np.linalg.norm(seat_target(o)[0][:2] - start))  # the farthest seat
-    far = np.argwhere(sc.walkmap.walkable)
-    pts = sc.walkmap.centers(far)
-    d = np.linalg.norm(pts - start, axis=1)
-    away = pts[int(np.argmax(np.where(d < 3.0, d, 0.0)))]
+    away = far_point(sc.walkmap, start)  # kept off the walkable map's edge (trumans.sample.plan)
     return {"start": start.tolist(), "heading": 0.0, "steps": [
         {"do": "sit_on", "object": seat.name, "seconds": 8.0},
         {"do": "stand_up"},

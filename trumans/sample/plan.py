@@ -32,11 +32,14 @@ import numpy as np
 
 from trumans.sample.carry_plan import validate_carry
 
-__all__ = ["Step", "Plan", "STEP_KINDS", "load_plan", "plan_from_dict", "validate_plan"]
+__all__ = ["Step", "Plan", "STEP_KINDS", "load_plan", "plan_from_dict", "validate_plan", "far_point", "GOAL_MARGIN_M"]
 
 StepKind = Literal["goto", "sit_on", "lie_on", "stand_up", "get_up", "reach", "act", "open", "close",
                    "pick_up", "put_down"]
 MAX_REACH_HEIGHT = 2.4  # m above the floor: what a standing person can reach
+# m a chosen walking goal lies inside the walkable floor (beyond the walk map's own 0.25 m body
+# radius): the network overshoots a goal by 10-40 cm, and a goal on the map's edge put that into the wall
+GOAL_MARGIN_M = 0.3
 STEP_KINDS: tuple[str, ...] = ("goto", "sit_on", "lie_on", "stand_up", "get_up", "reach", "act", "open", "close",
                                "pick_up", "put_down")
 _FIELDS: dict[str, set[str]] = {
@@ -156,6 +159,28 @@ def load_plan(path: str | Path) -> Plan:
     except (json.JSONDecodeError, tomllib.TOMLDecodeError) as e:
         raise ValueError(f"plan file {path} is not valid {path.suffix[1:].upper()}: {e}") from None
     return plan_from_dict(d, name=path.stem)
+
+
+def far_point(wm, start: np.ndarray, within: float = 3.0, margin: float = GOAL_MARGIN_M) -> np.ndarray:
+    """(2,) world xy m: the walkable cell farthest from ``start`` (2,) within ``within`` m, among the
+    cells of start's walkable region at least ``margin`` m inside the walkable floor (the distance to
+    the nearest cell that is not walkable); where none is that far inside, among the farthest inside.
+    ``wm``: the scene's ``trumans.scenes.walkability.WalkMap``. Raises ValueError off the walkable floor."""
+    from scipy import ndimage
+
+    start = np.asarray(start, dtype=np.float64)
+    if not wm.query(start[None])[0]:
+        raise ValueError(f"start {np.round(start, 2).tolist()} is not on walkable floor")
+    label, _ = ndimage.label(wm.walkable)
+    i, j = wm.index(start)
+    region = label == label[i, j]
+    inside = ndimage.distance_transform_edt(wm.walkable) * wm.cell  # m to the nearest non-walkable cell
+    idx = np.argwhere(region)
+    pts, depth = wm.centers(idx), inside[idx[:, 0], idx[:, 1]]
+    ok = depth >= min(margin, depth.max())
+    d = np.linalg.norm(pts - start, axis=1)
+    score = np.where(ok & (d < within), d, -1.0)
+    return pts[int(np.argmax(score))]
 
 
 # which object categories each step may name

@@ -5,6 +5,15 @@ network read it (``trumans.sample.guidance``, ``trumans.sample.cleanup``).
 The field: Euclidean distance transforms of the occupied and free voxels (scipy.ndimage),
 positive outside, negative inside, m; floor voxels (centre below ``floor_z``) count as free, the
 floor being left to whoever handles feet (the generator's foot cleanup).
+
+A closed room's field says nothing about where the room is: a body that has passed a 12 cm wall
+stands in free space again (positive distance; the field beyond the grid is its border value), and
+a push-out along the gradient pushes it further out. ``SceneSDF.enclosed`` is the same field with
+the room's outside made solid (``outside_columns``: the floor columns joined to the grid's border
+through free space), so the depth of a body outside is its distance back into the room and the
+gradient points there; in an open scene (the border reaches every free column) it is the field
+itself. ``clearance_map`` is the field's minimum over a height band per floor column: how far a
+standing body's axis there is from anything between ankle and head.
 """
 from __future__ import annotations
 
@@ -17,7 +26,10 @@ from scipy import ndimage
 
 from trumans.scenes.occupancy import OccupancyGrid
 
-__all__ = ["SceneSDF"]
+__all__ = ["SceneSDF", "outside_columns"]
+
+BAND = (0.1, 1.8)  # m: the heights a standing body occupies (ankle to head; the walk map's band)
+ENCLOSE_PAD = 0.4  # m of free columns ``enclosed`` adds around the grid (it covers a body that far outside)
 
 
 class SceneSDF:
@@ -39,6 +51,51 @@ class SceneSDF:
         self.hi = self.lo + occ.voxel * (torch.as_tensor(grid.shape, dtype=torch.float32) - 1)
         self.voxel = float(occ.voxel)
         self._with_gradient: torch.Tensor | None = None  # (1, 4, z, y, x): the field and its gradient, lazily
+        self.floor_z = float(floor_z)
+        self._enclosed: SceneSDF | None = None
+        self._clearance: dict[tuple[float, float], tuple[np.ndarray, np.ndarray]] = {}
+        self.outside: np.ndarray | None = None  # (Nx, Ny) bool: the columns ``enclosed`` made solid (its fields only)
+
+    @property
+    def occupied(self) -> np.ndarray:
+        """(Nx, Ny, Nz) bool: the voxels inside (field < 0), floor excluded; x, y, z order."""
+        return np.transpose(self.volume[0, 0].numpy() < 0.0, (2, 1, 0))
+
+    def grid(self) -> OccupancyGrid:
+        """The occupancy this field was built from (floor voxels free)."""
+        return OccupancyGrid(self.occupied, self.lo.numpy().astype(np.float64), self.voxel)
+
+    def enclosed(self) -> SceneSDF:
+        """This field with the room's outside solid (module doc; built once, cached): the columns of
+        ``outside_columns`` are occupied from ``floor_z`` up. Itself when the scene is open."""
+        if self._enclosed is None:
+            occ = self.grid()
+            n = int(np.ceil(ENCLOSE_PAD / self.voxel))  # free columns around the grid: the outside reaches them
+            grid = np.pad(occ.grid, ((n, n), (n, n), (0, 0)))
+            origin = occ.origin - np.array([n, n, 0]) * self.voxel
+            out = outside_columns(OccupancyGrid(grid, origin, self.voxel))
+            if not out.any():
+                self._enclosed = self
+            else:
+                z = origin[2] + self.voxel * np.arange(grid.shape[2])
+                grid[out[:, :, None] & (z >= self.floor_z)[None, None]] = True
+                self._enclosed = SceneSDF(OccupancyGrid(grid, origin, self.voxel), self.floor_z)
+                self._enclosed._enclosed, self._enclosed.outside = self._enclosed, out
+        return self._enclosed
+
+    def clearance_map(self, band: tuple[float, float] = BAND) -> tuple[np.ndarray, np.ndarray]:
+        """(map (Nx, Ny) m, origin (2,) world xy of cell (0, 0)): per floor column, the field's
+        minimum over voxel centres with z in ``band`` m (how close the column comes to anything a
+        standing body at that height could touch); the cells are the field's voxels. Cached."""
+        key = (float(band[0]), float(band[1]))
+        if key not in self._clearance:
+            z = self.lo[2].item() + self.voxel * np.arange(self.volume.shape[2])
+            sel = (z >= band[0]) & (z <= band[1])
+            if not sel.any():
+                raise ValueError(f"the field's grid has no voxel centre between {band[0]} and {band[1]} m")
+            m = self.volume[0, 0].numpy()[sel].min(0).T  # (x, y)
+            self._clearance[key] = (m.astype(np.float64), self.lo[:2].numpy().astype(np.float64))
+        return self._clearance[key]
 
     def __call__(self, points: torch.Tensor) -> torch.Tensor:
         """points (..., 3) world m -> (...,) signed distance, m (outside the grid: the border value)."""
@@ -60,3 +117,29 @@ class SceneSDF:
         out = F.grid_sample(self._with_gradient.to(points.device), u.reshape(1, 1, 1, -1, 3), mode="bilinear",
                             padding_mode="border", align_corners=True)[0, :, 0, 0]  # (4, N)
         return out[0].reshape(points.shape[:-1]), out[1:].T.reshape(points.shape)
+
+
+def outside_columns(occ: OccupancyGrid, band: tuple[float, float] = BAND, gap: float = 0.05) -> np.ndarray:
+    """(Nx, Ny) bool: the floor columns outside a closed room. A column is blocked when a voxel
+    centre in ``band`` (m) is occupied; blocked columns are widened by ``gap`` m (a crack between a
+    door and its frame does not open the room); the free columns not connected (4-neighbours) to the
+    grid's border there, widened back by ``gap``, are the room; every other free column is outside.
+    A scene without such an enclosed column is open: all False."""
+    from scipy import ndimage
+
+    g = np.asarray(occ.grid, dtype=bool)
+    z = occ.origin[2] + occ.voxel * np.arange(g.shape[2])
+    sel = (z >= band[0]) & (z <= band[1])
+    if not sel.any():
+        return np.zeros(g.shape[:2], bool)
+    raw = g[:, :, sel].any(2)
+    r = int(np.ceil(gap / occ.voxel))
+    disk = np.ones((2 * r + 1, 2 * r + 1), bool)
+    blocked = ndimage.binary_dilation(raw, disk) if r > 0 else raw
+    label, _ = ndimage.label(~blocked)
+    border = np.unique(np.concatenate([label[0], label[-1], label[:, 0], label[:, -1]]))
+    inside = (label > 0) & ~np.isin(label, border[border > 0])
+    if not inside.any():  # no enclosed free column: an open scene
+        return np.zeros(g.shape[:2], bool)
+    # every free column but the enclosed ones and their rim (the room's own free cells within the gap)
+    return ~raw & ~(ndimage.binary_dilation(inside, disk) if r > 0 else inside)

@@ -25,7 +25,8 @@ Every step has one signature, ``apply(episode: EpisodeBodies, config) -> joints 
 and its own frozen config with an ``enabled`` switch; ``CleanupConfig`` nests them under the step
 names, so every parameter of every step is set in one place (``SamplerConfig.cleanup``), and
 ``trumans sample`` / ``trumans eval synthesis`` generate their ``--no-<flag>`` switches from
-``STEPS``. The steps read what the plan asks of the body from ``EpisodeBodies``: the action labels
+``STEPS``. Every step that reads the scene gets its ``enclosed`` field (``trumans.scenes.sdf``:
+a closed room's outside is solid, so a body past a wall is deep in it, not free). The steps read what the plan asks of the body from ``EpisodeBodies``: the action labels
 (support lift), the pinned goals (attach pelvis), the reach weights and targets (arm push-out,
 reach). The reach weights are scheduled by the controller (``Controller.next``) because they
 follow the plan's hand phases across episodes (a release fades out over the next episode); their
@@ -42,6 +43,7 @@ import numpy as np
 from trumans.sample.cleanup.arm_pushout import ArmPushConfig, push_arms_out
 from trumans.sample.cleanup.attach_pelvis import AttachPelvisConfig, attach_pinned_pelvis
 from trumans.sample.cleanup.bones import BoneProjectionConfig, project_bones
+from trumans.sample.cleanup.containment import ContainmentConfig, contain
 from trumans.sample.cleanup.foot import FootCleanupConfig, clean_feet
 from trumans.sample.cleanup.reach import ReachCleanupConfig, clean_reach
 from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out
@@ -63,7 +65,8 @@ class EpisodeBodies:
     ``vocabulary``; fps: frames per second; pinned: (B,) bool, samples whose pelvis x, y the goal
     pinned at the last frame; reach_weight: (B, L, 2) in [0, 1] and reach_target: (B, L, 2, 3)
     world m, the (left, right) wrist's reach weight and target (``Controller.next``); sdf: the
-    scene's signed distance field (floor excluded), or None without a scene."""
+    scene's signed distance field (floor excluded), or None without a scene (``run_cleanup`` gives
+    the steps its ``enclosed`` form)."""
 
     joints: np.ndarray
     context: np.ndarray
@@ -132,6 +135,13 @@ def _scene_pushout(ep: EpisodeBodies, config: PushOutConfig) -> np.ndarray:
     return ep.joints if ep.sdf is None else push_out(ep.joints, ep.sdf, ep.k, config)
 
 
+def _containment(ep: EpisodeBodies, config: ContainmentConfig) -> np.ndarray:
+    if ep.sdf is None:
+        return ep.joints
+    weight = support_weights(ep.labels, ep.vocabulary)
+    return contain(ep.joints, ep.sdf, weight, ep.k, config)
+
+
 def _arm_pushout(ep: EpisodeBodies, config: ArmPushConfig) -> np.ndarray:
     if ep.sdf is None:
         return ep.joints
@@ -163,6 +173,9 @@ STEPS: tuple[CleanupStep, ...] = (
                 "(cleanup/support_lift.py)"),
     CleanupStep("scene_pushout", "scene-pushout", PushOutConfig, _scene_pushout,
                 "move the body out of the scene by a smooth root offset (cleanup/scene_pushout.py)"),
+    CleanupStep("containment", "containment", ContainmentConfig, _containment,
+                "keep an upright pelvis the torso's clearance from anything and inside the room: a hard "
+                "projection (cleanup/containment.py)"),
     CleanupStep("arm_pushout", "arm-pushout", ArmPushConfig, _arm_pushout,
                 "move a hand still in the scene out by arm IK (cleanup/arm_pushout.py)"),
     CleanupStep("foot", "foot-cleanup", FootCleanupConfig, _foot,
@@ -181,6 +194,7 @@ class CleanupConfig:
     bone_projection: BoneProjectionConfig = field(default_factory=BoneProjectionConfig)
     support_lift: SupportLiftConfig = field(default_factory=SupportLiftConfig)
     scene_pushout: PushOutConfig = field(default_factory=PushOutConfig)
+    containment: ContainmentConfig = field(default_factory=ContainmentConfig)
     arm_pushout: ArmPushConfig = field(default_factory=ArmPushConfig)
     foot: FootCleanupConfig = field(default_factory=FootCleanupConfig)
     reach: ReachCleanupConfig = field(default_factory=ReachCleanupConfig)
@@ -196,7 +210,8 @@ class CleanupConfig:
     @property
     def uses_scene(self) -> bool:
         """Whether an enabled step reads the scene's field."""
-        return self.scene_pushout.enabled or self.arm_pushout.enabled or (self.foot.enabled and self.foot.scene)
+        return (self.scene_pushout.enabled or self.containment.enabled or self.arm_pushout.enabled
+                or (self.foot.enabled and self.foot.scene))
 
 
 def run_cleanup(episode: EpisodeBodies, config: CleanupConfig,
@@ -205,6 +220,8 @@ def run_cleanup(episode: EpisodeBodies, config: CleanupConfig,
     ``observe(name, joints)``, when given, is called after every step (enabled or not) with the
     joints so far, e.g. to measure the network's bones before the projection; do not modify them."""
     joints = episode.joints
+    if episode.sdf is not None:
+        episode = replace(episode, sdf=episode.sdf.enclosed())
     for step in STEPS:
         cfg = getattr(config, step.name)
         if cfg.enabled:

@@ -1,0 +1,114 @@
+"""The containment step (trumans.sample.cleanup.containment) against an adversarial stand-in network
+that always overshoots its goal by 40 cm toward a wall: the body stays inside the room."""
+import numpy as np
+import pytest
+import trimesh
+from helpers import standing_body, tiny_checkpoint
+
+from trumans.eval.safety import core_depths, crossings, room_exits
+from trumans.sample.cleanup.containment import ContainmentConfig, contain
+from trumans.sample.plan import far_point, plan_from_dict
+from trumans.sample.rollout import sample_plan
+from trumans.sample.sampler import EpisodeSampler, SamplerConfig
+from trumans.scenes.occupancy import scene_occupancy
+from trumans.scenes.scene import Scene
+from trumans.scenes.scene_grids import SceneGrids
+from trumans.scenes.sdf import SceneSDF
+from trumans.scenes.walkability import walkable_map
+from trumans.skeleton import JOINT_INDEX
+
+PELVIS = JOINT_INDEX["pelvis"]
+WALL_Y = 3.0  # the wall the plan walks at: y in [3.0, 3.1]
+
+
+def closed_room() -> Scene:
+    """Interior [0, 3] x [0, 3] m, four 10 cm walls 2.5 m high, a floor slab; no door."""
+    box = lambda lo, hi: trimesh.creation.box(bounds=[lo, hi])  # noqa: E731
+    t = 0.1
+    static = {"floor": box((-t, -t, -0.05), (3 + t, 3 + t, 0.0)),
+              "wall_0": box((-t, -t, 0), (3 + t, 0, 2.5)), "wall_1": box((-t, 3, 0), (3 + t, 3 + t, 2.5)),
+              "wall_2": box((-t, 0, 0), (0, 3, 2.5)), "wall_3": box((3, 0, 0), (3 + t, 3, 2.5))}
+    return Scene(name="closed", static=static)
+
+
+class Overshoot(EpisodeSampler):
+    """A stand-in network: the last context pose slid in a straight line to 40 cm past its pelvis
+    goal (past where it stands when the goal is where it stands: toward the +y wall)."""
+
+    def episode(self, context, labels, goals, object_poses=None, generator=None):
+        L, k = self.L, self.k
+        out = np.repeat(context[:, -1:], L, 1).astype(np.float64)
+        out[:, :k] = context
+        for b, g in enumerate(goals):
+            c = context[b, -1, PELVIS, :2].astype(np.float64)
+            goal = np.asarray(g.point[:2], np.float64) if g.joint == "pelvis" else c
+            d = goal - c
+            u = d / np.linalg.norm(d) if np.linalg.norm(d) > 0.05 else np.array([0.0, 1.0])
+            s = np.linspace(0.0, 1.0, L - k + 1)[1:, None]
+            out[b, k:, :, :2] += (s * (goal + 0.4 * u - c))[:, None]
+        return out.astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def room():
+    scene = closed_room()
+    occ = scene_occupancy(scene, None, voxel=0.04)
+    return scene, occ, walkable_map(occ)
+
+
+def _run(room, config: SamplerConfig):
+    scene, occ, wm = room
+    ckpt = tiny_checkpoint()
+    sampler = Overshoot(ckpt, SceneGrids(occ, scene), config)
+    plan = plan_from_dict({"start": [1.5, 1.2], "heading": float(np.pi / 2), "steps": [
+        {"do": "goto", "to": [1.5, 2.7]}, {"do": "act", "action": "drink", "seconds": 3.0}]})
+    return sample_plan(ckpt, sampler, scene, wm, plan, max_seconds=40.0).joints[0], SceneSDF(occ)
+
+
+def test_a_network_that_overshoots_toward_the_wall_stays_inside(room):
+    J, sdf = _run(room, SamplerConfig(goal_guidance=0.0))
+    pelvis = J[:, PELVIS]
+    assert pelvis[:, 1].max() <= WALL_Y - 0.22 + 0.02  # the torso's clearance from the wall
+    assert not room_exits(pelvis[:, :2], sdf).any()
+    assert not crossings(J, sdf).any()
+    assert core_depths(J, sdf).max() < 0.05
+
+
+def test_without_the_constraint_the_same_network_leaves_the_room(room):
+    """The control: the soft push-out alone does not hold the stand-in back (so the test above can fail)."""
+    config = SamplerConfig(goal_guidance=0.0)
+    config = SamplerConfig(goal_guidance=0.0, cleanup=config.cleanup.switched(containment=False))
+    J, sdf = _run(room, config)
+    assert J[:, PELVIS, 1].max() > WALL_Y - 0.1
+    assert room_exits(J[:, PELVIS, :2], sdf).any() or core_depths(J, sdf).max() > 0.1
+
+
+def test_contain_moves_only_upright_frames_and_keeps_the_context(room):
+    scene, occ, wm = room
+    sdf = SceneSDF(occ)
+    T, k = 12, 2
+    J = standing_body(T)
+    J[..., :2] += (np.array([1.5, 2.95]) - J[0, 0, PELVIS, :2])  # pelvis 5 cm from the wall's face
+    w = np.ones((1, T))
+    w[0, 8:] = 0.0  # seated frames: the constraint is off
+    out = contain(J, sdf, w, k, ContainmentConfig(spread=0))
+    np.testing.assert_array_equal(out[0, :k], J[0, :k])
+    assert np.all(out[0, k:8, PELVIS, 1] <= WALL_Y - 0.22 + 0.02)  # within half a 4 cm voxel
+    np.testing.assert_allclose(out[0, 8:], J[0, 8:])
+    np.testing.assert_allclose(out[..., 2], J[..., 2])  # horizontal moves only
+    d = out - J
+    assert np.abs(d - d[:, :, :1]).max() < 1e-9  # a rigid shift of each frame
+    with pytest.raises(ValueError, match="weight"):
+        contain(J, sdf, np.ones((1, T + 1)), k)
+    with pytest.raises(ValueError, match="clearance"):
+        ContainmentConfig(clearance=-0.1)
+
+
+def test_far_point_keeps_off_the_walkable_edge(room):
+    scene, occ, wm = room
+    p = far_point(wm, np.array([1.5, 1.5]), within=3.0, margin=0.3)
+    # the walkable floor ends 0.25 m from the walls; the point is 0.3 m inside that
+    assert np.all(p >= 0.25 + 0.3 - 0.05) and np.all(p <= 3.0 - 0.25 - 0.3 + 0.05)
+    assert np.linalg.norm(p - 1.5) > 0.8  # still far: a corner of the inner square
+    with pytest.raises(ValueError, match="walkable"):
+        far_point(wm, np.array([-1.0, -1.0]))

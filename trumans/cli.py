@@ -30,6 +30,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("sample",), "trumans.sample.cli", "sample a long motion in a scene from a plan"),
     (("refine",), "trumans.refine.cli", "refine a tracked HOI sequence with the diffusion filter"),
     (("view",), "trumans.viz.cli", "render a sequence to GIF/MP4 and a top-down PNG"),
+    (("scene", "inspect"), "trumans.scenes.inspect_cli", "list the seats, beds and tables found in a mesh or scene folder"),
     (("eval", "synthesis"), "trumans.sample.eval_synthesis", "synthesis benchmark figures"),
     (("eval", "augment"), "trumans.augment.evaluate", "augmentation benchmark figures"),
     (("eval", "train"), "trumans.train.evaluate", "recompute a checkpoint's validation loss"),

@@ -2,7 +2,9 @@
 
 ``load_sample_scene`` returns the scene, its occupancy grid (cached: ``occupancy.npz`` in a scene
 folder, ``<mesh>.occupancy.npz`` beside a mesh file when that folder is writable), the walkable
-floor map, and the dynamic-object local grids the sampler queries.
+floor map, and the dynamic-object local grids the sampler queries. A mesh file's seats, beds and tables
+are found from its geometry or its part names (``trumans.scenes.affordances``) and added as static objects
+(``seat_0``, ``bed_0``, ``table_0`` ...; the mesh itself stays the static mesh).
 """
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from trumans.scenes.affordances import mesh_affordances
 from trumans.scenes.io import import_mesh, load_scene
 from trumans.scenes.occupancy import OccupancyGrid, scene_occupancy
 from trumans.scenes.procedural import make_room
@@ -47,6 +50,7 @@ def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", defa
     a scene folder (scene.json), or a mesh file trimesh reads (a scan or room model; ``up`` 'y'
     converts a y-up file). Raises FileNotFoundError / ValueError naming the problem."""
     seed = procedural_seed(spec)
+    found_in = None
     if seed is not None:
         seed = default_seed if spec in (None, "", "default") else seed
         scene = make_room(seed)
@@ -65,6 +69,7 @@ def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", defa
             occ = scene_occupancy(scene, path if _writable(path) else None, voxel=voxel)
         elif path.is_file():
             mesh = import_mesh(path, up=up)
+            found_in = path  # seats, beds and tables are found after the occupancy (its cache key is the mesh's)
             scene = Scene(name=path.stem, static={"mesh": mesh})
             cache = path.parent / f"{path.stem}.occupancy" if _writable(path.parent) else None
             if cache is not None:
@@ -78,5 +83,8 @@ def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", defa
     if not wm.walkable.any():
         raise ValueError(f"scene {source} has no walkable floor (no free area at z = 0 that a person fits in); "
                          f"is the mesh z-up (use --up y for a y-up file) and in metres?")
+    if found_in is not None:  # a raw mesh: its seats, beds and tables as static objects (trumans.scenes.affordances)
+        for obj in mesh_affordances(found_in, scene.static["mesh"], up=up):
+            scene.objects[obj.name] = obj
     return SampleScene(scene, occ, wm, SceneGrids(occ, scene), source)
 

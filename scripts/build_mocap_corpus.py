@@ -4,7 +4,9 @@
     python scripts/build_mocap_corpus.py --raw /tmp/mocap --clips ../shared/data/mocap/clips.csv
 
 Every clip of clips.csv is converted with ``trumans.mocap_corpus.convert_clip`` (FBX 6.1 Daz-style
-or BVH, the first-frame T-pose dropped, 30 fps, feet on the floor, per-frame states). Duplicate
+or BVH, the first-frame T-pose dropped, resampled once from the raw keys to 30 fps by
+``trumans.resample.resample_smooth``: a zero-phase 6 Hz Butterworth low-pass and a cubic spline;
+feet on the floor, per-frame states). Duplicate
 captures are skipped (77_xx = 139_xx, per the INDEX). Clips of ``HELD_OUT_SUBJECTS`` form the test
 split.
 """

@@ -24,7 +24,7 @@ from .motion_labels import MOTION_STATES
 from trumans.paths import DATA_DIR
 
 __all__ = ["CORPUS_PATH", "QUANTUM_M", "HELD_OUT_SUBJECTS", "MocapClip", "encode_joints", "decode_joints",
-           "write_corpus", "load_corpus", "drop_tpose_frame"]
+           "write_corpus", "load_corpus", "drop_tpose_frame", "source_joints", "convert_clip"]
 
 CORPUS_PATH = DATA_DIR / "mocap" / "cmu_corpus.npz"
 QUANTUM_M = 1e-4
@@ -128,16 +128,13 @@ def load_corpus(path: str | Path | None = None, split: str | None = None) -> lis
     return out
 
 
-def convert_clip(path: str | Path, name: str, description: str = "", fps: float = 30.0) -> MocapClip:
-    """Convert one raw CMU file (.fbx or .bvh) into a corpus clip (joints only: no rotation fit)."""
+def source_joints(path: str | Path) -> tuple[np.ndarray, float]:
+    """The raw keys of one CMU file (.fbx or .bvh) as our 24 joints, unresampled: ((T, 24, 3) float64
+    m z-up at the file's key times, key rate Hz). FBX curves are evaluated at their keys (exact),
+    BVH frames are read as they are; the converters' synthetic T-pose first frame is dropped."""
     from .bvh import BvhData, read_bvh
     from .importers import fbx
-    from .importers.joint_maps import guess_unit_scale, place_on_floor, retarget_joints
-    from scipy.interpolate import CubicSpline
-    from scipy.ndimage import gaussian_filter1d
-
-    from .resample import resample_times
-    from .sequence import Sequence
+    from .importers.joint_maps import guess_unit_scale, retarget_joints
 
     path = Path(path)
     if path.suffix.lower() == ".fbx":
@@ -150,8 +147,6 @@ def convert_clip(path: str | Path, name: str, description: str = "", fps: float 
         P = P @ CORPUS_FROM_PROJECT_TURN  # the corpus keeps its own horizontal axes (trumans.bvh.CORPUS_Y_UP_FROM_Z_UP)
         src_fps = kf
     elif path.suffix.lower() == ".bvh":
-        Y_UP_FROM_Z_UP = CORPUS_Y_UP_FROM_Z_UP
-
         b = read_bvh(path)
         Pw, Gw = b.forward_kinematics()
         ends = sorted(b.end_sites)
@@ -159,22 +154,27 @@ def convert_clip(path: str | Path, name: str, description: str = "", fps: float 
         if ends:
             Pw = np.concatenate([Pw, np.stack([Pw[:, j] + Gw[:, j] @ b.end_sites[j] for j in ends], 1)], 1)
         rest, _ = BvhData(b.names, b.parents, b.offsets, [[] for _ in b.names], np.zeros((1, 0)), 1.0).forward_kinematics()
-        scale = guess_unit_scale(float(np.ptp((rest[0] @ Y_UP_FROM_Z_UP)[:, 2])))
-        P = Pw @ Y_UP_FROM_Z_UP * scale  # y-up file -> z-up ours
+        scale = guess_unit_scale(float(np.ptp((rest[0] @ CORPUS_Y_UP_FROM_Z_UP)[:, 2])))
+        P = Pw @ CORPUS_Y_UP_FROM_Z_UP * scale  # y-up file -> z-up ours
         src_fps = b.fps
     else:
         raise ValueError(f"{path}: expected a .fbx or .bvh file")
-    joints = drop_tpose_frame(retarget_joints(names, P))
-    if src_fps > 1.5 * fps:  # anti-aliasing before downsampling (120 fps BVH): Gaussian, sigma 0.5 output frames
-        joints = gaussian_filter1d(joints, sigma=0.5 * src_fps / fps, axis=0, mode="nearest")
-    # cubic-spline resampling: linear interpolation of 24 fps keys would put a kink (a jerk spike)
-    # at every source key
-    t_out = resample_times(len(joints), src_fps, fps)
-    joints = CubicSpline(np.arange(len(joints)), joints, axis=0)(t_out)
+    return drop_tpose_frame(retarget_joints(names, P)), float(src_fps)
+
+
+def convert_clip(path: str | Path, name: str, description: str = "", fps: float = 30.0) -> MocapClip:
+    """Convert one raw CMU file (.fbx or .bvh) into a corpus clip (joints only: no rotation fit):
+    its keys (``source_joints``) resampled once to ``fps`` (``trumans.resample.resample_smooth``),
+    feet on the floor, stored to 0.1 mm, labelled per frame."""
+    from .importers.joint_maps import place_on_floor
+    from .motion_labels import label_states
+    from .resample import resample_smooth
+    from .sequence import Sequence
+
+    keys, src_fps = source_joints(path)
+    joints = resample_smooth(keys, src_fps, fps)
     seq = place_on_floor(Sequence(joints=joints.astype(np.float32), fps=float(fps)), True, source=str(path))
     joints = decode_joints(*encode_joints(seq.joints))  # what the corpus stores
-    from .motion_labels import label_states
-
     subject = name.split("_")[0]
     return MocapClip(name=name, subject=subject, description=description,
                      split="test" if subject in HELD_OUT_SUBJECTS else "train", fps=float(fps), joints=joints,

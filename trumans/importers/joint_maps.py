@@ -74,10 +74,12 @@ SKELETON_MAPS: dict[str, dict[str, str]] = {
             "right_collar": "rCollar", "head": "head", "left_shoulder": "lShldr", "right_shoulder": "rShldr",
             "left_elbow": "lForeArm", "right_elbow": "rForeArm", "left_wrist": "lHand", "right_wrist": "rHand",
             "left_index1": "lIndex1", "right_index1": "rIndex1"},
-    # CMU / MotionBuilder style: the cgspeed "MotionBuilder-friendly" CMU BVH (Hips, LHipJoint, LeftUpLeg, ...)
+    # CMU / MotionBuilder style: the cgspeed "MotionBuilder-friendly" CMU BVH (Hips, LHipJoint, LeftUpLeg, ...).
+    # Its Neck and the clavicles (LeftShoulder) sit on Spine1 (zero offsets); our neck is Neck1, above
+    # the shoulder line, and the clavicles are re-synthesised (degenerate against Spine1).
     "cmu_mb": {"pelvis": "Hips", "left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "spine1": "Spine",
                "left_knee": "LeftLeg", "right_knee": "RightLeg", "spine2": "Spine1", "left_ankle": "LeftFoot",
-               "right_ankle": "RightFoot", "left_foot": "LeftToeBase", "right_foot": "RightToeBase", "neck": "Neck",
+               "right_ankle": "RightFoot", "left_foot": "LeftToeBase", "right_foot": "RightToeBase", "neck": "Neck1",
                "left_collar": "LeftShoulder", "right_collar": "RightShoulder", "head": "Head",
                "left_shoulder": "LeftArm", "right_shoulder": "RightArm", "left_elbow": "LeftForeArm",
                "right_elbow": "RightForeArm", "left_wrist": "LeftHand", "right_wrist": "RightHand",
@@ -197,7 +199,7 @@ def retarget_joints(names: list[str], P: np.ndarray, joint_map: dict[str, str] |
                     skeleton: str | None = "auto") -> np.ndarray:
     """Our 24 joints (T, 24, 3) from a foreign skeleton's world joints P (T, J, 3), metres, z-up.
 
-    Mapped collars / spine joints that sit on their parent (median < 1 cm, e.g. CMU collars) and
+    Mapped collars / spine joints that sit on their nearest mapped ancestor (median < 1 cm, e.g. CMU collars) and
     unmapped ones are interpolated along the chain; unmapped index1 joints go beyond the wrist."""
     src = map_joints(names, joint_map, skeleton)
     T = P.shape[0]
@@ -208,8 +210,11 @@ def retarget_joints(names: list[str], P: np.ndarray, joint_map: dict[str, str] |
             out[:, j] = P[:, src[name]]
             have[j] = True
     for j, name in enumerate(JOINT_NAMES):
-        if have[j] and name in _CHAIN_NEXT and have[PARENTS[j]] and (joint_map is None or name not in joint_map):
-            if np.median(np.linalg.norm(out[:, j] - out[:, PARENTS[j]], axis=-1)) < _DEGENERATE_M:
+        if have[j] and name in _CHAIN_NEXT and (joint_map is None or name not in joint_map):
+            a = PARENTS[j]
+            while a >= 0 and not have[a]:  # the nearest mapped ancestor (spine3 is never mapped)
+                a = PARENTS[a]
+            if a >= 0 and np.median(np.linalg.norm(out[:, j] - out[:, a], axis=-1)) < _DEGENERATE_M:
                 have[j] = False
     out = synthesise(out, have)
     if joint_map is None or "pelvis" not in joint_map:

@@ -1,4 +1,5 @@
-"""`trumans view SEQ.npz [OTHER.npz ...]`: animated GIF/MP4 + top-down PNG of sequences."""
+"""`trumans view SEQ.npz [OTHER.npz ...]`: animated GIF/MP4 + top-down PNG of sequences, or (``--html``) one
+self-contained HTML viewer (``trumans.viz.html``)."""
 from __future__ import annotations
 
 import argparse
@@ -35,6 +36,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stride", type=positive_int, default=3, help="render every N-th frame (default 3)")
     p.add_argument("--max-frames", type=positive_int, default=300, help="render at most this many frames (default 300)")
     p.add_argument("--no-animation", action="store_true", help="only write the top-down PNG")
+    p.add_argument("--html", metavar="OUT.html",
+                   help="write one self-contained HTML viewer instead of the GIF/MP4 and PNG (three.js embedded, opens "
+                        "offline): orbit camera, play/pause/scrub, speed, action timeline, path, goals, contacts; "
+                        "several sequences side by side on one timeline (docs/generate.md)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="unused (rendering is deterministic); accepted for uniformity")
     p.add_argument("--json", action="store_true", help="print the written paths as JSON on the last line")
 
@@ -112,14 +117,25 @@ def load_scene_view(folder: Path | None) -> SceneView | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.html:
+        from .html import check_html_path
+
+        check_html_path(args.html)
+        if args.out:
+            raise ValueError(f"--html {args.html} writes only the viewer; drop --out {args.out} (the GIF/PNG prefix)")
     paths = [Path(p) for p in args.seq]
     seqs = [load_sequence(p) for p in paths]
     # each sequence in its own scene (an augmented sequence lives in its changed scene)
     scenes = [sequence_scene_view(p, s, args.scene, args.up) for p, s in zip(paths, seqs)]
     scene = scenes[0]
-    prefix = Path(args.out) if args.out else paths[0].with_suffix("")
-    written = {"topdown": str(render_topdown(seqs[0], prefix.with_name(prefix.name + "_top.png"), scene))}
-    if not args.no_animation:
+    if args.html:
+        from .html import write_html
+
+        written = {"html": str(write_html(seqs, args.html, scenes, titles=[p.stem for p in paths]))}
+    else:
+        prefix = Path(args.out) if args.out else paths[0].with_suffix("")
+        written = {"topdown": str(render_topdown(seqs[0], prefix.with_name(prefix.name + "_top.png"), scene))}
+    if not args.no_animation and not args.html:
         stride = max(args.stride, int(np.ceil(min(s.num_frames for s in seqs) / args.max_frames)))
         anim = prefix.with_name(prefix.name + "." + args.format)
         render_animation(seqs, anim, scenes, camera=args.camera, stride=stride, titles=[p.stem for p in paths])

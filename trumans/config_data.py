@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import fields, is_dataclass, replace
-from typing import Any, get_args, get_origin, get_type_hints
+from typing import Any, Literal, get_args, get_origin, get_type_hints
 
 __all__ = ["config_from_dict", "set_entries"]
 
@@ -74,6 +74,14 @@ def config_from_dict(cls: type, data: Any, where: str = "config", base: Any = No
             if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
                 raise ValueError(f"{at} must be a finite number, got {value!r}")
             values[key] = float(value)
+        elif get_origin(t) is Literal:
+            if value not in get_args(t):
+                raise ValueError(f"{at} must be one of {list(get_args(t))}, got {value!r}")
+            values[key] = value
+        elif t is str:
+            if not isinstance(value, str):
+                raise ValueError(f"{at} must be a text, got {value!r}")
+            values[key] = value
         elif get_origin(t) is tuple and get_args(t)[0] is str:
             if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
                 raise ValueError(f"{at} must be a list of names, got {value!r}")

@@ -14,6 +14,7 @@ rotations for export are fitted afterwards (``trumans.ik.fit``).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Literal
 
 import numpy as np
 import torch
@@ -48,7 +49,13 @@ class SamplerConfig:
     seeds, at ~1.5x the sampling time and rougher seams (jerk ratio 1.24 -> 1.46; docs/sampling_log.md);
     naive: recompute the condition embeddings at every step (the reference sampler);
     goal_guidance: step size of the spatial guidance (0 = inpainting only, no guidance term runs;
-    ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step, each a backward pass.
+    ``EpisodeSampler._guided_sample``); goal_iters: guidance updates per step, each a backward pass;
+    guided_steps: guide only the last N denoising steps (0 = every step); the earlier ones are plain
+    DDIM steps, one forward pass each (benchmarks/sampling_speed.py and docs/results.md weigh it);
+    guidance_space: 'xt' (the gradient of the costs through the network, w.r.t. x_t: one backward
+    pass per update) or 'x0' (the costs' gradient w.r.t. the predicted x0 itself, no backward pass
+    through the network: one forward per step, ``goal_iters`` cheap updates of size
+    ``goal_guidance * x0_guidance`` on x0 before the DDIM step).
     Three updates of size 20: one of size 80 is ~3x faster and met every target on the 6
     evaluation rooms, but left the default room's body 9.4 cm into the chair at a sit-down
     (docs/sampling_log.md, sampling speed);
@@ -64,6 +71,9 @@ class SamplerConfig:
     naive: bool = False
     goal_guidance: float = 20.0
     goal_iters: int = 3
+    guided_steps: int = 0
+    guidance_space: Literal["xt", "x0"] = "xt"
+    x0_guidance: float = 1.0
     guidance: GuidanceConfig = field(default_factory=GuidanceConfig)
     cleanup: CleanupConfig = field(default_factory=CleanupConfig)
 
@@ -74,6 +84,12 @@ class SamplerConfig:
             raise ValueError(f"eta must be >= 0, got {self.eta}")
         if self.goal_iters < 1:
             raise ValueError(f"goal_iters must be >= 1, got {self.goal_iters}")
+        if self.guidance_space not in ("xt", "x0"):
+            raise ValueError(f"guidance_space must be 'xt' or 'x0', got {self.guidance_space!r}")
+        if not (np.isfinite(self.x0_guidance) and self.x0_guidance >= 0):
+            raise ValueError(f"x0_guidance must be a finite number >= 0, got {self.x0_guidance}")
+        if self.guided_steps < 0:
+            raise ValueError(f"guided_steps must be >= 0 (0 = every step), got {self.guided_steps}")
         for name in ("scene_scale", "action_scale", "goal_guidance"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
@@ -203,9 +219,18 @@ class EpisodeSampler:
         x = torch.randn((B, L, F), generator=generator, dtype=torch.float32).to(self.device)
         rotation, origin = canonical_to_world(cond)
         ts = respaced_timesteps(d.steps, self.config.steps).tolist()
+        first_guided = len(ts) - self.config.guided_steps if self.config.guided_steps else 0
         for i, t_i in enumerate(ts):
             x = torch.where(mask, given, x)
             t = torch.full((B,), t_i, dtype=torch.long, device=x.device)
+            if i < first_guided:  # an unguided step: the network once, no backward pass
+                out = model_fn(x, t, mask=mask)
+                x, _ = d.step(out, t, x, t_prev=ts[i + 1], eta=self.config.eta, generator=generator)
+                continue
+            if self.config.guidance_space == "x0":
+                x = self._x0_guided_step(model_fn, x, t, mask, terms, mean, std, rotation, origin,
+                                         ts[i + 1] if i + 1 < len(ts) else -1, generator)
+                continue
             grad = torch.zeros_like(x)
             with torch.enable_grad():
                 for it in range(self.config.goal_iters):
@@ -225,6 +250,32 @@ class EpisodeSampler:
             if i + 1 < len(ts):
                 x = x - grad
         return torch.where(mask, given, x)
+
+    def _x0_guided_step(self, model_fn, x: torch.Tensor, t: torch.Tensor, mask: torch.Tensor,
+                        terms: list[GuidanceTerm], mean, std, rotation, origin, t_prev: int, generator) -> torch.Tensor:
+        """One DDIM step guided in x0 space: the network once (no gradient), then ``goal_iters``
+        updates x0 <- x0 - s grad_x0(sum of the terms' costs) with s = goal_guidance * x0_guidance, then
+        the DDIM step from the updated x0 (its epsilon recomputed from x_t, DDIM eq. 12)."""
+        d = self.diffusion
+        out = model_fn(x, t, mask=mask)
+        x0, _ = d.x0_and_eps(out, t, x)
+        step = self.config.goal_guidance * self.config.x0_guidance
+        with torch.enable_grad():
+            for _ in range(self.config.goal_iters):
+                x0g = x0.detach().requires_grad_(True)
+                prediction = Prediction(x0g, mean, std, self.k, rotation, origin)
+                loss = x0g.new_zeros(())
+                for term in terms:
+                    loss = loss + term.loss(prediction)
+                if not loss.requires_grad:
+                    break
+                g, = torch.autograd.grad(loss, x0g, allow_unused=True)
+                if g is None:
+                    break
+                x0 = x0.detach() - step * g
+        eps = d.predict_eps(x, t, x0)
+        x_prev, _ = d.step(d.target(x0, eps, t), t, x, t_prev=t_prev, eta=self.config.eta, generator=generator)
+        return x_prev
 
     def _conditions(self, scene: torch.Tensor, actions: torch.Tensor) -> dict:
         """Condition embeddings once per episode (or the raw conditions for the naive sampler)."""

@@ -26,6 +26,14 @@ def add_guidance_arguments(p: argparse.ArgumentParser) -> None:
                         f"guidance terms; 0 = inpainting only; default {d.goal_guidance:g})")
     p.add_argument("--goal-iters", type=int, default=d.goal_iters,
                    help=f"guidance updates per denoising step, each a backward pass (default {d.goal_iters})")
+    p.add_argument("--guided-steps", type=int, default=d.guided_steps, metavar="N",
+                   help="guide only the last N denoising steps, the earlier ones are plain (0 = every step; "
+                        f"default {d.guided_steps})")
+    p.add_argument("--guidance-space", choices=("xt", "x0"), default=d.guidance_space,
+                   help="guide through the network w.r.t. x_t (a backward pass per update) or on the predicted x0 "
+                        f"(no backward pass; default {d.guidance_space})")
+    p.add_argument("--x0-guidance", type=float, default=d.x0_guidance, metavar="SCALE",
+                   help=f"step-size factor of x0-space guidance (default {d.x0_guidance:g})")
     p.add_argument("--guidance", type=float, nargs=2, default=(d.scene_scale, d.action_scale),
                    metavar=("SCENE", "ACTION"),
                    help="classifier-free guidance scales of the scene and action conditions (1 = plain conditional; "
@@ -83,4 +91,6 @@ def sampler_config(args: argparse.Namespace):
     from trumans.sample.sampler import SamplerConfig
 
     return SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
-                         goal_guidance=args.goal_guidance, goal_iters=args.goal_iters, **postprocess_kwargs(args))
+                         goal_guidance=args.goal_guidance, goal_iters=args.goal_iters,
+                         guided_steps=args.guided_steps, guidance_space=args.guidance_space,
+                         x0_guidance=args.x0_guidance, **postprocess_kwargs(args))

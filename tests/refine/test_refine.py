@@ -1,11 +1,14 @@
 """The HOI filter end to end: filter-mode denoiser, training task, inference over windows with
 resampling and blending, the refine CLI, checkpoint round trip and clear errors."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
 from trumans.refine.evaluate import clip_figures, tune_savgol
 from trumans.refine.pipeline import HOIFilter, RefineOptions
+from trumans.refine.post_steps import PostStepsConfig
 from trumans.refine import FRAME_DIM, add_clean_imu, frames_from_sequence
 from trumans.refine.data import FilterWindows, window_objects
 from trumans.refine.filter import FilterModel, FilterNetConfig, category_indices, filter_denoiser_config
@@ -71,19 +74,23 @@ def test_identity_filter_reproduces_input_across_windows(tmp_path):
     own canonical frames, the blend and the resampling must give the input back exactly."""
     filt = HOIFilter.load(_ckpt(tmp_path / "f.pt"))
     s, f = _tracked(T=100)
-    for opts in (RefineOptions(num_steps=3), RefineOptions(mode="sdedit", strength=0.3)):
+    # the clip stands 4 cm off the floor (the floor step would move it) and the bones step would give
+    # the gaps' interpolated frames back their bone lengths
+    keep = PostStepsConfig().switched(floor=False, bones=False)
+    for opts in (RefineOptions(num_steps=3, post=keep), RefineOptions(mode="sdedit", strength=0.3, post=keep)):
         out = filt.refine_frames(f, 30.0, "box", opts)
         assert out.shape == f.shape and np.isfinite(out).all()
         np.testing.assert_allclose(out[:, :OBJ_T.stop], f[:, :OBJ_T.stop], atol=2e-4)
     # a short clip (one padded window) and another frame rate (resampled to 30 fps and back)
-    np.testing.assert_allclose(filt.refine_frames(f[:10], 30.0, "box")[:, JOINTS], f[:10, JOINTS], atol=2e-4)
-    out60 = filt.refine_frames(f[::1], 60.0, "box")
+    opts = RefineOptions(post=keep)
+    np.testing.assert_allclose(filt.refine_frames(f[:10], 30.0, "box", opts)[:, JOINTS], f[:10, JOINTS], atol=2e-4)
+    out60 = filt.refine_frames(f[::1], 60.0, "box", opts)
     np.testing.assert_allclose(out60[:, JOINTS], f[:, JOINTS], atol=2e-3)
     # NaN frames and joints: the output is complete, the gaps linearly interpolated (identity filter)
     g = f.copy()
     g[20:30, :OBJ_T.stop] = np.nan
     g[50, :3] = np.nan
-    out = filt.refine_frames(g, 30.0, "box")
+    out = filt.refine_frames(g, 30.0, "box", opts)
     assert np.isfinite(out).all()
     np.testing.assert_allclose(out[60:, JOINTS], f[60:, JOINTS], atol=2e-4)
     lin = f[19, JOINTS] + (np.arange(1, 11) / 11)[:, None] * (f[30, JOINTS] - f[19, JOINTS])
@@ -113,7 +120,8 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     assert set(r.objects) == {"box_0", "lamp"}
     printed = capsys.readouterr().out
     assert '"object": "box_0"' in printed
-    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["body_drift", "foot_lock", "rest_pooling", "hand_link"]
+    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["body_drift", "foot_lock", "rest_pooling", "hand_link",
+                                                                            "gate", "bones", "floor"]
     # same seed, same output
     filt = HOIFilter.load(ck)
     a, _ = filt.refine_sequence(s, options=RefineOptions(num_steps=2, eta=1.0, seed=3))
@@ -298,10 +306,10 @@ def test_refine_many_equals_one_by_one(tmp_path):
     filt = HOIFilter.load(_ckpt(tmp_path / "f.pt", zero=False))
     seqs = [_tracked(T=T, seed=i)[1] for i, T in enumerate((100, 10, 150))]
     fps, cats = [30.0, 30.0, 60.0], ["box", "box", filt.categories[-1]]
-    opts = RefineOptions(num_steps=2)
+    opts = RefineOptions(num_steps=2, post=PostStepsConfig().switched(gate=False))  # the gate would keep the clean input
     alone = [filt.refine_frames(f, r, c, opts) for f, r, c in zip(seqs, fps, cats)]
     for batch in (256, 3):
-        together = filt.refine_many(seqs, fps, cats, RefineOptions(num_steps=2, batch=batch))
+        together = filt.refine_many(seqs, fps, cats, replace(opts, batch=batch))
         for a, b, f in zip(alone, together, seqs):
             assert b.shape == f.shape
             np.testing.assert_allclose(b, a, atol=1e-4)
@@ -343,8 +351,8 @@ def test_flips_are_turned_back_before_resampling(tmp_path):
     flipped = frames.copy()
     S = np.diag([-1.0, -1.0, 1.0])  # pi about the object's own z
     flipped[23:78, OBJ_R] = matrix_to_6d(sixd_to_matrix(frames[23:78, OBJ_R].astype(np.float64)) @ S)  # ends between output frames
-    want = filt._windows(frames, 45.0)["tracked"][:, OBJ_R].astype(np.float64)
-    got = filt._windows(flipped, 45.0)["tracked"][:, OBJ_R].astype(np.float64)
+    want = filt._windows(frames, 45.0, RefineOptions())["tracked"][:, OBJ_R].astype(np.float64)
+    got = filt._windows(flipped, 45.0, RefineOptions())["tracked"][:, OBJ_R].astype(np.float64)
     np.testing.assert_allclose(sixd_to_matrix(got), sixd_to_matrix(want), atol=1e-4)
 
 
@@ -372,13 +380,15 @@ def test_post_steps_follow_the_options_and_the_category():
 
     d = PostStepsConfig()
     hinge_any = replace(d, hinge=replace(d.hinge, any_category=True))
-    assert RefineOptions().post_steps("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge"]
-    assert RefineOptions().post_steps("cup") == ["body_drift", "foot_lock", "rest_pooling", "hand_link"]
-    assert RefineOptions(post=hinge_any).post_steps("cup")[-1] == "hinge"
+    guards = ["gate", "bones", "floor"]
+    assert RefineOptions().post_steps("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge"] + guards
+    assert RefineOptions().post_steps("cup") == ["body_drift", "foot_lock", "rest_pooling", "hand_link"] + guards
+    assert "hinge" in RefineOptions(post=hinge_any).post_steps("cup")
     assert RefineOptions(post=replace(d.switched(hinge=False), rest_pooling=replace(d.rest_pooling, hand_link=False))
-                         ).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"]
-    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == ["body_drift", "foot_lock"]  # the hinge needs pooled rests
-    assert RefineOptions(post=d.switched(body_drift=False, foot_lock=False, rest_pooling=False)).post_steps("door") == []
+                         ).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"] + guards
+    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == ["body_drift", "foot_lock"] + guards  # the hinge needs pooled rests
+    assert RefineOptions(post=d.switched(body_drift=False, foot_lock=False, rest_pooling=False, gate=False, bones=False,
+                                         floor=False)).post_steps("door") == []
 
 
 def test_a_track_never_observed_is_refused_not_invented(tmp_path):

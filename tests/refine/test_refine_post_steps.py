@@ -9,7 +9,10 @@ import pytest
 
 from trumans.refine import frames_from_sequence
 from trumans.refine.body_drift import DriftConfig, remove_body_drift
+from trumans.refine.bones import input_bone_lengths, project_bone_lengths
+from trumans.refine.floor import floor_offset, keep_above_floor
 from trumans.refine.foot_lock import LockConfig, lock_feet
+from trumans.refine.gate import gate_joints, noise_level
 from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
 from trumans.refine.post_args import add_post_step_arguments, post_steps_config
@@ -43,15 +46,17 @@ def test_the_documented_order_and_reported_names():
     import trumans.refine.post_steps as mod
 
     names = [s.name for s in STEPS]
-    assert names == ["body_drift", "foot_lock", "rest_pooling", "hinge"] == [f.name for f in fields(PostStepsConfig)]
+    assert names == ["body_drift", "foot_lock", "rest_pooling", "hinge", "gate", "bones", "floor"] == [
+        f.name for f in fields(PostStepsConfig)]
     doc = mod.__doc__
     assert [doc.index(f"``{n}`` - ") for n in names] == sorted(doc.index(f"``{n}`` - ") for n in names)
     d = PostStepsConfig()
-    assert d.runs("door") == names and d.runs("cup") == names[:3]
-    assert d.steps_for("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge"]
+    no_hinge = [n for n in names if n != "hinge"]
+    assert d.runs("door") == names and d.runs("cup") == no_hinge
+    assert d.steps_for("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge", "gate", "bones", "floor"]
     assert replace(d, hinge=replace(d.hinge, any_category=True)).runs("cup") == names
-    assert replace(d, hinge=replace(d.hinge, categories=("cup",))).runs("door") == names[:3]
-    assert d.switched(rest_pooling=False).runs("door") == names[:2]  # the hinge needs pooled rests
+    assert replace(d, hinge=replace(d.hinge, categories=("cup",))).runs("door") == no_hinge
+    assert d.switched(rest_pooling=False).runs("door") == ["body_drift", "foot_lock", "gate", "bones", "floor"]  # the hinge needs pooled rests
 
 
 def test_run_applies_the_steps_in_order_with_their_configs():
@@ -61,7 +66,14 @@ def test_run_applies_the_steps_in_order_with_their_configs():
     want = lock_feet(want, FPS, cfg.foot_lock)
     want = pool_rest(want, clip.tracked, FPS, cfg.rest_pooling)
     want = fit_hinge(want, clip.tracked, cfg.hinge)
-    np.testing.assert_array_equal(run_post_steps(clip, cfg), want)
+    body = lambda f: np.asarray(f, np.float64)[:, :72].reshape(len(f), 24, 3)
+    tracked = body(clip.tracked)
+    J = gate_joints(body(want), tracked, FPS, cfg.gate)
+    J = project_bone_lengths(J, input_bone_lengths(tracked, noise_level(tracked), cfg.bones))
+    J = keep_above_floor(J, FPS, floor_offset(tracked, cfg.floor), cfg.floor)
+    want = want.astype(np.float32)
+    want[:, :72] = J.reshape(len(J), -1)
+    np.testing.assert_allclose(run_post_steps(clip, cfg), want, atol=1e-6)  # the steps round to float32 in between
 
 
 @pytest.mark.parametrize("name", [s.name for s in STEPS])
@@ -80,13 +92,14 @@ def test_a_disabled_step_changes_nothing(name):
 
 def test_a_parameter_reaches_its_step():
     clip = _clip()
-    only_drift = PostStepsConfig().switched(foot_lock=False, rest_pooling=False, hinge=False)
+    only_drift = PostStepsConfig().switched(foot_lock=False, rest_pooling=False, hinge=False, gate=False, bones=False,
+                                            floor=False)
     slow = replace(only_drift, body_drift=replace(only_drift.body_drift, speed_m_s=1.0))  # the clip walks: only a fast threshold finds stances
     np.testing.assert_array_equal(run_post_steps(clip, slow), remove_body_drift(clip.frames, FPS, slow.body_drift))
     assert not np.array_equal(run_post_steps(clip, slow), run_post_steps(clip, only_drift))
     # the hinge's turn threshold: above any turn, the hinge step leaves the object as it is
     door = _clip("door")
-    only_hinge = PostStepsConfig().switched(body_drift=False, foot_lock=False)
+    only_hinge = PostStepsConfig().switched(body_drift=False, foot_lock=False, gate=False, bones=False, floor=False)
     stiff = replace(only_hinge, hinge=replace(only_hinge.hinge, min_turn_deg=180.0))
     no_hinge = only_hinge.switched(hinge=False)
     np.testing.assert_array_equal(run_post_steps(door, stiff), run_post_steps(door, no_hinge))
@@ -120,11 +133,12 @@ def test_generated_switches_map_onto_the_config():
     d = PostStepsConfig()
     assert _parse([]) == d
     for flag, name in [("--no-drift-correction", "body_drift"), ("--no-foot-lock", "foot_lock"),
-                       ("--no-rest-pooling", "rest_pooling"), ("--no-hinge", "hinge")]:
+                       ("--no-rest-pooling", "rest_pooling"), ("--no-hinge", "hinge"), ("--no-gate", "gate"),
+                       ("--no-input-bones", "bones"), ("--no-floor", "floor")]:
         assert _parse([flag]) == d.switched(**{name: False}), flag
     assert _parse(["--no-hand-link"]) == replace(d, rest_pooling=replace(d.rest_pooling, hand_link=False))
     assert _parse(["--hinge"]) == replace(d, hinge=replace(d.hinge, any_category=True))
-    assert _parse(["--hinge"]).runs("cup")[-1] == "hinge" and "hinge" not in _parse(["--no-hinge"]).runs("door")
+    assert "hinge" in _parse(["--hinge"]).runs("cup") and "hinge" not in _parse(["--no-hinge"]).runs("door")
     with pytest.raises(SystemExit):
         _parse(["--hinge", "--no-hinge"])
     got = _parse(["--set", "post.body_drift.speed_m_s=0.25", "--set", 'post.hinge.categories=["door", "drawer"]',

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import BSpline
 from scipy.ndimage import label, uniform_filter1d
+from scipy.sparse import csr_matrix
 
 from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS
 
@@ -96,13 +97,14 @@ def stance_mask(joints: np.ndarray, fps: float, cfg: DriftConfig = DriftConfig()
     return (planted.T & (length[runs] >= cfg.min_stance_s * fps)).T
 
 
-def _design(T: int, fps: float, knot_s: float) -> np.ndarray:
-    """(T, K) piecewise-linear (degree-1 B-spline) basis with knots every ``knot_s`` from frame 0."""
+def _design(T: int, fps: float, knot_s: float) -> csr_matrix:
+    """(T, K) sparse piecewise-linear (degree-1 B-spline) basis with knots every ``knot_s`` from
+    frame 0 (two non-zeros per row)."""
     step = max(knot_s * fps, 1.0)
     n = int(np.ceil((T - 1) / step - 1e-9)) + 1
     knots = np.linspace(0.0, (n - 1) * step, n) if n > 1 else np.array([0.0, 1.0])
     t = np.concatenate([[knots[0]], knots, [knots[-1]]])
-    return BSpline.design_matrix(np.arange(T, dtype=np.float64), t, 1).toarray()
+    return BSpline.design_matrix(np.arange(T, dtype=np.float64), t, 1).tocsr()
 
 
 def estimate_body_drift(joints: np.ndarray, fps: float, cfg: DriftConfig = DriftConfig()) -> np.ndarray:
@@ -132,23 +134,35 @@ def estimate_body_drift(joints: np.ndarray, fps: float, cfg: DriftConfig = Drift
         on_floor = level[stance] <= lowest[j] + cfg.floor_band_m
         height_group = np.where(on_floor, stance.max() + 1 + j, stance)
     parts = ((slice(0, 2), stance), (slice(2, 3), height_group))
+    Bt = B[t]  # (N, K) sparse: the basis at each observation
+    N = len(t)
 
-    def centred(x: np.ndarray, group: np.ndarray) -> np.ndarray:  # x minus its group's mean, (N, D)
-        sums = np.zeros((group.max() + 1, x.shape[1]))
-        np.add.at(sums, group, x)
-        return x - sums[group] / np.bincount(group)[group, None]
+    # Each system is min |W^1/2 (A c - r)|^2 + prior, A = Bt - E M (Bt minus its group means, E the
+    # (N, G) group indicator, M the (G, K) group means of Bt) and r the centred observations; A is
+    # never formed: A^T W A = Bt^T W Bt - C M - M^T C^T + M^T diag(E^T w) M with C = Bt^T W E.
+    def system(group: np.ndarray, y: np.ndarray) -> tuple[csr_matrix, np.ndarray, np.ndarray]:
+        E = csr_matrix((np.ones(N), (np.arange(N), group)), shape=(N, group.max() + 1))
+        count = np.maximum(np.asarray(E.sum(0)).ravel(), 1)
+        M = (E.T @ Bt).toarray() / count[:, None]
+        r = y - (np.asarray(E.T @ y) / count[:, None])[group]
+        return E, M, r
 
-    systems = [(centred(B[t], g), centred(foot[:, ax], g)) for ax, g in parts]
+    systems = [(group, *system(group, foot[:, ax])) for ax, group in parts]
     D2 = np.diff(np.eye(K), 2, axis=0)
     prior = cfg.ridge * np.eye(K) + cfg.smoothness * D2.T @ D2
-    w = np.ones(len(foot))
+    w = np.ones(N)
     for _ in range(cfg.robust_iters + 1):
         coef, res2 = [], 0.0
-        for A, r in systems:
-            Aw = A * w[:, None]
-            c = np.linalg.solve(A.T @ Aw + prior, Aw.T @ r)  # (K, D)
+        BtW = Bt.T.multiply(w[None]).tocsr()  # (K, N)
+        BWB = (BtW @ Bt).toarray()
+        for group, E, M, r in systems:
+            C = (BtW @ E).toarray()  # (K, G)
+            ew = np.asarray(E.T @ w).ravel()
+            AtWA = BWB - C @ M - M.T @ C.T + M.T @ (ew[:, None] * M)
+            AtWr = BtW @ r - M.T @ np.asarray(E.T @ (w[:, None] * r))
+            c = np.linalg.solve(AtWA + prior, AtWr)  # (K, D)
             coef.append(c)
-            res2 = res2 + ((r - A @ c) ** 2).sum(-1)
+            res2 = res2 + ((r - (Bt @ c - (M @ c)[group])) ** 2).sum(-1)
         w = np.minimum(1.0, cfg.robust_m / np.maximum(np.sqrt(res2), 1e-12))
     return B @ np.concatenate(coef, axis=1)
 

@@ -70,6 +70,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="only test clips of this object category (repeatable; default: every category)")
     p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
                                                        "test split, body only): blocks real.default and real.drift")
+    p.add_argument("--families", action="store_true",
+                   help="instead: the body benchmark per corruption family (clean, the training corruption, the "
+                        "independent tracker model) and per motion type, beside a Gaussian and a Savitzky-Golay "
+                        "smoother tuned per family, on the corpus's held-out subjects and, with --data, the "
+                        "dataset's test split (trumans/refine/benchmark.py); needs no dataset")
+    p.add_argument("--kinds", action="store_true", help="with --families: also each tracker error kind alone")
+    p.add_argument("--max-val-clips", type=int, default=20,
+                   help="with --families: corpus train clips the smoothers are tuned on (default 20)")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
 
@@ -273,6 +281,48 @@ def evaluate_real(filt, clip: int, max_clips: int, savgol_window: int, seed: int
     return res
 
 
+def run_families(args: argparse.Namespace, filt, opts) -> int:
+    """``--families``: the body benchmark (``trumans.refine.benchmark``) on real and, with ``--data``,
+    synthetic clips; prints one table per family and clip set."""
+    from trumans.refine.benchmark import (FIGURES, MOTION_TYPES, benchmark, family_names, foreign_skeleton,
+                                          real_body_clips, synthetic_body_clips)
+
+    if args.max_val_clips < 1 or args.max_clips < 1:
+        raise ValueError(f"--max-clips and --max-val-clips must be >= 1, got {args.max_clips}, {args.max_val_clips}")
+    real = (real_body_clips("test", args.max_clips, args.seed), real_body_clips("train", args.max_val_clips, args.seed))
+    sets = {"real": real, "foreign": (foreign_skeleton(real[0]), foreign_skeleton(real[1]))}
+    if args.data:
+        if not Path(args.data).is_dir():
+            raise FileNotFoundError(f"--data {args.data!r} is not a folder; pass a dataset with val and test splits")
+        sets["synthetic"] = (synthetic_body_clips(args.data, "test", filt.fps)[:args.max_clips],
+                             synthetic_body_clips(args.data, "val", filt.fps)[:args.max_val_clips])
+    t0 = time.perf_counter()
+    res: dict = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "seed": args.seed, "families": {},
+                 "post_config": opts.post.to_dict()}
+    for name, (test, val) in sets.items():
+        res["families"][name] = benchmark(filt, test, val, family_names(args.kinds), args.seed, opts)
+        res["families"][name]["clips"] = len(test)
+        res["families"][name]["frames"] = int(sum(len(c.joints) for c in test))
+    res["seconds"] = time.perf_counter() - t0
+    methods = ("input", "gauss", "savgol", "filter_before", "filter")
+    for name, fams in res["families"].items():
+        for fam, b in fams.items():
+            if not isinstance(b, dict):
+                continue
+            r = b["ratio_vs_best_smoother"]
+            print(f"[{name} / {fam}] gauss sigma {b['gauss_sigma_frames']} frames, savgol window {b['savgol_window']}; "
+                  f"filter / best smoother: tmpjpe {r['tmpjpe_mm']:.2f}, limb {r['limb_mm']:.2f}")
+            print("  " + f"{'method':14s}" + "".join(f"{k:>16s}" for k in FIGURES))
+            for m in methods:
+                print("  " + f"{m:14s}" + "".join(f"{b[m]['all'][k]:16.2f}" for k in FIGURES))
+            print("  tmpjpe / limb (mm) by motion type: " + "; ".join(
+                f"{t} " + " ".join(f"{m}={b[m][t]['tmpjpe_mm']:.1f}/{b[m][t]['limb_mm']:.1f}" for m in methods)
+                for t in MOTION_TYPES))
+    if args.json:
+        print_summary(res)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from trumans.refine.corrupt import CorruptionConfig, corrupt
 
@@ -280,6 +330,8 @@ def run(args: argparse.Namespace) -> int:
 
     filt = HOIFilter.load(args.checkpoint)
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, post=post_steps_config(args))
+    if args.families:
+        return run_families(args, filt, opts)
     data = args.data or filt.ckpt.data.get("path")
     if not data or not Path(data).is_dir():
         raise FileNotFoundError(f"the checkpoint's dataset {data!r} is not on this machine; pass --data DIR "

@@ -19,9 +19,10 @@ import numpy as np
 import torch
 
 from trumans.refine.filter import FilterModel, filter_window, category_indices, configure_skip, prepare_windows, sample_x0
-from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, fill_missing, frames_from_sequence, from_frame,
+from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
-from trumans.refine.outliers import drop_frozen_frames, drop_object_flips, unflip_object
+from trumans.refine.leg_swap import LEFT_LEG, RIGHT_LEG, leg_swap_states
+from trumans.refine.outliers import drop_frozen_frames, drop_frozen_joints, drop_object_flips, unflip_object
 from trumans.refine.post_steps import PostStepsConfig, RefinedClip, run_post_steps
 from trumans.refine.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
@@ -41,7 +42,9 @@ class RefineOptions:
     network call; seed: the sampling noise; drop_failures: treat repeated (frozen) frames as
     missing, turn object rotations flipped by π about an own axis back (read from the whole sequence) and
     treat other rotations that flip and back within a second as missing, before filtering
-    (``trumans.refine.outliers``); post: the post-steps after filtering, each with its switch and
+    (``trumans.refine.outliers``); held_joints: a joint held bit for bit for two repeats or more is
+    missing (``outliers.frozen_joint_mask``); leg_swaps: legs read as swapped from the whole sequence
+    are exchanged back (``trumans.refine.leg_swap``); post: the post-steps after filtering, each with its switch and
     parameters (``trumans.refine.post_steps``: body drift, foot lock, rest pooling with the hand
     link, hinge for the hinged categories)."""
 
@@ -52,6 +55,8 @@ class RefineOptions:
     batch: int = 256
     seed: int = 0
     drop_failures: bool = True
+    held_joints: bool = True
+    leg_swaps: bool = True
     post: PostStepsConfig = field(default_factory=PostStepsConfig)
 
     def post_steps(self, category: str) -> list[str]:
@@ -66,6 +71,20 @@ class RefineOptions:
             raise ValueError(f"num_steps and batch must be >= 1, got {self.num_steps}, {self.batch}")
         if not 0 < self.strength <= 1:
             raise ValueError(f"strength must be in (0, 1], got {self.strength}")
+
+
+def unswap_legs(frames: np.ndarray) -> np.ndarray:
+    """Frame vectors (T, 235) -> a copy whose frames ``trumans.refine.leg_swap`` reads as having the
+    legs swapped get the legs' joint positions and local rotations exchanged back."""
+    f = np.array(frames, dtype=np.float32, copy=True)
+    s = leg_swap_states(f[:, JOINTS].reshape(len(f), -1, 3))
+    if s.any():
+        a, b = list(LEFT_LEG), list(RIGHT_LEG)
+        for cols in (lambda j: [3 * j, 3 * j + 1, 3 * j + 2], lambda j: [ROTATIONS.start + 6 * j + k for k in range(6)]):
+            A = np.concatenate([cols(j) for j in a])
+            B = np.concatenate([cols(j) for j in b])
+            f[np.ix_(s, np.r_[A, B])] = f[np.ix_(s, np.r_[B, A])]
+    return f
 
 
 class HOIFilter:
@@ -101,7 +120,7 @@ class HOIFilter:
         if not frames:
             return []
         cats = category_indices(list(categories), self.categories)
-        parts = [self._windows(f, r, options.drop_failures) for f, r in zip(frames, fps)]
+        parts = [self._windows(f, r, options) for f, r in zip(frames, fps)]
         L = self.window
         cond = torch.cat([p["inp"].cond for p in parts])
         category = torch.from_numpy(np.concatenate([np.full(len(p["starts"]), c) for p, c in zip(parts, cats)]))
@@ -127,10 +146,11 @@ class HOIFilter:
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 
-    def _windows(self, frames: np.ndarray, fps: float, drop_failures: bool = True) -> dict:
+    def _windows(self, frames: np.ndarray, fps: float, options: RefineOptions) -> dict:
         """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T,
         the network inputs (``prepare_windows``) and the tracked frames at that rate (``tracked``);
-        ``drop_failures``: frozen frames -> missing, flipped object rotations turned back (or missing)."""
+        the failures the options name are read first (frozen frames and held joints -> missing, legs
+        swapped back, flipped object rotations turned back or missing)."""
         f = np.asarray(frames, dtype=np.float32)
         if f.ndim != 2 or f.shape[1] != FRAME_DIM:
             raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
@@ -145,11 +165,16 @@ class HOIFilter:
         if not np.isfinite(f[:, OBJ_T]).all(-1).any() or not np.isfinite(f[:, OBJ_R]).all(-1).any():
             raise ValueError("the tracked object's pose is missing (NaN) on every frame; give at least one observed "
                              "pose (or refine without that object)")
-        if drop_failures:  # at the input's rate: resampling would blur exact repeats and blend flipped with unflipped
+        # at the input's rate: resampling would blur exact repeats and blend flipped with unflipped
+        if options.drop_failures:
             f = unflip_object(drop_frozen_frames(f))
+        if options.held_joints:
+            f = drop_frozen_joints(f)
+        if options.leg_swaps:
+            f = unswap_legs(f)
         # model frames from time 0 over the whole duration (the last may end just past it)
         g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
-        if drop_failures:
+        if options.drop_failures:
             g = drop_object_flips(g, self.fps)  # what the whole-sequence reading left: short runs outvoted by their neighbours
         Tm, L = g.shape[0], self.window
         starts = window_starts(Tm, L, self.overlap)

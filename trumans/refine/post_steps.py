@@ -13,8 +13,17 @@ filter's rate goes through ``STEPS`` in this order (``run_post_steps``):
    After the body drift: the moves follow the corrected wrists.
 4. ``hinge`` - the object turns about one hinge fitted to the whole sequence, for the hinged
    categories (``object_hinge.py``; ``HingeConfig.categories``, or every object with
-   ``any_category``). Last, and only after rest pooling (``needs``): it reduces the pooled
-   rotations to one degree of freedom.
+   ``any_category``). Only after rest pooling (``needs``): it reduces the pooled rotations to one
+   degree of freedom.
+5. ``gate`` - do no harm: the body's joints are blended with the tracked input by how noisy the
+   input is there, joint by joint (``gate.py``: clean input comes back as it came; missing, frozen
+   and spiking entries are the filter's). After the steps that change the body: it judges their
+   result against the input.
+6. ``bones`` - every bone gets the input's own length, measured robustly over the tracked frames
+   (``bones.py``): any skeleton's proportions come back as they went in. After the gate: the
+   blend of two bodies does not keep lengths.
+7. ``floor`` - the body's height from its planted feet on z = 0, and no foot joint under the floor
+   (``floor.py``). Last: it moves the body as one piece, so the lengths stay.
 
 Every step has one signature, ``apply(clip: RefinedClip, config) -> frames (T, 235)``, and its own
 frozen config with an ``enabled`` switch; ``PostStepsConfig`` nests them under the step names, so
@@ -33,8 +42,11 @@ import numpy as np
 
 from trumans.config_data import config_from_dict
 from trumans.refine.body_drift import DriftConfig, remove_body_drift
+from trumans.refine.bones import BonesConfig, input_bone_lengths, project_bone_lengths
+from trumans.refine.floor import FloorConfig, floor_offset, keep_above_floor
 from trumans.refine.foot_lock import LockConfig, lock_feet
-from trumans.refine.frame import FRAME_DIM
+from trumans.refine.frame import FRAME_DIM, JOINTS
+from trumans.refine.gate import GateConfig, gate_joints, noise_level
 from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
 
@@ -112,6 +124,31 @@ def _hinge(clip: RefinedClip, config: HingeConfig) -> np.ndarray:
     return fit_hinge(clip.frames, clip.tracked, config)
 
 
+def _body(frames: np.ndarray) -> np.ndarray:
+    return np.asarray(frames, np.float64)[:, JOINTS].reshape(len(frames), -1, 3)
+
+
+def _with_body(frames: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    out = np.array(frames, dtype=np.float32, copy=True)
+    out[:, JOINTS] = joints.reshape(len(out), -1)
+    return out
+
+
+def _gate(clip: RefinedClip, config: GateConfig) -> np.ndarray:
+    return _with_body(clip.frames, gate_joints(_body(clip.frames), _body(clip.tracked), clip.fps, config))
+
+
+def _bones(clip: RefinedClip, config: BonesConfig) -> np.ndarray:
+    tracked = _body(clip.tracked)
+    lengths = input_bone_lengths(tracked, noise_level(tracked), config)
+    return _with_body(clip.frames, project_bone_lengths(_body(clip.frames), lengths))
+
+
+def _floor(clip: RefinedClip, config: FloorConfig) -> np.ndarray:
+    offset = floor_offset(_body(clip.tracked), config)
+    return _with_body(clip.frames, keep_above_floor(_body(clip.frames), clip.fps, offset, config))
+
+
 STEPS: tuple[PostStep, ...] = (
     PostStep("body_drift", "drift-correction", DriftConfig, _body_drift,
              "remove the whole-body drift's changes seen by the planted feet (trumans.refine.body_drift)"),
@@ -129,6 +166,13 @@ STEPS: tuple[PostStep, ...] = (
              applies=HingeConfig.applies_to, needs="rest_pooling", force="any_category",
              force_help="the object turns about one fixed hinge: fit it to the whole sequence after rest pooling "
                         "(default: for the hinged categories, door; trumans.refine.object_hinge)"),
+    PostStep("gate", "gate", GateConfig, _gate,
+             "blend the body with the tracked input by the input's local jitter: clean input comes back as it came "
+             "(trumans.refine.gate)"),
+    PostStep("bones", "input-bones", BonesConfig, _bones,
+             "give every bone the input's own length, measured over the tracked frames (trumans.refine.bones)"),
+    PostStep("floor", "floor", FloorConfig, _floor,
+             "put the planted feet on the floor z = 0 and no foot joint under it (trumans.refine.floor)"),
 )
 
 
@@ -140,6 +184,9 @@ class PostStepsConfig:
     foot_lock: LockConfig = field(default_factory=LockConfig)
     rest_pooling: RestConfig = field(default_factory=RestConfig)
     hinge: HingeConfig = field(default_factory=HingeConfig)
+    gate: GateConfig = field(default_factory=GateConfig)
+    bones: BonesConfig = field(default_factory=BonesConfig)
+    floor: FloorConfig = field(default_factory=FloorConfig)
 
     def switched(self, **enabled: bool) -> PostStepsConfig:
         """A copy with the named steps switched on / off, e.g. ``switched(foot_lock=False, hinge=False)``."""

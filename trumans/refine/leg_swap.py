@@ -1,0 +1,95 @@
+"""Left/right leg swaps read from the whole sequence (before filtering).
+
+Marker-less trackers confuse the two legs for a few frames (the left leg's joints reported where
+the right leg is and back), most often when the legs pass each other. A smoother averages the two
+legs there, and the filter, which sees each window alone, half follows the swap. Read from the
+sequence, a swap is a state: the tracked legs are either as labelled or exchanged, and between two
+consecutive frames a leg moves a few centimetres, while an exchange moves each leg joint by the
+legs' separation. So each frame gets a state s(t) in {as labelled, swapped} by dynamic programming
+(Viterbi over two states): the cost of a path is the squared distance each leg joint travels
+between consecutive frames, read with the states' labels, plus ``switch_m``^2 per change of state
+(a change must save that much), plus a small ``prior_m``^2 per swapped frame (of two readings that
+move the same, the one with fewer swapped frames wins: swaps are the exception). Only consecutive
+frames are compared, on the leg joints seen (with their mirror) in both: across a gap the legs move
+too far to tell (in a walk, half a stride puts each leg where the other was), so a gap cuts the
+chain and each piece is read on its own. Frames read as swapped get their legs exchanged back.
+
+Not in I'm-HOI; the same reading as the object's flips (``trumans.refine.outliers``), for the body.
+Units: metres; joints (T, 24, 3) z-up world.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
+
+__all__ = ["SwapConfig", "LEFT_LEG", "RIGHT_LEG", "leg_swap_states", "unswap_legs"]
+
+LEFT_LEG = tuple(JOINT_INDEX[f"left_{n}"] for n in ("hip", "knee", "ankle", "foot"))
+RIGHT_LEG = tuple(JOINT_INDEX[f"right_{n}"] for n in ("hip", "knee", "ankle", "foot"))
+_SWAP = np.arange(NUM_JOINTS)
+_SWAP[list(LEFT_LEG)], _SWAP[list(RIGHT_LEG)] = list(RIGHT_LEG), list(LEFT_LEG)
+
+
+@dataclass(frozen=True)
+class SwapConfig:
+    """enabled: whether swaps are read and undone; switch_m: a change of state must save this much
+    travel (m, root of the summed squares over the leg joints); prior_m: the cost of one swapped frame
+    (m, likewise)."""
+
+    enabled: bool = True
+    switch_m: float = 0.10
+    prior_m: float = 0.01
+
+    def __post_init__(self) -> None:
+        if not (self.switch_m >= 0 and self.prior_m >= 0):
+            raise ValueError(f"swap switch_m and prior_m must be >= 0, got {self.switch_m}, {self.prior_m}")
+
+
+def leg_swap_states(joints: np.ndarray, config: SwapConfig = SwapConfig()) -> np.ndarray:
+    """Tracked joints (T, 24, 3) m (NaN = missing) -> (T,) bool, True where the legs are read as
+    swapped (the Viterbi path described in the module docstring)."""
+    J = np.asarray(joints, dtype=np.float64)
+    if J.ndim != 3 or J.shape[1:] != (NUM_JOINTS, 3):
+        raise ValueError(f"joints must be (T, {NUM_JOINTS}, 3), got {J.shape}")
+    T = len(J)
+    legs = list(LEFT_LEG + RIGHT_LEG)
+    X, Xs = J[:, legs], J[:, _SWAP[legs]]  # (T, 8, 3): the readings as labelled / swapped
+    ok = np.isfinite(X).all(-1) & np.isfinite(Xs).all(-1)  # (T, 8): a joint and its mirror observed
+    states = np.zeros(T, bool)
+    if T < 2:
+        return states
+    both = ok[1:] & ok[:-1]  # (T-1, 8): compared between consecutive frames only
+    A = (np.nan_to_num(X), np.nan_to_num(Xs))
+    step = np.empty((T - 1, 2, 2))  # travel (summed squares, m^2) from reading a at t-1 to reading b at t
+    for a in range(2):
+        for b in range(2):
+            step[:, a, b] = (((A[b][1:] - A[a][:-1]) ** 2).sum(-1) * both).sum(-1)
+    linked = both.any(-1)  # a frame pair without a joint seen in both cuts the chain: no travel, no switch cost
+    sw, pr = config.switch_m ** 2, config.prior_m ** 2
+    unary = np.array([0.0, pr])
+    cost = unary.copy()
+    back = np.zeros((T, 2), np.int8)
+    for t in range(1, T):  # two states: a short python loop over the frames
+        trans = np.array([[0.0, sw], [sw, 0.0]]) if linked[t - 1] else np.zeros((2, 2))
+        tot = cost[:, None] + step[t - 1] + trans  # (from, to)
+        back[t] = tot.argmin(0)
+        cost = tot.min(0) + unary
+    path = np.empty(T, np.int8)
+    path[-1] = int(cost.argmin())
+    for t in range(T - 1, 0, -1):
+        path[t - 1] = back[t, path[t]]
+    states = path.astype(bool) & ok.any(-1)  # a frame without an observed leg joint keeps its labels
+    return states
+
+
+def unswap_legs(joints: np.ndarray, config: SwapConfig = SwapConfig()) -> np.ndarray:
+    """Tracked joints (T, 24, 3) m -> the same with the legs exchanged back on the frames
+    ``leg_swap_states`` reads as swapped."""
+    J = np.asarray(joints, dtype=np.float64)
+    s = leg_swap_states(J, config)
+    out = J.copy()
+    out[s] = J[s][:, _SWAP]
+    return out

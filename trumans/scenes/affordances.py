@@ -454,21 +454,24 @@ def _table_object(p: _Patch, sides: list[_Side], mesh, name: str, category: str 
 def check_room_frame(mesh: trimesh.Trimesh, where: str = "mesh") -> None:
     """Raise ValueError when ``mesh`` is clearly not z-up metres with the floor at z = 0: it spans
     more than MAX_SPAN_M (centimetres / millimetres), its large horizontal floor (>= 30 % of its
-    footprint and >= FLOOR_MIN_M2, within its lowest 0.3 m) lies more than 5 cm off z = 0, or it has no such floor but
-    one across y (a y-up file read as z-up). Meshes without any large floor pass."""
+    footprint and >= FLOOR_MIN_M2, within its lowest 0.3 m) lies more than 5 cm off z = 0 (the message also
+    suggests up='y' when such a floor lies across y at y = 0: a y-up file read as z-up), or it has no floor
+    at all but one across y at y = 0. Meshes without a large floor pass."""
     check_mesh(mesh, where)
     ext = mesh.extents
     if float(ext.max()) > MAX_SPAN_M:
         raise ValueError(f"{where} spans {ext.round(1).tolist()} units; trumans reads metres: is it in centimetres "
                          f"or millimetres? rescale it (x0.01 / x0.001) before use")
     fz = _floor_level(mesh, 2)
-    if fz is not None:
-        if abs(fz) > 0.05:
-            raise ValueError(f"{where}: its floor is at z = {fz:.2f} m, trumans needs the floor at z = 0; translate "
-                             f"the mesh by {-fz:.2f} m in z")
+    if fz is not None and abs(fz) <= 0.05:
         return
-    if _floor_level(mesh, 1) is not None:
-        raise ValueError(f"{where} has no horizontal floor but a large one across y: it looks y-up; read it with "
+    y_up = (fy := _floor_level(mesh, 1)) is not None and abs(fy) <= 0.05
+    if fz is not None:
+        hint = "; or, as it has a floor across y at y = 0, it may be y-up: read it with --up y (up='y')" if y_up else ""
+        raise ValueError(f"{where}: its floor is at z = {fz:.2f} m, trumans needs the floor at z = 0: translate "
+                         f"the mesh by {-fz:.2f} m in z{hint}")
+    if y_up:
+        raise ValueError(f"{where} has no floor at z = 0 but one across y at y = 0: it looks y-up; read it with "
                          f"--up y (up='y')")
 
 
@@ -486,7 +489,10 @@ def _floor_level(mesh: trimesh.Trimesh, axis: int) -> float | None:
     bins = np.clip(np.floor((c[m] - lo) / 0.01), 0, None).astype(np.int64)
     area = np.bincount(bins, weights=mesh.area_faces[m])
     big = np.flatnonzero((area >= 0.3 * foot) & (area >= FLOOR_MIN_M2))
-    return None if len(big) == 0 else lo + 0.01 * (big.max() + 0.5)
+    if len(big) == 0:
+        return None
+    level = np.bincount(bins, weights=mesh.area_faces[m] * c[m])[big.max()] / area[big.max()]  # its mean level
+    return float(level)
 
 
 def find_affordances(mesh: trimesh.Trimesh, parts: dict[str, trimesh.Trimesh] | None = None,

@@ -32,6 +32,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("view",), "trumans.viz.cli", "render a sequence to GIF/MP4 and a top-down PNG"),
     (("scene", "inspect"), "trumans.scenes.inspect_cli", "list the seats, beds and tables found in a mesh or scene folder"),
     (("eval", "synthesis"), "trumans.sample.eval_synthesis", "synthesis benchmark figures"),
+    (("eval", "safety"), "trumans.sample.eval_safety", "worst-case scene-safety benchmark under perturbations"),
     (("eval", "augment"), "trumans.augment.evaluate", "augmentation benchmark figures"),
     (("eval", "train"), "trumans.train.evaluate", "recompute a checkpoint's validation loss"),
     (("eval", "refine"), "trumans.refine.evaluate", "HOI-filter benchmark figures"),

@@ -104,3 +104,15 @@ def test_feet_seat_and_lying_figures():
         crossings(np.zeros((3, 23, 3)), thin_wall())
     with pytest.raises(ValueError, match="upright"):
         floating_frames(J, np.ones(T + 1, bool))
+
+
+def test_a_body_creeping_through_a_wall_over_several_frames_crosses_and_one_dipping_in_does_not():
+    sdf = thin_wall()
+    T = 10
+    x = np.r_[1.3, 1.4, 1.48, 1.52, 1.56, 1.6, 1.64, 1.72, 1.8, 1.9]  # 4 cm a frame: never a dip of a segment
+    J = _body_at(T, np.c_[x, np.full(T, 1.6)])
+    assert not (swept_dips(J, sdf) > 0.01).any()
+    assert crossings(J, sdf)[:, JOINT_INDEX["pelvis"]].any()
+    back = np.r_[1.3, 1.35, 1.38, 1.4, 1.42, 1.42, 1.4, 1.38, 1.35, 1.3]  # the toes in and out on one side
+    J = _body_at(T, np.c_[back, np.full(T, 1.6)])
+    assert core_depths(J, sdf).max() > 0.02 and not crossings(J, sdf).any()

@@ -59,11 +59,11 @@ def _trace(episode: EpisodeBodies, config: CleanupConfig) -> tuple[np.ndarray, l
 
 
 def test_steps_run_in_the_documented_order(sdf):
-    documented = re.findall(r"^\d\. ``(\w+)``", pipeline.__doc__, re.MULTILINE)
+    documented = re.findall(r"^\d+\. ``(\w+)``", pipeline.__doc__, re.MULTILINE)
     names = [s.name for s in STEPS]
     assert documented == names == [f.name for f in fields(CleanupConfig)]
-    assert names == ["attach_pelvis", "seam", "bone_projection", "support_lift", "scene_pushout", "arm_pushout",
-                     "foot", "reach"]
+    assert names == ["attach_pelvis", "seam", "bone_projection", "support_lift", "scene_pushout", "containment",
+                     "arm_pushout", "foot", "reach", "swept_guard"]
     _, seen = _trace(_episode(sdf), CleanupConfig())
     assert [name for name, _ in seen] == names
 

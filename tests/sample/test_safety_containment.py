@@ -74,13 +74,17 @@ def test_a_network_that_overshoots_toward_the_wall_stays_inside(room):
     assert core_depths(J, sdf).max() < 0.05
 
 
-def test_without_the_constraint_the_same_network_leaves_the_room(room):
-    """The control: the soft push-out alone does not hold the stand-in back (so the test above can fail)."""
-    config = SamplerConfig(goal_guidance=0.0)
-    config = SamplerConfig(goal_guidance=0.0, cleanup=config.cleanup.switched(containment=False))
-    J, sdf = _run(room, config)
+def test_without_the_constraints_the_same_network_leaves_the_room(room):
+    """The control: the soft push-out alone does not hold the stand-in back (so the test above can
+    fail); the swept guard alone (no containment) stops it at the wall."""
+    cleanup = SamplerConfig().cleanup
+    J, sdf = _run(room, SamplerConfig(goal_guidance=0.0, cleanup=cleanup.switched(containment=False,
+                                                                                  swept_guard=False)))
     assert J[:, PELVIS, 1].max() > WALL_Y - 0.1
     assert room_exits(J[:, PELVIS, :2], sdf).any() or core_depths(J, sdf).max() > 0.1
+    J, sdf = _run(room, SamplerConfig(goal_guidance=0.0, cleanup=cleanup.switched(containment=False)))
+    assert not room_exits(J[:, PELVIS, :2], sdf).any() and not crossings(J, sdf).any()
+    assert core_depths(J, sdf).max() < 0.05
 
 
 def test_contain_moves_only_upright_frames_and_keeps_the_context(room):
@@ -112,3 +116,27 @@ def test_far_point_keeps_off_the_walkable_edge(room):
     assert np.linalg.norm(p - 1.5) > 0.8  # still far: a corner of the inner square
     with pytest.raises(ValueError, match="walkable"):
         far_point(wm, np.array([-1.0, -1.0]))
+
+
+def test_the_swept_guard_stops_a_body_at_a_thin_wall_it_would_jump_through():
+    from trumans.sample.cleanup.swept import SweptGuardConfig, guard_crossings
+    from trumans.scenes.occupancy import OccupancyGrid
+
+    origin = np.array([0.01, 0.01, -0.09])
+    x, y, z = np.meshgrid(*(origin[i] + 0.02 * np.arange(n) for i, n in enumerate((150, 150, 120))), indexing="ij")
+    sdf = SceneSDF(OccupancyGrid((z < 0) | ((x > 1.5) & (x < 1.62)), origin, 0.02))  # a 12 cm wall across
+    T, k = 10, 2
+    J = standing_body(T)
+    J[..., 0] += (np.r_[1.0, 1.1, 1.2, 1.3, 1.95, 2.05, 2.15, 2.25, 2.35, 2.45] - J[0, :, PELVIS, 0])[:, None]
+    J[..., 1] += 1.5 - J[0, 0, PELVIS, 1]
+    assert crossings(J[0], sdf).any()
+    out = guard_crossings(J, sdf, k)
+    assert not crossings(out[0], sdf).any()
+    np.testing.assert_array_equal(out[0, :k], J[0, :k])
+    assert out[0, :, PELVIS, 0].max() < 1.5  # the body stays on its side of the wall
+    assert core_depths(out[0], sdf).max() <= SweptGuardConfig().max_depth_seated + 1e-3  # the cap off the feet
+    # upright frames also do not walk deeper than max_depth into the wall
+    up = guard_crossings(J, sdf, k, SweptGuardConfig(max_depth=0.01), weight=np.ones((1, T)))
+    assert core_depths(up[0], sdf).max() <= 0.01 + 1e-3
+    with pytest.raises(ValueError, match="max_depth"):
+        SweptGuardConfig(max_depth=-1.0)

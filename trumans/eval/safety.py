@@ -10,7 +10,11 @@ room is solid, so a body that has passed a wall is deep in it, not in free space
   ``min_s sdf(s) < min(sdf(a), sdf(b), 0) - depth``. A hand that jumps through a 12 cm wall in one
   frame (both ends in free space, the middle 6 cm inside) crosses; a body walking along the wall,
   or a shin sliding along a mattress it is in, does not. Per-frame penetration undercounts the
-  first case: after the jump the hand is inside nothing.
+  first case: after the jump the hand is inside nothing. A joint can also pass a wall over several
+  frames, each entering it a little further: a joint that is inside a solid (sdf < -``depth``) for
+  a run of frames and leaves it on the other side (the field's gradient where it leaves points
+  against the gradient where it entered, cosine < -0.5) crosses at the frame it leaves. A knee that
+  dips into a mattress and comes back up does not.
 - **exit** (``room_exits``): the pelvis stands on a floor column outside the room
   (``trumans.scenes.sdf.outside_columns``: joined to the grid's border through free space) or
   beyond the field's grid. An open scene has no outside: only leaving the grid counts.
@@ -90,8 +94,27 @@ def swept_dips(joints: np.ndarray, sdf: SceneSDF, step: float | None = None) -> 
 
 
 def crossings(joints: np.ndarray, sdf: SceneSDF, depth: float = CROSS_DEPTH) -> np.ndarray:
-    """(T, 24) bool: joint j crosses a solid between frames t-1 and t (``swept_dips`` > ``depth``)."""
-    return swept_dips(joints, sdf) > depth
+    """(T, 24) bool: joint j crosses a solid between frames t-1 and t (``swept_dips`` > ``depth``),
+    or leaves at frame t, through its other side, a solid it entered frames before (module doc)."""
+    J = _joints(joints)
+    out = swept_dips(J, sdf) > depth
+    field = sdf.enclosed()
+    d, g = field.value_and_gradient(torch.as_tensor(J, dtype=torch.float32))
+    d, g = d.numpy().astype(np.float64), g.numpy().astype(np.float64)  # (T, 24), (T, 24, 3)
+    inside = d < -depth
+    for j in np.flatnonzero(inside.any(0)):
+        t = 1
+        while t < len(J):
+            if inside[t, j] and not inside[t - 1, j]:  # enters at t; the last outside frame is t - 1
+                e = t
+                while t < len(J) and inside[t, j]:
+                    t += 1
+                if t < len(J):  # leaves at t
+                    a, b = g[e - 1, j], g[t, j]
+                    cos = float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
+                    out[t, j] |= cos < -0.5
+            t += 1
+    return out
 
 
 def room_exits(pelvis_xy: np.ndarray, sdf: SceneSDF) -> np.ndarray:

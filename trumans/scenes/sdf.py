@@ -29,7 +29,7 @@ from trumans.scenes.occupancy import OccupancyGrid
 __all__ = ["SceneSDF", "outside_columns"]
 
 BAND = (0.1, 1.8)  # m: the heights a standing body occupies (ankle to head; the walk map's band)
-ENCLOSE_PAD = 0.4  # m of free columns ``enclosed`` adds around the grid (it covers a body that far outside)
+ENCLOSE_PAD = 0.2  # m of free columns ``enclosed`` adds around the grid (it covers a body that far outside)
 
 
 class SceneSDF:

@@ -13,13 +13,20 @@ After each episode the network's joints go through ``STEPS`` in this order (``ru
    the lift the foot cleanup (hip fixed) would bend the knees (``support_lift.py``).
 5. ``scene_pushout`` - a smooth root offset moves the new frames' body out of the scene. Before the
    arms and the feet: it moves the whole body, and they re-solve after it (``scene_pushout.py``).
-6. ``arm_pushout`` - a hand still in the scene is moved out by arm IK, except on frames where the
+6. ``containment`` - the hard constraint: an upright pelvis keeps the torso's clearance from
+   anything and stays inside the room, whatever the network and the soft push-out left. Right
+   after the push-out (which trades depth against change and may leave some) and before the arms
+   and the feet, which re-solve on the moved body (``containment.py``).
+7. ``arm_pushout`` - a hand still in the scene is moved out by arm IK, except on frames where the
    plan reaches (the reach cleanup's). After the body push-out: only what the trunk could not take
    out (``arm_pushout.py``).
-7. ``foot`` - planted feet locked on the floor, swings on smooth paths, the legs re-solved. After
+8. ``foot`` - planted feet locked on the floor, swings on smooth paths, the legs re-solved. After
    the push-outs: the feet re-lock where the moved body stands (``foot.py``).
-8. ``reach`` - the acting arm onto the plan's hand target. Last: nothing after it moves the arm
-   off its target (``reach.py``).
+9. ``reach`` - the acting arm onto the plan's hand target. Nothing after it but the guard moves
+   the arm off its target (``reach.py``).
+10. ``swept_guard`` - no joint passes through a solid between two frames: a frame that would is
+   blended back toward the frame before. Last, so that it holds whatever every step before did
+   (``swept.py``).
 
 Every step has one signature, ``apply(episode: EpisodeBodies, config) -> joints (B, L, 24, 3)``,
 and its own frozen config with an ``enabled`` switch; ``CleanupConfig`` nests them under the step
@@ -49,6 +56,7 @@ from trumans.sample.cleanup.reach import ReachCleanupConfig, clean_reach
 from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out
 from trumans.sample.cleanup.seam import SeamConfig, blend_seam
 from trumans.sample.cleanup.support_lift import SupportLiftConfig, lift_onto_feet, support_weights
+from trumans.sample.cleanup.swept import SweptGuardConfig, guard_crossings
 from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["EpisodeBodies", "CleanupStep", "STEPS", "CleanupConfig", "run_cleanup"]
@@ -160,6 +168,12 @@ def _reach(ep: EpisodeBodies, config: ReachCleanupConfig) -> np.ndarray:
     return clean_reach(ep.joints, ep.lengths, ep.reach_target, ep.reach_weight, ep.k, config)
 
 
+def _swept_guard(ep: EpisodeBodies, config: SweptGuardConfig) -> np.ndarray:
+    if ep.sdf is None:
+        return ep.joints
+    return guard_crossings(ep.joints, ep.sdf, ep.k, config, support_weights(ep.labels, ep.vocabulary))
+
+
 STEPS: tuple[CleanupStep, ...] = (
     CleanupStep("attach_pelvis", "attach-pelvis", AttachPelvisConfig, _attach_pelvis,
                 "put a pinned pelvis back on the generated body (cleanup/attach_pelvis.py)"),
@@ -182,6 +196,8 @@ STEPS: tuple[CleanupStep, ...] = (
                 "lock planted feet on the floor, smooth the swings, re-solve the legs (cleanup/foot.py)"),
     CleanupStep("reach", "reach-cleanup", ReachCleanupConfig, _reach,
                 "move the acting arm onto the plan's hand targets (cleanup/reach.py)"),
+    CleanupStep("swept_guard", "swept-guard", SweptGuardConfig, _swept_guard,
+                "stop any joint passing through a solid between two frames (cleanup/swept.py)"),
 )
 
 
@@ -198,6 +214,7 @@ class CleanupConfig:
     arm_pushout: ArmPushConfig = field(default_factory=ArmPushConfig)
     foot: FootCleanupConfig = field(default_factory=FootCleanupConfig)
     reach: ReachCleanupConfig = field(default_factory=ReachCleanupConfig)
+    swept_guard: SweptGuardConfig = field(default_factory=SweptGuardConfig)
 
     def switched(self, **enabled: bool) -> CleanupConfig:
         """A copy with the named steps switched on / off, e.g. ``switched(foot=False, reach=False)``."""
@@ -211,7 +228,7 @@ class CleanupConfig:
     def uses_scene(self) -> bool:
         """Whether an enabled step reads the scene's field."""
         return (self.scene_pushout.enabled or self.containment.enabled or self.arm_pushout.enabled
-                or (self.foot.enabled and self.foot.scene))
+                or self.swept_guard.enabled or (self.foot.enabled and self.foot.scene))
 
 
 def run_cleanup(episode: EpisodeBodies, config: CleanupConfig,

@@ -251,3 +251,26 @@ def test_sample_sits_on_a_found_seat(room, tmp_path, capsys):
     seq = load_sequence(out.with_suffix(".npz"))
     assert seq.scene == str(path)
     assert seq.actions[-1, seq.action_names.index("sit")] > 0  # the motion ends seated
+
+
+def test_example_room_mesh_gives_back_the_rooms_furniture(capsys):
+    """examples/room_mesh.obj is the default procedural room exported as one unnamed mesh: the seats, the bed
+    and the table top found in it are the room's own (centres within 3 cm, heights within 2 cm)."""
+    from trumans.scenes.procedural import make_room
+    from trumans.scenes.spec import DEFAULT_ROOM_SEED
+
+    from helpers import REPO_ROOT
+
+    assert console_main(["scene", "inspect", str(REPO_ROOT / "examples" / "room_mesh.obj"), "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["objects"]
+    truth = make_room(DEFAULT_ROOM_SEED)
+    for o in truth.objects.values():
+        key = {"chair": "seat_center", "sofa": "seat_center", "bed": "lie_center", "table": "surface_center"}.get(o.category)
+        if key is None:
+            continue
+        c = world(o, key)
+        hit = [r for r in rows if np.linalg.norm(np.asarray(r["center"][:2]) - c[:2]) < 0.03]
+        assert len(hit) == 1, (o.name, c, rows)
+        assert hit[0]["height"] == pytest.approx(c[2], abs=0.02)
+        kind = {"chair": "seat_", "sofa": "seat_", "bed": "bed_", "table": "table_"}[o.category]
+        assert hit[0]["name"].startswith(kind)

@@ -745,11 +745,13 @@ def mesh_affordances(path: str | Path, mesh: trimesh.Trimesh, up: str = "z",
 
 def describe(obj: SceneObject) -> dict:
     """What ``trumans scene inspect`` prints of a seat / bed / table: name, category, centre (3,)
-    world m (seat, else lying place, else surface centre), height m, facing (rad from world +x: where
+    world m (seat, else lying place, else surface centre; a bed: lying place), height m, facing (rad from world +x: where
     a seated person faces; the lying direction feet -> head for a bed; the side used for a table),
-    approach (2,) world m, how it was found."""
+    approach (2,) world m, how it was found. A bed's centre is its lying place (the middle of the mattress)."""
     meta = obj.meta
-    key = next((k for k in ("seat_center", "lie_center", "surface_center") if k in meta), None)
+    order = ("lie_center", "seat_center", "surface_center") if obj.category == "bed" else \
+        ("seat_center", "lie_center", "surface_center")
+    key = next((k for k in order if k in meta), None)
     R, t = obj.pose[:3, :3], obj.pose[:3, 3]
     yaw0 = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]))
     centre = None if key is None else (R @ np.asarray(meta[key], np.float64) + t)

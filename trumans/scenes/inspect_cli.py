@@ -6,7 +6,7 @@ printed are the ones ``--sit-on`` / ``--lie-on`` take. A scene folder lists its 
 objects that carry a seat, a lying place or a surface (docs/generate.md "Seats, beds and tables").
 
 One row per object: name, category, centre (x, y, z world m: the seat, else the lying place, else the
-surface), height (m), facing (degrees from world +x: where a seated person faces; feet -> head for a
+surface; a bed's lying place), height (m), facing (degrees from world +x: where a seated person faces; feet -> head for a
 bed; the side a table is used from), how it was found. ``--json`` prints them as the last line.
 """
 from __future__ import annotations

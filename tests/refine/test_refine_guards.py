@@ -12,7 +12,7 @@ from trumans.refine.bones import BonesConfig, input_bone_lengths, project_bone_l
 from trumans.refine.floor import FloorConfig, floor_offset, keep_above_floor
 from trumans.refine.frame import JOINTS, pack_frames
 from trumans.refine.gate import GateConfig, gate_joints, gate_weights, input_noise, noise_level
-from trumans.refine.leg_swap import LEFT_LEG, RIGHT_LEG, SwapConfig, leg_swap_states, unswap_legs
+from trumans.refine.leg_swap import LEFT_LEG, RIGHT_LEG, SwapConfig, leg_swap_states, unswap_leg_frames, unswap_legs
 from trumans.refine.outliers import drop_frozen_joints, frozen_joint_mask
 from trumans.refine.tracker_noise import TRACKER_KINDS, TrackerConfig, tracker_corrupt
 from trumans.skeleton import FOOT_JOINTS, PARENTS
@@ -106,6 +106,10 @@ def test_leg_swaps_are_read_from_the_sequence_and_undone(walk):
     truth[120:128] = True
     np.testing.assert_array_equal(leg_swap_states(swapped), truth)
     np.testing.assert_allclose(unswap_legs(swapped), walk)
+    frames = pack_frames(swapped, None, np.broadcast_to(np.eye(4), (len(walk), 4, 4)))
+    back = unswap_leg_frames(frames)
+    np.testing.assert_allclose(back[:, JOINTS].reshape(-1, 24, 3), walk, atol=1e-6)
+    np.testing.assert_array_equal(back[:, 72:], frames[:, 72:])  # rotations (missing here), object, IMU
     assert not leg_swap_states(walk).any()
     rng = np.random.default_rng(2)
     noisy = swapped + rng.normal(0, 0.01, walk.shape)

@@ -49,6 +49,8 @@ from scipy.signal import savgol_filter
 
 from trumans.skeleton import FOOT_JOINTS, JOINT_INDEX, NUM_JOINTS, PARENTS, SPINE
 
+from trumans.refine.frame import fill_missing_joints
+
 __all__ = ["MOTION_TYPES", "BodyClip", "FIGURES", "translation_aligned_errors", "limb_errors", "clip_errors",
            "gauss_smooth", "savgol_smooth", "tune_smoother", "motion_types", "real_body_clips", "synthetic_body_clips",
            "corrupt_family", "family_names", "benchmark"]
@@ -150,23 +152,16 @@ def _summary(rows: list[dict[str, np.ndarray]], masks: list[np.ndarray] | None =
     return res
 
 
-def _filled(X: np.ndarray) -> np.ndarray:
-    from trumans.refine.frame import fill_missing
-
-    X = np.asarray(X, np.float64)
-    return fill_missing(X.reshape(len(X), -1)).reshape(X.shape).astype(np.float64)
-
-
 def gauss_smooth(tracked: np.ndarray, sigma: float) -> np.ndarray:
     """Tracked joints (T, 24, 3) m (NaN = missing, linearly filled first) -> Gaussian low-pass in
     time, sigma in frames (edges: nearest)."""
-    return gaussian_filter1d(_filled(tracked), sigma, axis=0, mode="nearest")
+    return gaussian_filter1d(fill_missing_joints(tracked), sigma, axis=0, mode="nearest")
 
 
 def savgol_smooth(tracked: np.ndarray, window: int) -> np.ndarray:
     """Tracked joints (T, 24, 3) m (NaN = missing, linearly filled first) -> Savitzky-Golay, order 2,
     ``window`` frames (odd; shortened to the clip)."""
-    X = _filled(tracked)
+    X = fill_missing_joints(tracked)
     w = min(int(window), len(X) - (1 - len(X) % 2))
     return savgol_filter(X, w, 2, axis=0) if w > 2 else X
 
@@ -297,20 +292,20 @@ def before_options(options):
 
 
 def benchmark(filt, test: list[BodyClip], val: list[BodyClip], families: list[str], seed: int, options,
-              before: bool = True) -> dict:
+              before: tuple[str, ...] = ("clean", "default", "tracker")) -> dict:
     """Per family: the tuned smoothers' parameters and, per method, ``all`` and per motion type
     figures (``FIGURES``), plus ``ratio_vs_best_smoother`` (the filter's tmpjpe / limb over the better
-    of the two smoothers on each)."""
+    of the two smoothers on each). ``before``: the families that also get ``filter_before``."""
     res: dict = {}
     for fi, fam in enumerate(families):
         val_tr = corrupt_family(fam, val, seed + 1000 + fi)
         pairs = [(t, c.joints) for t, c in zip(val_tr, val)]
         sigma, window = tune_smoother("gauss", pairs), tune_smoother("savgol", pairs)
         tr = corrupt_family(fam, test, seed + fi)
-        outs = {"input": [_filled(t) for t in tr], "gauss": [gauss_smooth(t, sigma) for t in tr],
+        outs = {"input": [fill_missing_joints(t) for t in tr], "gauss": [gauss_smooth(t, sigma) for t in tr],
                 "savgol": [savgol_smooth(t, window) for t in tr],
                 "filter": _refine(filt, tr, [c.fps for c in test], options)}
-        if before:
+        if fam in before:
             outs["filter_before"] = _refine(filt, tr, [c.fps for c in test], before_options(options))
         block: dict = {"gauss_sigma_frames": sigma, "savgol_window": window}
         for name, Js in outs.items():

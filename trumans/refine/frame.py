@@ -178,6 +178,15 @@ def fill_missing(frames: np.ndarray) -> np.ndarray:
     return np.where(ok, f, out).astype(np.float32)
 
 
+def fill_missing_joints(joints: np.ndarray) -> np.ndarray:
+    """Joints (T, 24, 3) m with NaN = missing -> (T, 24, 3) float64, each coordinate's gaps filled
+    by ``fill_missing`` (linear in time, ends held)."""
+    J = np.asarray(joints, dtype=np.float64)
+    if J.ndim != 3 or J.shape[1:] != (NUM_JOINTS, 3):
+        raise ValueError(f"joints must be (T, {NUM_JOINTS}, 3), got {J.shape}")
+    return fill_missing(J.reshape(len(J), -1)).reshape(J.shape).astype(np.float64)
+
+
 def condition_features(frames: np.ndarray, filled: np.ndarray | None = None) -> np.ndarray:
     """Tracked frame vectors (..., L, 235) with NaN = missing -> the filter's condition (..., L, 261):
     the values with missing entries filled (``filled``, e.g. gaps filled over a whole sequence before

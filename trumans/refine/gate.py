@@ -31,6 +31,8 @@ from scipy.signal import savgol_filter
 
 from trumans.skeleton import NUM_JOINTS
 
+from trumans.refine.frame import fill_missing_joints
+
 __all__ = ["GateConfig", "input_noise", "noise_level", "spike_mask", "gate_weights", "gate_joints"]
 
 _RES_STD = np.sqrt(1.0 - 7.0 / 21.0)  # residual std of SG(7, 3) on white noise, per unit noise std
@@ -73,13 +75,6 @@ def _check(joints: np.ndarray) -> np.ndarray:
     return J
 
 
-def _fill(J: np.ndarray) -> np.ndarray:
-    """Linear interpolation of NaN joints along time, ends held: (T, 24, 3) -> (T, 24, 3)."""
-    from trumans.refine.frame import fill_missing
-
-    return fill_missing(J.reshape(len(J), -1)).reshape(J.shape).astype(np.float64)
-
-
 def _residual(J: np.ndarray) -> np.ndarray:
     """|x - SG(7, 3)(x)| per frame and joint (T, 24) m of gap-filled joints (T >= 7; shorter: 0)."""
     if len(J) < 7:
@@ -90,7 +85,7 @@ def _residual(J: np.ndarray) -> np.ndarray:
 def _noise_residual(J: np.ndarray, fps: float, config: GateConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(local jitter (T, 24) m, cubic-fit residual (T, 24) m, observed (T, 24) bool) of joints with NaN gaps."""
     seen = np.isfinite(J).all(-1)
-    r = _residual(_fill(J))
+    r = _residual(fill_missing_joints(J))
     win = max(3, int(round(config.noise_window_s * fps)) | 1)
     # the running median over observed frames: missing ones count as the joint's own median residual
     med = np.nanmedian(np.where(seen, r, np.nan), axis=0) if seen.any() else np.zeros(NUM_JOINTS)
@@ -110,7 +105,7 @@ def noise_level(tracked: np.ndarray) -> np.ndarray:
     frames (0 for a joint never observed)."""
     J = _check(tracked)
     seen = np.isfinite(J).all(-1)
-    r = np.where(seen, _residual(_fill(J)), np.nan)
+    r = np.where(seen, _residual(fill_missing_joints(J)), np.nan)
     with np.errstate(all="ignore"):
         med = np.nanmedian(r, axis=0) if seen.any() else np.zeros(NUM_JOINTS)
     return np.nan_to_num(med) / (_NORM_MEDIAN * _RES_STD)

@@ -25,7 +25,9 @@ import numpy as np
 
 from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
 
-__all__ = ["SwapConfig", "LEFT_LEG", "RIGHT_LEG", "leg_swap_states", "unswap_legs"]
+from trumans.refine.frame import FRAME_DIM, JOINTS, ROTATIONS
+
+__all__ = ["SwapConfig", "LEFT_LEG", "RIGHT_LEG", "leg_swap_states", "unswap_legs", "unswap_leg_frames"]
 
 LEFT_LEG = tuple(JOINT_INDEX[f"left_{n}"] for n in ("hip", "knee", "ankle", "foot"))
 RIGHT_LEG = tuple(JOINT_INDEX[f"right_{n}"] for n in ("hip", "knee", "ankle", "foot"))
@@ -93,3 +95,18 @@ def unswap_legs(joints: np.ndarray, config: SwapConfig = SwapConfig()) -> np.nda
     out = J.copy()
     out[s] = J[s][:, _SWAP]
     return out
+
+
+def unswap_leg_frames(frames: np.ndarray, config: SwapConfig = SwapConfig()) -> np.ndarray:
+    """Frame vectors (T, 235) (``trumans.refine.frame``) -> a copy whose frames ``leg_swap_states``
+    reads as swapped get the legs' joint positions and local rotations exchanged back."""
+    f = np.array(frames, dtype=np.float32, copy=True)
+    if f.ndim != 2 or f.shape[1] != FRAME_DIM:
+        raise ValueError(f"frame vectors must be (T, {FRAME_DIM}), got {f.shape}")
+    s = leg_swap_states(f[:, JOINTS].reshape(len(f), NUM_JOINTS, 3), config)
+    if s.any():
+        cols = lambda j, width, start: [start + width * j + k for k in range(width)]
+        src = np.concatenate([cols(j, w, o) for w, o in ((3, JOINTS.start), (6, ROTATIONS.start)) for j in _SWAP])
+        dst = np.concatenate([cols(j, w, o) for w, o in ((3, JOINTS.start), (6, ROTATIONS.start)) for j in range(NUM_JOINTS)])
+        f[np.ix_(s, dst)] = f[np.ix_(s, src)]
+    return f

@@ -19,9 +19,9 @@ import numpy as np
 import torch
 
 from trumans.refine.filter import FilterModel, filter_window, category_indices, configure_skip, prepare_windows, sample_x0
-from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS, fill_missing, frames_from_sequence, from_frame,
+from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, fill_missing, frames_from_sequence, from_frame,
                                orthonormalize_6d, resample_frames, sequence_from_frames)
-from trumans.refine.leg_swap import LEFT_LEG, RIGHT_LEG, leg_swap_states
+from trumans.refine.leg_swap import unswap_leg_frames
 from trumans.refine.outliers import drop_frozen_frames, drop_frozen_joints, drop_object_flips, unflip_object
 from trumans.refine.post_steps import PostStepsConfig, RefinedClip, run_post_steps
 from trumans.refine.windows import blend_windows, window_starts
@@ -71,20 +71,6 @@ class RefineOptions:
             raise ValueError(f"num_steps and batch must be >= 1, got {self.num_steps}, {self.batch}")
         if not 0 < self.strength <= 1:
             raise ValueError(f"strength must be in (0, 1], got {self.strength}")
-
-
-def unswap_legs(frames: np.ndarray) -> np.ndarray:
-    """Frame vectors (T, 235) -> a copy whose frames ``trumans.refine.leg_swap`` reads as having the
-    legs swapped get the legs' joint positions and local rotations exchanged back."""
-    f = np.array(frames, dtype=np.float32, copy=True)
-    s = leg_swap_states(f[:, JOINTS].reshape(len(f), -1, 3))
-    if s.any():
-        a, b = list(LEFT_LEG), list(RIGHT_LEG)
-        for cols in (lambda j: [3 * j, 3 * j + 1, 3 * j + 2], lambda j: [ROTATIONS.start + 6 * j + k for k in range(6)]):
-            A = np.concatenate([cols(j) for j in a])
-            B = np.concatenate([cols(j) for j in b])
-            f[np.ix_(s, np.r_[A, B])] = f[np.ix_(s, np.r_[B, A])]
-    return f
 
 
 class HOIFilter:
@@ -171,7 +157,7 @@ class HOIFilter:
         if options.held_joints:
             f = drop_frozen_joints(f)
         if options.leg_swaps:
-            f = unswap_legs(f)
+            f = unswap_leg_frames(f)
         # model frames from time 0 over the whole duration (the last may end just past it)
         g = resample_frames(f, fps, self.fps, num_out=int(np.ceil((T - 1) / fps * self.fps - 1e-9)) + 1)
         if options.drop_failures:

@@ -396,14 +396,14 @@ def _seat_object(p: _Patch, sides: list[_Side], mesh, cfg: AffordanceConfig, cat
 
 def _own_back(p: _Patch, back: _Side, rc) -> bool:
     """True when the back ends with the seat (a backrest), False when it also stands beside it (a wall):
-    rays 0.3 m up, 0.1 m beyond either side of the seat, meet it no nearer than 2.5 cm further out."""
+    a ray 0.3 m up, 0.1 m beyond one side of the seat, meets nothing within 2.5 cm behind the back."""
     n = back.normal
     k = int(np.argmax(np.abs(p.axes @ n)))
     lat, half, halfw = p.axes[1 - k], p.ext[k] / 2, p.ext[1 - k] / 2
     origins = np.array([[*(p.centre + s * (halfw + 0.1) * lat), p.height + 0.3] for s in (-1.0, 1.0)])
     rays = np.concatenate([origins, np.tile([n[0], n[1], 0.0], (2, 1))], 1).astype(np.float32)
     t = rc.cast_rays(o3d.core.Tensor(rays), nthreads=nthreads())["t_hit"].numpy().astype(np.float64)
-    return bool(np.all(t - half > back.back_m + 0.025))
+    return bool(np.any(t - half > back.back_m + 0.025))  # any: a chair in a corner has a wall on one side
 
 
 def _bed_object(p: _Patch, sides: list[_Side], mesh, name: str, category: str = "bed") -> SceneObject | None:

@@ -20,6 +20,7 @@ import numpy as np
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 from trumans.sample.generate import DEFAULT_CHECKPOINT, MAX_SAMPLES, SAMPLER_CONFIG_KEY, default_plan
 from trumans import argtypes
+from trumans.threads import add_threads_argument, set_threads
 
 __all__ = ["add_arguments", "run", "steps_from_flags", "body_frame", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY",
            "MAX_SAMPLES", "default_plan"]
@@ -123,6 +124,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-seconds", type=argtypes.float_in(0.0, 86400.0, lo_open=True), default=600.0,
                    help="give up when the plan is not done by then (seconds of motion, at most a day)")
     p.add_argument("--device", type=argtypes.device, default="cpu", help="torch device (cpu, cuda, cuda:1)")
+    add_threads_argument(p)
     p.add_argument("--seed", type=argtypes.seed, default=0)
     p.add_argument("--json", action="store_true", help="print one JSON object of figures as the last line")
     p.add_argument("--no-progress", action="store_true")
@@ -158,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("give either --plan FILE or step flags (--goto, --sit-on, ...), not both")
     plan = args.plan or (plan_from_dict({"steps": steps_from_flags(flags)}, name="flags") if flags else None)
     body = None if args.body is None else body_frame(args.body)
+    set_threads(args.threads)
     gen = generate_sequences(plan, args.scene, checkpoint=args.checkpoint, seed=args.seed,
                              num_samples=args.num_samples, config=sampler_config(args),
                              start=None if args.start is None else _xy(args.start, 2, "--start"),

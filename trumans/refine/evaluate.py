@@ -296,11 +296,11 @@ def run_families(args: argparse.Namespace, filt, opts) -> int:
 
     if args.max_val_clips < 1 or args.max_clips < 1:
         raise ValueError(f"--max-clips and --max-val-clips must be >= 1, got {args.max_clips}, {args.max_val_clips}")
+    if args.data and not Path(args.data).is_dir():
+        raise FileNotFoundError(f"--data {args.data!r} is not a folder; pass a dataset with val and test splits")
     real = (real_body_clips("test", args.max_clips, args.seed), real_body_clips("train", args.max_val_clips, args.seed))
     sets = {"real": real, "foreign": (foreign_skeleton(real[0]), foreign_skeleton(real[1]))}
     if args.data:
-        if not Path(args.data).is_dir():
-            raise FileNotFoundError(f"--data {args.data!r} is not a folder; pass a dataset with val and test splits")
         sets["synthetic"] = (synthetic_body_clips(args.data, "test", filt.fps)[:args.max_clips],
                              synthetic_body_clips(args.data, "val", filt.fps)[:args.max_val_clips])
     t0 = time.perf_counter()

@@ -153,10 +153,10 @@ def test_viewer_plays_in_headless_chromium(tmp_path, capsys):
     assert cli_main(["view", *map(str, paths), "--html", str(out), "--json"]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1]) == {"html": str(out)}
     url = out.resolve().as_uri()
-    t0, t1 = 0.3, 1.9
-    runs = [chromium(f"{url}#t={t1}&paused", "--dump-dom"),
-            chromium(f"{url}#t={t0}&paused", f"--screenshot={tmp_path / 'a.png'}"),
-            chromium(f"{url}#t={t1}&paused", f"--screenshot={tmp_path / 'b.png'}")]
+    t0, t1, size = 0.3, 1.9, "640x300"  # a fixed canvas size: the same view in the DOM and the screenshot runs
+    runs = [chromium(f"{url}#t={t1}&paused&size={size}", "--dump-dom"),
+            chromium(f"{url}#t={t0}&paused&size={size}", f"--screenshot={tmp_path / 'a.png'}"),
+            chromium(f"{url}#t={t1}&paused&size={size}", f"--screenshot={tmp_path / 'b.png'}")]
     dom = runs[0].communicate(timeout=180)[0]
     for r in runs[1:]:
         r.wait(timeout=180)
@@ -168,6 +168,7 @@ def test_viewer_plays_in_headless_chromium(tmp_path, capsys):
     assert status["contacts"] == [["right_wrist"], ["right_wrist"]]
     assert status["goals"] == [1, 1]
     w, h = status["canvas_px"]
+    assert f"{w}x{h}" == size
     a, b = body_pixels(tmp_path / "a.png", h), body_pixels(tmp_path / "b.png", h)
     assert len(a) > 300 and len(b) > 300, (len(a), len(b))  # both bodies drawn
     # between t0 (still standing) and t1 (frame 57) the bodies walked 1.39 m along +x: their pixels moved right

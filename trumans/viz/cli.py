@@ -64,10 +64,10 @@ def find_scene_dir(seq_path: Path, scene_field: str, explicit: str | None) -> Pa
 
 def scene_view(sc: Scene) -> SceneView:
     """What the renderer draws of a ``trumans.scenes.Scene``: static meshes and non-dynamic objects in world
-    frame, dynamic objects' meshes in their own frame (posed by the sequence); no grid."""
+    frame, dynamic objects' meshes in their own frame (posed by the sequence) with their scene poses; no grid."""
     static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values() if not o.dynamic]
     dynamic = {name: o.mesh for name, o in sc.objects.items() if o.dynamic}
-    return SceneView(static=static, dynamic=dynamic)
+    return SceneView(static=static, dynamic=dynamic, dynamic_pose={n: sc.objects[n].pose for n in dynamic})
 
 
 def sequence_scene_view(seq_path: Path, seq, explicit: str | None, up: str | None) -> SceneView | None:
@@ -103,17 +103,17 @@ def load_scene_view(folder: Path | None) -> SceneView | None:
     """Meshes from ``scene.json`` (when present) and the grid from ``occupancy.npz`` (when present)."""
     if folder is None:
         return None
-    static, dynamic = [], {}
+    static, dynamic, poses = [], {}, {}
     if (folder / "scene.json").is_file():
         from trumans.scenes.io import load_scene
 
         view = scene_view(load_scene(folder))
-        static, dynamic = view.static, view.dynamic
+        static, dynamic, poses = view.static, view.dynamic, view.dynamic_pose
     grid = origin = voxel = None
     if (folder / OCCUPANCY_FILE).is_file():
         occ = OccupancyGrid.load(folder / OCCUPANCY_FILE)
         grid, origin, voxel = occ.grid, occ.origin, occ.voxel
-    return SceneView(static=static, dynamic=dynamic, grid=grid, origin=origin, voxel=voxel)
+    return SceneView(static=static, dynamic=dynamic, grid=grid, origin=origin, voxel=voxel, dynamic_pose=poses)
 
 
 def run(args: argparse.Namespace) -> int:

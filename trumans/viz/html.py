@@ -21,7 +21,8 @@ played on one timeline (the longest sequence's length; a shorter one holds its l
 The page's state is machine readable, for tests and scripts: ``<pre id="status">`` holds JSON
 (``ready``, ``t`` s, ``playing``, ``frames`` per sequence, ``actions``, ``contacts``,
 ``pelvis_px`` (the pelvis projected to canvas pixels), ``errors``) and the URL hash
-``#t=1.5&paused&speed=2`` sets the time, pauses and sets the speed.
+``#t=1.5&paused&speed=2&size=640x360`` sets the time, pauses, sets the speed and fixes the canvas
+size (CSS px; default: the window's).
 """
 from __future__ import annotations
 
@@ -166,8 +167,8 @@ def _goals(seq: Sequence) -> tuple[np.ndarray, list[str]]:
 
 def viewer_sequence(seq: Sequence, scene: SceneView | None, title: str = "") -> ViewerSequence:
     """Build the page's data for ``seq`` drawn in ``scene`` (static meshes; dynamic meshes posed
-    by the sequence's ``objects/<name>/pose`` — one the sequence does not track is not drawn, as in
-    ``trumans.viz.render``). The body's rotations come from ``trumans.viz.export.skeleton_motion``."""
+    by the sequence's ``objects/<name>/pose``, else at their scene pose ``scene.dynamic_pose``, else
+    not drawn). The body's rotations come from ``trumans.viz.export.skeleton_motion``."""
     seq.validate()
     if seq.allow_missing and np.isnan(seq.joints).any():
         raise ValueError(f"sequence {title!r} has missing (NaN) joints; refine it first (`trumans refine`) "
@@ -176,6 +177,9 @@ def viewer_sequence(seq: Sequence, scene: SceneView | None, title: str = "") -> 
     objects: dict[str, tuple[trimesh.Trimesh, np.ndarray]] = {}
     if scene is not None:
         static = {f"static_{i}": m for i, m in enumerate(scene.static) if len(m.faces)}
+        # an object this sequence does not move is part of its static scene
+        static.update({name: m.copy().apply_transform(scene.dynamic_pose[name]) for name, m in scene.dynamic.items()
+                       if name not in seq.objects and name in scene.dynamic_pose})
         objects = {name: (m, seq.objects[name].pose) for name, m in scene.dynamic.items() if name in seq.objects}
     rot, root, off = skeleton_motion(seq)
     with tempfile.TemporaryDirectory(prefix="trumans_html_") as tmp:
@@ -193,7 +197,7 @@ def viewer_sequence(seq: Sequence, scene: SceneView | None, title: str = "") -> 
 
 
 # action colours: none close to the body's blue (the page's tests find the body by its hue)
-_PALETTE = ["#ff7f0e", "#2ca02c", "#d62728", "#8c564b", "#e377c2", "#bcbd22", "#7f7f7f", "#f5b041", "#52be80",
+_PALETTE = ["#ff7f0e", "#2ca02c", "#d62728", "#8c564b", "#e377c2", "#bcbd22", "#17a589", "#7d3c98", "#f1c40f",
             "#a04000"]
 _NO_ACTION_COLOR = "#b0b0b0"
 

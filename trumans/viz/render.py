@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -39,6 +39,8 @@ class SceneView:
     grid: np.ndarray | None = None
     origin: np.ndarray | None = None
     voxel: float | None = None
+    # the scene's own (4, 4) world-from-object pose of dynamic objects (where a sequence does not move them)
+    dynamic_pose: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _figure(width_in: float, height_in: float) -> Figure:

@@ -5,7 +5,7 @@ import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
-const CUT_HEIGHT = 1.3;      // m: static meshes are clipped above this while "cut walls" is on
+const CUT_HEIGHT = 1.1;      // m: static meshes are clipped above this while "cut walls" is on
 const PATH_WIDTH = 0.04;     // m: the pelvis path ribbon on the floor (z = 0)
 const PATH_Z = 0.01;         // m above the floor
 const CONTACT_RADIUS = 0.05; // m
@@ -171,8 +171,16 @@ function apply(time) {
 
 function setPlaying(p) { playing = p; playBtn.textContent = p ? 'Pause' : 'Play'; dirty = true; }
 
+function hashParams() { return new URLSearchParams(location.hash.replace(/^#/, '')); }
+
+// `size=WxH` in the URL hash: a fixed canvas size in CSS px (reproducible screenshots), else the window's
+function fixedSize() {
+  const m = /^(\d+)x(\d+)$/.exec(hashParams().get('size') || '');
+  return m ? [Number(m[1]), Number(m[2])] : null;
+}
+
 function applyHash() {
-  const h = new URLSearchParams(location.hash.replace(/^#/, ''));
+  const h = hashParams();
   if (h.has('speed')) {
     const v = Number(h.get('speed'));
     if (v > 0) { speed = v; speedSel.value = String(v); }
@@ -216,16 +224,16 @@ function buildTimeline() {
   document.documentElement.style.setProperty('--panel-h', `${h}px`);
 }
 
-// ---- camera: look at everything from the front (-y of the z-up world), 35 deg above the horizon
+// ---- camera: look at everything from the front (-y of the z-up world), 50 deg above the horizon
 function frameAll() {
   const box = new THREE.Box3();
   for (const s of seqs) {
     const [lo, hi] = s.d.bounds;
     box.expandByPoint(new THREE.Vector3(lo[0], lo[2], -hi[1]));
-    box.expandByPoint(new THREE.Vector3(hi[0], Math.max(hi[2], 2.0), -lo[1]));
+    box.expandByPoint(new THREE.Vector3(hi[0], 2.0, -lo[1]));  // 2 m up: a body; walls are cut lower
   }
   const c = box.getCenter(new THREE.Vector3());
-  const dir = new THREE.Vector3(0, Math.sin(0.61), Math.cos(0.61));
+  const dir = new THREE.Vector3(0, Math.sin(0.87), Math.cos(0.87));
   const corners = [];
   for (let i = 0; i < 8; i++) corners.push(new THREE.Vector3(i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y, i & 4 ? box.max.z : box.min.z));
   let lo = 0.1, hi = 1000;
@@ -243,7 +251,7 @@ function frameAll() {
 
 function resize() {
   dirty = true;
-  const w = view.clientWidth, h = view.clientHeight;
+  const [w, h] = fixedSize() ?? [view.clientWidth, view.clientHeight];
   renderer.setSize(w, h);
   camera.aspect = w / Math.max(h, 1);
   camera.updateProjectionMatrix();
@@ -252,7 +260,7 @@ function resize() {
 // ---- status for scripts and tests: the time, the frames, what is shown, where the pelvis is on screen
 const titles = document.getElementById('titles');
 function updateStatus() {
-  const w = view.clientWidth, h = view.clientHeight;
+  const w = renderer.domElement.clientWidth, h = renderer.domElement.clientHeight;
   camera.updateMatrixWorld();
   S.t = Number(t.toFixed(4)); S.playing = playing; S.speed = speed;
   S.frames = seqs.map((s) => s.frame);
@@ -308,8 +316,12 @@ async function main() {
   slider.addEventListener('input', () => { setPlaying(false); apply(Number(slider.value)); });
   document.getElementById('cut').addEventListener('change', (e) => { cutPlane.constant = e.target.checked ? CUT_HEIGHT : 1e6; dirty = true; });
   document.getElementById('showpath').addEventListener('change', (e) => { for (const s of seqs) s.path.visible = e.target.checked; dirty = true; });
+  let size = String(fixedSize());
   window.addEventListener('resize', () => { resize(); });
-  window.addEventListener('hashchange', applyHash);
+  window.addEventListener('hashchange', () => {
+    if (String(fixedSize()) !== size) { size = String(fixedSize()); resize(); frameAll(); }
+    applyHash();
+  });
   window.addEventListener('keydown', (e) => {
     if (e.target.tagName === 'SELECT') return;
     const step = 1 / seqs[0].d.fps;

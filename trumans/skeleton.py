@@ -8,8 +8,13 @@ global rotation is ``R_local[0]`` and its position is the root translation.
 """
 from __future__ import annotations
 
+import sys
+from typing import TYPE_CHECKING
+
 import numpy as np
-import torch
+
+if TYPE_CHECKING:  # torch is imported by whoever passes tensors; ``import trumans`` stays light
+    import torch
 
 __all__ = [
     "JOINT_NAMES",
@@ -165,12 +170,18 @@ def rest_offsets(scale: float | np.ndarray = 1.0) -> np.ndarray:
     return off
 
 
+def _is_tensor(x) -> bool:
+    """Whether ``x`` is a torch tensor (without importing torch: a tensor exists only once torch is)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(x, torch.Tensor)
+
+
 def bone_lengths(joints: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
     """joints (..., 24, 3) -> (..., 23) lengths of the bones to joints 1..23 (metres)."""
     if joints.shape[-2:] != (NUM_JOINTS, 3):
         raise ValueError(f"joints must be (..., 24, 3), got {tuple(joints.shape)}")
     d = joints[..., 1:, :] - joints[..., PARENTS[1:], :]
-    if isinstance(d, torch.Tensor):
+    if _is_tensor(d):
         return d.norm(dim=-1)
     return np.linalg.norm(d, axis=-1)
 
@@ -191,9 +202,10 @@ def forward_kinematics(
         raise ValueError(f"rot must be (..., 24, 3, 3), got {tuple(rot.shape)}")
     if root_pos.shape[-1] != 3 or tuple(root_pos.shape[:-1]) != tuple(rot.shape[:-3]):
         raise ValueError(f"root_pos must be {tuple(rot.shape[:-3]) + (3,)}, got {tuple(root_pos.shape)}")
-    is_torch = isinstance(rot, torch.Tensor)
+    is_torch = _is_tensor(rot)
     if offsets is None:
         offsets = rest_offsets()
+    torch = sys.modules.get("torch")
     if is_torch:
         offsets = torch.as_tensor(offsets, dtype=rot.dtype, device=rot.device)
         off = offsets.expand(*rot.shape[:-3], NUM_JOINTS, 3)

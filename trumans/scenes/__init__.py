@@ -1,15 +1,14 @@
 """Scenes: meshes + interactable objects, occupancy grids, local queries, rooms, planning.
 
-Public names are imported lazily (PEP 562) so that ``import trumans.scenes.scene`` does not pull in
-open3d; ``from trumans.scenes import compute_occupancy`` works as usual.
+Public names are imported lazily (PEP 562) so that ``import trumans.scenes.atomic`` pulls in neither
+trimesh nor open3d (``import trumans`` stays light); ``from trumans.scenes import Scene`` works as usual.
 """
 from __future__ import annotations
 
 import importlib
 
-from trumans.scenes.scene import Scene, SceneObject
-
 _LAZY = {
+    "Scene": "scene", "SceneObject": "scene",
     "SceneDistance": "distance", "DistanceResult": "distance",
     "OccupancyGrid": "occupancy", "compute_occupancy": "occupancy", "scene_occupancy": "occupancy",
     "local_grids": "local_grid", "local_points": "local_grid",
@@ -19,7 +18,7 @@ _LAZY = {
     "make_room": "procedural", "list_categories": "procedural",
 }
 
-__all__ = ["Scene", "SceneObject", *_LAZY]
+__all__ = [*_LAZY]
 
 
 def __getattr__(name: str):

@@ -85,7 +85,7 @@ def main() -> int:
     import torch
 
     from trumans.sample.cli import DEFAULT_CHECKPOINT
-    from trumans.sample.eval_synthesis import EVAL_ROOM_SEEDS, _plans
+    from trumans.sample.eval_synthesis import EVAL_ROOM_SEEDS, eval_plan
     from trumans.sample.rollout import sample_plan, start_pose
     from trumans.sample.sampler import EpisodeSampler, SamplerConfig
     from trumans.sample.scene_input import load_sample_scene
@@ -99,7 +99,7 @@ def main() -> int:
     report, saved = [], {}
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:args.rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
-        plan = _plans(sc, args.seed * 1000 + r)
+        plan = eval_plan(sc, args.seed * 1000 + r)
         cfg = SamplerConfig(steps=args.steps, goal_guidance=args.goal_guidance, goal_iters=args.goal_iters,
                             scene_scale=args.guidance[0], action_scale=args.guidance[1], **postprocess_kwargs(args))
         res = sample_plan(ckpt, EpisodeSampler(ckpt, sc.grids, cfg), sc.scene, sc.walkmap, plan, seed=args.seed + r)

@@ -14,18 +14,27 @@ All inputs are world joints (T, 24, 3) float, metres, z-up, at ``fps``. Definiti
   5 cm of its resting height (``trumans.eval.metrics.foot_skate_cm``);
 - ``bone_length_cv``: per bone std / mean over time, the median over bones;
 - ``transition_jerk_ratio``: mean joint jerk (third difference) around the episode seams over
-  the mean jerk inside episodes.
+  the mean jerk inside episodes;
+- ``seam_jerk_peak_ratio``: the joint jerk folded on the episode cycle (``cycle`` = new frames per
+  episode, phase 0 = an episode's first new frame): the mean jerk of the loudest phase over the
+  median phase (``seam_jerk_peak_phase`` says which phase peaks). Unlike ``transition_jerk_ratio``
+  it does not average a one-frame hitch with its quiet neighbours. ``real_seam_jerk_peak_ratio``
+  (and ``_p10`` / ``_p90``) is the same fold on the held-out real clips of the mocap corpus
+  (``real_seam_reference``): motion without seams, whose peak phase is only sampling noise.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from functools import lru_cache
 
 from trumans.contacts.rule import ContactScene, joint_contacts
 from trumans.eval.metrics import foot_skate_cm
 from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT, JOINT_INDEX, PARENTS
 
 __all__ = ["goal_errors_cm", "penetration_cm", "floor_err_cm", "contact_score", "bone_length_cv",
-           "transition_jerk_ratio", "foot_skate_near_floor_cm", "seat_height_errors_cm", "motion_figures"]
+           "transition_jerk_ratio", "folded_jerk", "seam_jerk_peak_ratio", "real_seam_reference",
+           "foot_skate_near_floor_cm", "seat_height_errors_cm", "motion_figures"]
 
 _FEET = list(FOOT_JOINTS)
 _HIPS = [JOINT_INDEX["left_hip"], JOINT_INDEX["right_hip"]]
@@ -101,6 +110,64 @@ def transition_jerk_ratio(joints: np.ndarray, seams: list[int]) -> float:
     return float(jerk[at].mean() / max(jerk[~at].mean(), 1e-12))
 
 
+def folded_jerk(joints: np.ndarray, cycle: int, first_seam: int = 0) -> np.ndarray:
+    """joints (T, J, 3) m -> (cycle,) mean joint jerk per phase of the cycle, m per frame^3 (multiply
+    by fps^3 for m/s^3). Jerk window t (frames t..t+3, the third difference) is at phase
+    (t + 2 - first_seam) mod cycle, so a jump between frames s - 1 and s, whose middle window is
+    the loudest, lands on phase s - first_seam. Phases without a window are NaN."""
+    joints = np.asarray(joints, np.float64)
+    if joints.ndim != 3 or joints.shape[-1] != 3:
+        raise ValueError(f"joints must be (T, J, 3), got {joints.shape}")
+    if int(cycle) != cycle or cycle < 2:
+        raise ValueError(f"cycle must be an integer >= 2 frames (the new frames per episode), got {cycle}")
+    cycle = int(cycle)
+    jerk = np.linalg.norm(np.diff(joints, n=3, axis=0), axis=-1).mean(axis=1)  # (T-3,)
+    phase = (np.arange(len(jerk)) + 2 - int(first_seam)) % cycle
+    total = np.bincount(phase, weights=jerk, minlength=cycle)
+    count = np.bincount(phase, minlength=cycle)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def seam_jerk_peak_ratio(joints: np.ndarray, cycle: int, first_seam: int = 0) -> tuple[float, int]:
+    """(loudest phase's mean jerk / the median phase's, the loudest phase) of ``folded_jerk``:
+    ~1 for motion without a cycle, high when every ``cycle``-th frame jerks. NaN, -1 when fewer
+    than two whole cycles of jerk windows exist or the motion does not move."""
+    joints = np.asarray(joints, np.float64)
+    if len(joints) - 3 < 2 * cycle:
+        return float("nan"), -1
+    f = folded_jerk(joints, cycle, first_seam)
+    med = float(np.median(f))
+    if not med > 1e-12:
+        return float("nan"), -1
+    return float(f.max() / med), int(np.argmax(f))
+
+
+@lru_cache(maxsize=8)
+def real_seam_reference(cycle: int, fps: float, cycles_per_piece: int = 30) -> tuple[float, float, float, int]:
+    """``seam_jerk_peak_ratio`` of real motion at the same fold: the mocap corpus's held-out clips
+    (``trumans.mocap_corpus``, test split) resampled to ``fps``, cut into pieces of
+    ``cycles_per_piece`` cycles (a generated plan's length; the last piece kept when >= 10 cycles)
+    -> (median, 10th, 90th percentile over the pieces, pieces)."""
+    from trumans.mocap_corpus import load_corpus
+    from trumans.resample import resample_sequence
+    from trumans.sequence import Sequence
+
+    vals = []
+    n = cycle * cycles_per_piece
+    for c in load_corpus(split="test"):
+        j = resample_sequence(Sequence(joints=c.joints, fps=c.fps), fps).joints
+        for a in range(0, len(j), n):
+            piece = j[a:a + n]
+            if len(piece) >= 10 * cycle:
+                r, _ = seam_jerk_peak_ratio(piece, cycle)
+                if np.isfinite(r):
+                    vals.append(r)
+    if not vals:
+        return float("nan"), float("nan"), float("nan"), 0
+    return (float(np.median(vals)), float(np.percentile(vals, 10)), float(np.percentile(vals, 90)), len(vals))
+
+
 def seat_height_errors_cm(joints: np.ndarray, phase: np.ndarray, phases: list, offset: float) -> np.ndarray:
     """Per seated phase: |median seated pelvis height - (seat height + offset)|, cm, where
     offset is the pelvis height above the seat surface in the training data."""
@@ -133,4 +200,19 @@ def motion_figures(result, sc, sit_offset: float | None = None) -> dict:
         "floor_err_cm": round(fl_mean, 2), "floor_err_max_cm": round(fl_max, 2),
         "bone_length_cv": round(bone_length_cv(J), 5), "raw_bone_length_cv": round(float(result.raw_bone_cv), 4),
         "transition_jerk_ratio": round(transition_jerk_ratio(J, result.episode_starts[1:]), 3),
+        **_seam_figures(J, result),
     }
+
+
+def _seam_figures(J: np.ndarray, result) -> dict:
+    """seam_jerk_peak_ratio / _phase of one sample and the real corpus's value at the same fold."""
+    starts = list(result.episode_starts)
+    if len(starts) < 2:
+        return {"seam_jerk_peak_ratio": None, "seam_jerk_peak_phase": None, "real_seam_jerk_peak_ratio": None}
+    cycle = starts[1] - starts[0]
+    ratio, phase = seam_jerk_peak_ratio(J, cycle, starts[1] + result.context_frames)
+    med, lo, hi, _ = real_seam_reference(cycle, float(result.fps))
+    return {"seam_jerk_peak_ratio": round(ratio, 3) if np.isfinite(ratio) else None,
+            "seam_jerk_peak_phase": phase if phase >= 0 else None,
+            "real_seam_jerk_peak_ratio": round(med, 3), "real_seam_jerk_peak_ratio_p10": round(lo, 3),
+            "real_seam_jerk_peak_ratio_p90": round(hi, 3)}

@@ -34,7 +34,8 @@ from trumans.paths import MODELS_DIR
 if TYPE_CHECKING:
     from trumans.sample.sampler import SamplerConfig
 
-__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS", "fid_figures", "write_windows", "read_windows", "load_reference"]
+__all__ = ["add_arguments", "run", "EVAL_ROOM_SEEDS", "fid_figures", "write_windows", "read_windows", "load_reference",
+           "eval_plan"]
 
 EVAL_ROOM_SEEDS: tuple[int, ...] = (9001, 9002, 9003, 9004, 9005, 9006)
 SAME_SIZE_DRAWS = 10  # draws of train windows averaged for the real_*_same_size figures
@@ -67,7 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true")
 
 
-def _plans(sc, seed: int):
+def eval_plan(sc, seed: int):
+    """The seeded evaluation plan of a ``SampleScene`` (see the module doc)."""
     from trumans.sample.cli import default_plan
     from trumans.sample.plan import plan_from_dict
 
@@ -102,7 +104,7 @@ def evaluate(ckpt_path, rooms: int, seed: int, naive_episodes: int, config: Samp
     first = None
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
-        plan = _plans(sc, seed * 1000 + r)
+        plan = eval_plan(sc, seed * 1000 + r)
         sampler = EpisodeSampler(ckpt, sc.grids, config)
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
@@ -255,6 +257,52 @@ def read_windows(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return f.astype(np.float32), y.astype(np.int64)
 
 
+MAX_NAIVE_EPISODES = 100  # --naive-episodes: each is a full T-step ancestral episode, seconds to minutes
+
+
+def _check_inputs(args: argparse.Namespace, default_checkpoint: Path) -> list[tuple[str, str]]:
+    """Every file argument read before any sampling (minutes): the checkpoints (loaded: kind and
+    digest), ``--ablation NAME=CHECKPOINT`` (distinct names), ``--motion-encoder``, ``--data`` (a
+    dataset with a test split) and ``--save-windows`` (a file in an existing folder). Returns the
+    ablations as (name, path)."""
+    from trumans.model.checkpoint import load_checkpoint
+
+    ablations = []
+    for spec in args.ablation:
+        name, _, path = spec.partition("=")
+        if not name or not path:
+            raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
+        if name in dict(ablations):
+            raise ValueError(f"--ablation {name} is given twice; give each ablation one name")
+        ablations.append((name, path))
+    for what, path in [("", args.checkpoint or default_checkpoint), *((f"--ablation {n}: ", p) for n, p in ablations)]:
+        try:
+            steps = load_checkpoint(path, kind="generator").diffusion_config.steps
+        except (FileNotFoundError, ValueError) as e:
+            raise type(e)(f"{what}{e}") from None
+        if args.steps > steps:
+            raise ValueError(f"--steps {args.steps} is more than the {steps} diffusion steps of {what}{path}; "
+                             f"give --steps <= {steps}")
+    if args.motion_encoder is not None:
+        from trumans.eval.motion_encoder import load_motion_encoder
+
+        load_motion_encoder(args.motion_encoder)
+    if args.data is not None:
+        from trumans.dataset import Dataset
+
+        if not Dataset(args.data).split("test"):
+            raise ValueError(f"--data {args.data} has no test split sequences (the fid reference); give a dataset "
+                             f"built with test rooms")
+    if args.save_windows is not None:
+        p = Path(args.save_windows)
+        if p.is_dir() or not p.parent.is_dir():
+            raise ValueError(f"--save-windows {p} must be a file in an existing folder")
+    if args.naive_episodes > MAX_NAIVE_EPISODES:
+        raise ValueError(f"--naive-episodes {args.naive_episodes} is more than {MAX_NAIVE_EPISODES} (each is a full "
+                         f"T-step episode); give fewer")
+    return ablations
+
+
 def run(args: argparse.Namespace) -> int:
     from trumans.sample.cli import DEFAULT_CHECKPOINT
 
@@ -268,13 +316,11 @@ def run(args: argparse.Namespace) -> int:
     if args.motion_encoder is not None and args.data is None:
         raise ValueError("the shipped reference features belong to the shipped motion encoder; with --motion-encoder "
                          "give --data DATASET (its test split is the reference)")
+    ablations = _check_inputs(args, DEFAULT_CHECKPOINT)
     config = sampler_config(args)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.seed, args.naive_episodes, config,
                     args.data, args.motion_encoder, args.save_windows)
-    for spec in args.ablation:
-        name, _, path = spec.partition("=")
-        if not name or not path:
-            raise ValueError(f"--ablation must be NAME=CHECKPOINT, got {spec!r}")
+    for name, path in ablations:
         figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.seed, 0, config, args.data, args.motion_encoder)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

@@ -53,6 +53,7 @@ class SampleResult:
     goals: list[tuple[int, int, str, np.ndarray]] = field(default_factory=list)  # (frame, sample, joint, point)
     raw_bone_cv: float = float("nan")  # bone-length std/mean of the network's output before projection
     sit_offset: float = 0.171  # pelvis height above a seat surface for this body, m (``sit_offset``)
+    context_frames: int = 0  # k: episode i's first new frame (a seam) is episode_starts[i] + k
 
     @property
     def seconds_per_episode(self) -> float:
@@ -221,7 +222,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     bar.close()
     return SampleResult(np.concatenate(frames, 1), np.concatenate(labels, 1), np.concatenate(phase, 1), phases,
                         ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts, goals,
-                        float(np.median(cvs)) if cvs else float("nan"), seat)
+                        float(np.median(cvs)) if cvs else float("nan"), seat, ckpt.k)
 
 
 def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan, *, seed: int = 0,

@@ -179,6 +179,21 @@ def test_named_parts_are_honoured(tmp_path, kind):
     assert all(o.meta["found_by"] == "name" for o in objs.values())
 
 
+def test_a_named_parent_node_names_its_subtree(tmp_path):
+    """A GLB node 'sofa_group' (moved 1 m along x) holding an unnamed cushion mesh gives one sofa."""
+    sc = trimesh.Scene()
+    sc.add_geometry(trimesh.util.concatenate(room_shell()), node_name="room", geom_name="room")
+    sc.graph.update(frame_to="sofa_group", frame_from=sc.graph.base_frame,
+                    matrix=trimesh.transformations.translation_matrix([1.0, 0.0, 0.0]))
+    sc.add_geometry(box((1.0, 2.0, 0.0), (2.8, 2.7, 0.42)), node_name="Cube.001", geom_name="Cube.001",
+                    parent_node_name="sofa_group")
+    path = tmp_path / "parent.glb"
+    sc.export(path)
+    (sofa,) = mesh_affordances(path, import_mesh(path))
+    assert sofa.name == "sofa_group" and sofa.category == "sofa" and "lie_center" in sofa.meta
+    np.testing.assert_allclose(world(sofa, "lie_center"), [2.9, 2.35, 0.42], atol=0.03)
+
+
 def test_bad_inputs_fail_with_the_fix(room, tmp_path):
     with pytest.raises(ValueError, match="empty"):
         find_affordances(trimesh.Trimesh())
@@ -243,7 +258,7 @@ def test_sample_sits_on_a_found_seat(room, tmp_path, capsys):
     save_checkpoint(ck, tiny_checkpoint())
     out = tmp_path / "sit"
     rc = console_main(["sample", "--checkpoint", str(ck), "--scene", str(path), "--start", "2.5,1.6",
-                       "--sit-on", f"{name}:2", "--steps", "2", "--out", str(out), "--formats", "npz", "--json",
+                       "--sit-on", f"{name}:1", "--steps", "2", "--out", str(out), "--formats", "npz", "--json",
                        "--no-progress"])
     assert rc == 0
     figs = json.loads(capsys.readouterr().out.strip().splitlines()[-1])

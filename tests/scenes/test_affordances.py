@@ -162,16 +162,21 @@ def test_open_scan_without_bottoms_is_still_read(room):
 
 @pytest.mark.parametrize("kind", ["obj", "glb"])
 def test_named_parts_are_honoured(tmp_path, kind):
-    """A low bench called chair_low (0.28 m: below the geometric seat range) and a desk_main are found by name."""
+    """A low bench called chair_low (0.28 m: below the geometric seat range) and a desk_main are found by name;
+    a table_lamp (no top) is skipped with a note, bedside_1 is no bed."""
     sc = trimesh.Scene()
     sc.add_geometry(trimesh.util.concatenate(room_shell()), node_name="room", geom_name="room")
     sc.add_geometry(box((2.0, 2.0, 0.0), (2.5, 2.5, 0.28)), node_name="chair_low", geom_name="chair_low")
     sc.add_geometry(trimesh.util.concatenate(table(4.0, 3.0)), node_name="desk_main", geom_name="desk_main")
+    sc.add_geometry(box((1.0, 4.0, 0.0), (1.05, 4.05, 1.5)), node_name="table_lamp", geom_name="table_lamp")
+    sc.add_geometry(box((5.0, 4.0, 0.0), (5.2, 4.2, 0.5)), node_name="bedside_1", geom_name="bedside_1")
     path = tmp_path / f"named.{kind}"
     sc.export(path)
     parts = named_parts(path)
-    assert sorted(parts) == ["chair_low", "desk_main"]
-    objs = {o.name: o for o in mesh_affordances(path, import_mesh(path))}
+    assert sorted(parts) == ["chair_low", "desk_main", "table_lamp"]  # 'bedside' is not the word 'bed'
+    notes: list[str] = []
+    objs = {o.name: o for o in mesh_affordances(path, import_mesh(path), notes=notes)}
+    assert len(notes) == 1 and "'table_lamp' skipped: it has no flat top" in notes[0]
     assert sorted(objs) == ["chair_low", "desk_main"]  # the desk is not found twice
     assert objs["chair_low"].category == "chair" and objs["desk_main"].category == "desk"
     assert world(objs["chair_low"], "seat_center")[2] == pytest.approx(0.28, abs=0.02)

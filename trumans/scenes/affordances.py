@@ -28,7 +28,8 @@ Each find becomes a static ``SceneObject`` in the contract of ``trumans.scenes.f
 ``seat_K`` (chairs, stools, sofas), ``bed_K`` and ``table_K`` in the order of their centres (x,
 then y); its mesh is the part of the input mesh over its footprint (the input stays the scene's
 static mesh). Named parts (``named_parts``: OBJ ``o``/``g`` groups, GLB/glTF nodes or their
-parents called ``chair*``, ``sofa*``, ``stool*``, ``bed*``, ``table*``, ``desk*``) are honoured:
+parents whose name starts with the word chair, sofa, stool, bed, table or desk: ``Chair.001``, ``bed_2``,
+not ``bedside``) are honoured:
 the part's own largest flat top at a plausible height for its category gives the object, named as
 in the file, and geometric finds on its footprint are dropped.
 
@@ -496,10 +497,11 @@ def _floor_level(mesh: trimesh.Trimesh, axis: int) -> float | None:
 
 
 def find_affordances(mesh: trimesh.Trimesh, parts: dict[str, trimesh.Trimesh] | None = None,
-                     config: AffordanceConfig | None = None) -> list[SceneObject]:
+                     config: AffordanceConfig | None = None, notes: list[str] | None = None) -> list[SceneObject]:
     """Seats, beds and tables of ``mesh`` (z-up, metres, floor at z = 0; module doc): static
     SceneObjects named seat_K / bed_K / table_K (and the names of ``parts``: name -> world-frame
     mesh of a named chair / sofa / stool / bed / table / desk), sorted by category then centre.
+    A named part without a usable top or free floor beside it is skipped, with a line in ``notes``.
     Raises ValueError for an empty mesh or one in the wrong frame (``check_room_frame``)."""
     cfg = config or AffordanceConfig()
     check_room_frame(mesh)
@@ -536,9 +538,9 @@ def find_affordances(mesh: trimesh.Trimesh, parts: dict[str, trimesh.Trimesh] | 
         sel = pcols.top & (pcols.z >= zr[0]) & (pcols.z <= zr[1]) & (pcols.clear >= need)
         cands = _patches(pcols, sel, cfg.flat_tol, min_cells)
         if not cands:
-            raise ValueError(f"named part {pname!r} has no flat top {zr[0]}-{zr[1]} m high with {need} m free above "
-                             f"it; rename the part (names starting with {sorted(NAMED_PREFIXES)} are read as "
-                             f"furniture) or fix its geometry")
+            _note(notes, f"named part {pname!r} skipped: it has no flat top {zr[0]}-{zr[1]} m high with {need} m free "
+                         f"above it (a {cat} needs one; rename parts that are not furniture)")
+            continue
         p = max(cands, key=lambda q: (len(q.cells), q.height))
         sides = _sides(p, rc, wm, main, cfg)
         obj_name = _safe_name(pname)
@@ -549,8 +551,8 @@ def find_affordances(mesh: trimesh.Trimesh, parts: dict[str, trimesh.Trimesh] | 
         else:
             obj = _seat_object(p, sides, mesh, cfg, cat, obj_name, rc)
         if obj is None:
-            raise ValueError(f"named part {pname!r} has no free floor beside it to approach from; move it off the "
-                             f"wall / other furniture or rename it")
+            _note(notes, f"named part {pname!r} skipped: no free floor beside it to approach from")
+            continue
         obj.mesh = _part_local(pm, obj.pose)
         obj.meta["size"] = _f(obj.mesh.extents)
         obj.meta["found_by"] = "name"
@@ -622,11 +624,15 @@ def _clearance_in(full: _Columns, part: _Columns) -> np.ndarray:
 
 
 def _prefix_category(name: str) -> str | None:
-    low = name.lower()
-    for prefix, cat in NAMED_PREFIXES.items():
-        if low.startswith(prefix):
-            return cat
-    return None
+    """The category of a part name that starts with a NAMED_PREFIXES word not followed by a letter
+    ('Chair.001', 'bed_2', 'table' yes; 'bedside', 'stools_rack' no)."""
+    m = _NAME_RE.match(name)
+    return NAMED_PREFIXES[m.group(1).lower()] if m else None
+
+
+def _note(notes: list[str] | None, text: str) -> None:
+    if notes is not None:
+        notes.append(text)
 
 
 def _safe_name(name: str) -> str:
@@ -679,7 +685,8 @@ def named_parts(path: str | Path, up: str = "z") -> dict[str, trimesh.Trimesh]:
     return parts
 
 
-_PREFIX_RE = re.compile(r"^\s*[og]\s+(" + "|".join(NAMED_PREFIXES) + r")", re.IGNORECASE | re.MULTILINE)
+_PREFIX_RE = re.compile(r"^\s*[og]\s+(" + "|".join(NAMED_PREFIXES) + r")(?![a-z])", re.IGNORECASE | re.MULTILINE)
+_NAME_RE = re.compile(r"\s*(" + "|".join(NAMED_PREFIXES) + r")(?![a-z])", re.IGNORECASE)
 
 
 def _obj_parts(path: Path) -> dict[str, trimesh.Trimesh]:
@@ -737,10 +744,10 @@ def _gltf_parts(path: Path) -> dict[str, trimesh.Trimesh]:
     return {k: trimesh.util.concatenate(v) for k, v in groups.items()}
 
 
-def mesh_affordances(path: str | Path, mesh: trimesh.Trimesh, up: str = "z",
-                     config: AffordanceConfig | None = None) -> list[SceneObject]:
+def mesh_affordances(path: str | Path, mesh: trimesh.Trimesh, up: str = "z", config: AffordanceConfig | None = None,
+                     notes: list[str] | None = None) -> list[SceneObject]:
     """``find_affordances`` of a mesh file's mesh (``import_mesh(path, up)``) with its named parts."""
-    return find_affordances(mesh, named_parts(path, up), config)
+    return find_affordances(mesh, named_parts(path, up), config, notes)
 
 
 def describe(obj: SceneObject) -> dict:

@@ -25,10 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the objects as JSON on the last line")
 
 
-def inspect_scene(spec: str | Path, up: str = "z") -> list[dict]:
+def inspect_scene(spec: str | Path, up: str = "z", notes: list[str] | None = None) -> list[dict]:
     """``describe`` rows of the seats, beds and tables of a mesh file or a scene folder. Raises
     FileNotFoundError / ValueError naming the problem (a missing path, an unreadable mesh, a mesh in
-    centimetres or y-up read as z-up)."""
+    centimetres or y-up read as z-up). Named parts that were skipped are explained in ``notes``."""
     from trumans.scenes.affordances import describe, mesh_affordances
 
     path = Path(spec)
@@ -42,7 +42,7 @@ def inspect_scene(spec: str | Path, up: str = "z") -> list[dict]:
     elif path.is_file():
         from trumans.scenes.io import import_mesh
 
-        objects = mesh_affordances(path, import_mesh(path, up=up), up=up)
+        objects = mesh_affordances(path, import_mesh(path, up=up), up=up, notes=notes)
     else:
         raise FileNotFoundError(f"{path} does not exist; give a mesh file (.obj .ply .glb ...) or a scene folder")
     return [describe(o) for o in objects]
@@ -50,7 +50,8 @@ def inspect_scene(spec: str | Path, up: str = "z") -> list[dict]:
 
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    rows = inspect_scene(args.scene, up=args.up)
+    notes: list[str] = []
+    rows = inspect_scene(args.scene, up=args.up, notes=notes)
     seconds = time.perf_counter() - t0
     if not rows:
         print(f"{args.scene}: no seat, bed or table found (seats: flat tops 0.33-0.62 m high with 0.9 m free above "
@@ -61,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
             c = "-" if r["center"] is None else ", ".join(f"{v:.2f}" for v in r["center"])
             h = "-" if r["height"] is None else f"{r['height']:.2f}"
             print(f"{r['name']:<16} {r['category']:<8} {c:<22} {h:>6} {r['facing_deg']:>6.0f}°  {r['found_by']}")
+    for n in notes:
+        print(f"note: {n}")
     if args.json:
-        print(json.dumps({"scene": str(args.scene), "objects": rows, "seconds": round(seconds, 3)}))
+        print(json.dumps({"scene": str(args.scene), "objects": rows, "notes": notes, "seconds": round(seconds, 3)}))
     return 0

@@ -296,3 +296,60 @@ def test_stale_temp_files_are_swept(data, tmp_path):
     s = build_dataset(SynthConfig(out=str(d), hours=0.01, rooms=1, seed=0, workers=1), progress=False)
     assert s["resumed_rooms"] == 1
     assert not list(d.rglob(".*.tmp"))
+
+
+def test_eval_synthesis_checks_every_argument_before_sampling(data, tmp_path, capsys, monkeypatch):
+    """Each bad argument is refused before the benchmark samples anything (minutes of work)."""
+    import trumans.sample.eval_synthesis as es
+
+    def sampled(*a, **k):
+        raise AssertionError("the benchmark started sampling before refusing a bad argument")
+    monkeypatch.setattr(es, "evaluate", sampled)
+    cases = [(["--ablation", "noname"], ["NAME=CHECKPOINT"]),
+             (["--ablation", f"a={tmp_path / 'none.pt'}"], ["--ablation a", "none.pt", "does not exist"]),
+             (["--ablation", f"a={tmp_path / 'x.pt'}", "--ablation", f"a={tmp_path / 'y.pt'}"], ["given twice"]),
+             ([str(tmp_path / "gen.pt")], ["gen.pt", "does not exist"]),
+             (["--motion-encoder", tmp_path / "enc.pt", "--data", data], ["enc.pt", "does not exist"]),
+             (["--data", tmp_path / "nodata"], ["nodata"]),
+             (["--data", data], ["test split"]),  # the one-room fixture has only a train split
+             (["--save-windows", tmp_path / "no" / "w.npz"], ["--save-windows", "existing folder"]),
+             (["--steps", "100000"], ["--steps 100000", "diffusion steps"]),
+             (["--naive-episodes", "100000"], ["--naive-episodes"])]
+    for extra, must in cases:
+        _refused(capsys, ["eval", "synthesis", *extra], *must, watch=[data])
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_augment_source_listed_twice_is_refused(data, tmp_path, capsys):
+    """Rule: each source is augmented once; an index listing one twice (or --splits naming a split twice)
+    is refused before any work, naming the entry."""
+    d = _copy(data, tmp_path)
+    _edit(d / "index.json", lambda i: i["splits"].update(train=i["splits"]["train"] * 2))
+    rel = json.loads((d / "index.json").read_text())["splits"]["train"][0]
+    _refused(capsys, ["augment", "--data", d, "--out", tmp_path / "a", "--workers", "1"], rel, "listed twice",
+             watch=[d])
+    _refused(capsys, ["augment", "--data", data, "--out", tmp_path / "b", "--splits", "train", "train"],
+             "split twice", watch=[data])
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_augment_keeps_the_contacts_of_a_one_triangle_seat(data, tmp_path, capsys):
+    """A seat mesh without an inside (one triangle at seat height, no volume) still has its sitting
+    contacts found and preserved: its variations are written, none is dropped."""
+    import trimesh
+
+    d = _copy(data, tmp_path)
+    scene_dir = next((d / "scenes").iterdir())
+    seat = next(o for o in json.loads((scene_dir / "scene.json").read_text())["objects"] if o["name"] == "sofa_0")
+    mesh = trimesh.load(scene_dir / seat["mesh"], process=False)
+    (x0, y0, _), (x1, y1, _) = mesh.bounds
+    trimesh.Trimesh([[x0, y0, 0.45], [x1, y0, 0.45], [x0, y1, 0.45]], [[0, 1, 2]], process=False).export(
+        scene_dir / seat["mesh"])
+    out = tmp_path / "a"
+    assert console_main(["augment", "--data", str(d), "--out", str(out), "--workers", "1", "--variations", "1",
+                         "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    outputs = json.loads((out / "manifest.json").read_text())["outputs"]
+    sofa = [o for o in outputs if o["object"] == "sofa_0"]
+    assert summary["skipped"] == 0 and len(sofa) == 1
+    assert any(iv["object"] == "sofa_0" for iv in sofa[0]["changed_intervals"])

@@ -196,7 +196,7 @@ def _corrupt(path, text, name):
 def test_missing_file_and_directory(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.bvh does not exist"):
         import_bvh(tmp_path / "nope.bvh")
-    with pytest.raises(IsADirectoryError, match="is a directory"):
+    with pytest.raises(ValueError, match="is a folder, not a file"):
         read_bvh(tmp_path)
 
 

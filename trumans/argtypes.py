@@ -9,13 +9,17 @@ from collections.abc import Callable
 __all__ = ["int_in", "float_in", "positive_int", "nonneg_int", "positive_float", "nonneg_float", "fraction", "seed", "device"]
 
 
-def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
-    """An integer in [lo, hi] (either bound may be None)."""
+def int_in(lo: int | None = None, hi: int | None = None, limit: str | None = None) -> Callable[[str], int]:
+    """An integer in [lo, hi] (either bound may be None); ``limit``: the name of the size budget in
+    ``trumans.limits`` that ``hi`` is, named when a value is above it."""
     def parse(text: str) -> int:
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if limit is not None and hi is not None and v > hi:
+            raise argparse.ArgumentTypeError(f"{v:,} is more than the limit of {hi:,} (trumans.limits.{limit}); "
+                                             f"give a whole number {_range(lo, hi)}")
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             raise argparse.ArgumentTypeError(f"{v} is out of range; give a whole number {_range(lo, hi)}")
         return v
@@ -23,13 +27,18 @@ def int_in(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]
     return parse
 
 
-def float_in(lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> Callable[[str], float]:
-    """A finite number in [lo, hi] ((lo, hi] with ``lo_open``); NaN and inf are refused."""
+def float_in(lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+             limit: str | None = None) -> Callable[[str], float]:
+    """A finite number in [lo, hi] ((lo, hi] with ``lo_open``); NaN and inf are refused; ``limit`` as
+    for ``int_in``."""
     def parse(text: str) -> float:
         try:
             v = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if limit is not None and hi is not None and math.isfinite(v) and v > hi:
+            raise argparse.ArgumentTypeError(f"{text} is more than the limit of {hi:,g} (trumans.limits.{limit}); "
+                                             f"give a finite number {_range(lo, hi, lo_open)}")
         if not math.isfinite(v) or (lo is not None and (v <= lo if lo_open else v < lo)) \
                 or (hi is not None and v > hi):
             raise argparse.ArgumentTypeError(f"{text} is out of range; give a finite number "

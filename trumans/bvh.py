@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .input_files import check_input_file
 from .limits import check_fps, check_frames
 from .rotations import Y_UP_TO_Z_UP
 from .sequence import atomic_write
@@ -124,13 +125,9 @@ _CHANNEL_RE = re.compile(r"^[XYZxyz](position|rotation)$", re.IGNORECASE)
 def read_bvh(path: str | Path) -> BvhData:
     """Parse any BVH file (hierarchy, offsets, 3- or 6-channel joints, any rotation order, frames).
 
-    Raises FileNotFoundError if ``path`` is missing, IsADirectoryError if it is a folder and
-    ValueError (naming the file and what is wrong) if it is malformed or truncated."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"BVH file {path} does not exist")
-    if not path.is_file():
-        raise IsADirectoryError(f"{path} is a directory, not a BVH file; pass the path of a .bvh file")
+    Raises FileNotFoundError if ``path`` is missing and ValueError (naming the file and what is
+    wrong) if it is a folder, FIFO or device, or malformed or truncated."""
+    path = check_input_file(path, "BVH file", "pass the path of a .bvh file")
     text = path.read_text(encoding="utf-8-sig", errors="replace")  # a UTF-8 byte order mark is not content
     m = re.search(r"^\s*MOTION\s*$", text, flags=re.MULTILINE)
     if not text.lstrip().upper().startswith("HIERARCHY"):

@@ -25,7 +25,7 @@ def _set_entry(text: str, roots: tuple[str, ...], example: str) -> tuple[list[st
                          f"{example}), got {text!r}")
     try:
         return keys, json.loads(value)
-    except json.JSONDecodeError:
+    except (json.JSONDecodeError, RecursionError):
         raise ValueError(f"--set {path}: VALUE must be JSON (a number, true / false, \"text\", [..]), got {value!r}") \
             from None
 

@@ -13,6 +13,7 @@ import math
 import shutil
 from pathlib import Path, PurePosixPath
 
+from trumans.input_files import file_kind
 from trumans.scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 
 from .sequence import Sequence, atomic_write, load_sequence
@@ -73,13 +74,16 @@ def load_index(root: str | Path) -> dict:
     root = Path(root)
     path = root / INDEX_FILE
     if not root.is_dir():
+        if file_kind(root) is not None:
+            raise ValueError(f"dataset folder {root} is a {file_kind(root)}, not a folder; pass a dataset folder "
+                             f"(with index.json)")
         raise FileNotFoundError(f"dataset folder {root} does not exist; build one with `trumans data synth --out {root}`")
     if not path.is_file():
         raise FileNotFoundError(f"{path} does not exist; {root} is not a dataset folder "
                                 f"(build one with `trumans data synth --out DIR`)")
     try:
         index = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:  # RecursionError: nested too deep
         raise ValueError(f"{path} is not valid JSON ({e}); rebuild the dataset") from e
     if not isinstance(index, dict):
         raise ValueError(f"{path} must hold a JSON object, got {type(index).__name__}; rebuild the dataset")

@@ -16,6 +16,7 @@ import numpy as np
 
 from trumans.scenes.atomic import atomic_write  # the one implementation; re-exported here
 
+from .input_files import check_input_file
 from .limits import check_fps
 from .skeleton import NUM_JOINTS
 
@@ -125,9 +126,7 @@ def save_sequence(seq: Sequence, path: str | Path) -> None:
 def load_sequence(path: str | Path, allow_missing: bool = False) -> Sequence:
     """Read a sequence ``.npz`` (never unpickles). Raises FileNotFoundError / ValueError with the fix.
     allow_missing: accept NaN (= missing) entries, as in tracked input (``Sequence.allow_missing``)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"sequence file {path} does not exist")
+    path = check_input_file(path, "sequence file", "pass a sequence .npz")
     try:
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}

@@ -193,7 +193,7 @@ def test_up_axis_matrix():
 def test_bad_files(tmp_path):
     with pytest.raises(FileNotFoundError, match="does not exist"):
         read_fbx(tmp_path / "none.fbx")
-    with pytest.raises(IsADirectoryError):
+    with pytest.raises(ValueError, match="is a folder, not a file"):
         read_fbx(tmp_path)
     (tmp_path / "junk.fbx").write_text("hello: 1\n")
     with pytest.raises(ValueError, match="not an FBX file"):

@@ -6,7 +6,8 @@ import argparse
 from trumans.argtypes import float_in, fraction, int_in, nonneg_int, positive_float
 from trumans.contacts.rule import HOLD_THRESHOLD
 
-from trumans.augment.pipeline import MAX_VARIATIONS, SOURCES, PipelineConfig, SourcesFailed, augment_dataset
+from trumans.limits import MAX_VARIATIONS
+from trumans.augment.pipeline import SOURCES, PipelineConfig, SourcesFailed, augment_dataset
 from trumans.augment.variations import KINDS
 from trumans.summary import print_summary
 from trumans import argtypes
@@ -19,7 +20,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output dataset folder (new, empty, or this command's own: re-running "
                                                 "with the same settings resumes where it stopped; one writer at a time)")
     p.add_argument("--overwrite", action="store_true", help="replace the dataset or other run already in --out")
-    p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS), default=2,
+    p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS, limit="MAX_VARIATIONS"), default=2,
                    help=f"variations per touched object, 1..{MAX_VARIATIONS} (default 2, as the paper)")
     p.add_argument("--splits", nargs="+", default=["train"], help="source splits to augment (default: train)")
     p.add_argument("--source", choices=list(SOURCES), default="all",

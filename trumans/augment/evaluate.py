@@ -24,13 +24,14 @@ import time
 
 import numpy as np
 
-from trumans.argtypes import int_in, positive_int
+from trumans.argtypes import int_in
+from trumans.limits import MAX_CASES, MAX_EVAL_SEQUENCES, MAX_VARIATIONS
 from trumans.contacts.rule import FLOOR_NAME
 from trumans.eval.metrics import bone_length_dev_mm, foot_skate_cm, joint_centre_inside_cm
 from trumans.skeleton import FEET
 
 from trumans.augment.core import AugmentConfig, augment_many, sequence_contacts
-from trumans.augment.pipeline import MAX_VARIATIONS, contacted_objects
+from trumans.augment.pipeline import contacted_objects
 from trumans.augment.variations import KINDS, sample_variation
 from trumans.summary import print_summary
 from trumans import argtypes
@@ -43,9 +44,11 @@ _FEET = list(FEET)
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", default=None, help="dataset folder to evaluate on (default: a held-out synthetic set)")
     p.add_argument("--split", default="test", help="split of --data to use (default test)")
-    p.add_argument("--max-seqs", type=positive_int, default=20, help="at most this many sequences of --data (default 20)")
-    p.add_argument("--cases", type=positive_int, default=4, help="synthetic clips per contact kind (default 4)")
-    p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS), default=2,
+    p.add_argument("--max-seqs", type=int_in(1, MAX_EVAL_SEQUENCES, limit="MAX_EVAL_SEQUENCES"), default=20,
+                   help="at most this many sequences of --data (default 20)")
+    p.add_argument("--cases", type=int_in(1, MAX_CASES, limit="MAX_CASES"), default=4,
+                   help=f"synthetic clips per contact kind (default 4, at most {MAX_CASES:,})")
+    p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS, limit="MAX_VARIATIONS"), default=2,
                    help="variations per touched object (default 2)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")

@@ -34,6 +34,7 @@ from trumans.scenes.scene import Scene
 from trumans.contacts.rule import FLOOR_NAME, HOLD_THRESHOLD
 from trumans.dataset import Dataset, DatasetWriter, content_hash
 from trumans.eval.metrics import joint_centre_inside_cm
+from trumans.limits import MAX_VARIATIONS
 from trumans.sequence import Sequence, atomic_write, save_sequence
 
 from trumans.augment.core import AugmentConfig, augment_many, sequence_contacts
@@ -71,6 +72,8 @@ class PipelineConfig:
     source: str = "all"
 
     def __post_init__(self) -> None:
+        if len(set(self.splits)) != len(self.splits):
+            raise ValueError(f"splits {list(self.splits)} name a split twice; give each split once")
         if not 1 <= self.variations <= MAX_VARIATIONS:
             raise ValueError(f"variations must be in [1, {MAX_VARIATIONS}] per touched object, got {self.variations}")
         for name in ("window_s", "threshold", "max_penetration"):
@@ -104,9 +107,6 @@ class PipelineConfig:
         return h.hexdigest()[:16]
 
 
-MAX_VARIATIONS = 50
-
-
 class NothingToAugment(ValueError):
     """The sequence touches no interactable object."""
 
@@ -116,6 +116,21 @@ def scenes_digest(ds: Dataset) -> str:
     files = sorted(str(p.relative_to(ds.root)) for sid in ds.scene_ids for p in ds.scene_dir(sid).rglob("*")
                    if p.is_file() and p.name != "occupancy.npz" and not p.name.endswith(".tmp"))
     return content_hash(ds.root, files)
+
+
+def _check_once(jobs: list[tuple], ds: Dataset) -> None:
+    """Rule: each source sequence is augmented once. An index that lists a sequence twice (in one
+    split or in two of the augmented splits), or two sequences of one file name (outputs and
+    records are named by it), is refused naming both entries, before any work."""
+    seen: dict[str, tuple[str, str]] = {}
+    for _, _, rel, split in jobs:
+        stem = Path(rel).stem
+        if stem in seen:
+            first, first_split = seen[stem]
+            what = "is listed twice" if first == rel else f"has the file name of {first}"
+            raise ValueError(f"{ds.root / 'index.json'}: {rel} (split {split}) {what} (split {first_split}); "
+                             f"augment writes one set of outputs per sequence name: list each sequence once")
+        seen[stem] = (rel, split)
 
 
 def contacted_objects(intervals, scene: Scene) -> list[str]:
@@ -225,7 +240,7 @@ def _done_record(out: Path, rel: str, key: str) -> dict | None:
     path = out / "records" / f"{Path(rel).stem}.json"
     try:
         rec = json.loads(path.read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return None
     if not isinstance(rec, dict) or rec.get("key") != key or rec.get("error") or not isinstance(rec.get("outputs"), list):
         return None
@@ -265,6 +280,7 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool 
     if not jobs:
         raise ValueError(f"no {'' if cfg.source == 'all' else cfg.source + ' '}sequences in splits {list(cfg.splits)} "
                          f"of {cfg.data}; choose splits (or --source) that hold some")
+    _check_once(jobs, ds)
     digest = scenes_digest(ds)
     jobs = [(c, i, rel, split, cfg.key(ds.root / rel, i, digest)) for c, i, rel, split in jobs]
     with DatasetWriter(out, "augment", cfg.settings(), overwrite=overwrite) as writer:

@@ -10,6 +10,7 @@ import numpy as np
 
 from trumans.argtypes import positive_float
 from trumans.dataset import DatasetWriter
+from trumans.input_files import check_input_file
 from trumans.sequence import Sequence, save_sequence
 from trumans.summary import print_summary
 from trumans import argtypes
@@ -46,14 +47,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _read_names(path: str | None) -> list[str] | None:
     if path is None:
         return None
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"--action-names file {p} does not exist; give a JSON list or a text file "
-                                f"with one action name per line")
+    p = check_input_file(path, "--action-names file", "give a JSON list or a text file with one action name per line")
     text = p.read_text()
     try:
         names = json.loads(text)
-    except json.JSONDecodeError:
+    except (json.JSONDecodeError, RecursionError):
         names = [ln.strip() for ln in text.splitlines() if ln.strip()]
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise ValueError(f"--action-names {path} must hold a JSON list of strings or one name per line")
@@ -74,7 +72,7 @@ def _read_joint_map(arg: str | None) -> dict[str, str] | None:
         text, where = p.read_text(), f"--joint-map file {p}"
     try:
         jm = json.loads(text)
-    except json.JSONDecodeError as e:
+    except (json.JSONDecodeError, RecursionError) as e:  # RecursionError: nested too deep
         raise ValueError(f"{where} is not valid JSON ({e}); give an object like {{\"pelvis\": \"Hips\"}}") from e
     if not isinstance(jm, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in jm.items()):
         raise ValueError(f"{where} must be a JSON object of joint names {{our_joint: bvh_joint}}, got "

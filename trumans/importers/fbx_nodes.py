@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from trumans.input_files import check_input_file
+
 __all__ = ["FbxNode", "read_fbx_nodes", "parse_ascii", "parse_binary", "BINARY_MAGIC"]
 
 BINARY_MAGIC = b"Kaydara FBX Binary  \x00"
@@ -45,13 +47,9 @@ class FbxNode:
 def read_fbx_nodes(path: str | Path) -> tuple[list[FbxNode], int, bool]:
     """Top-level nodes of an FBX file, its version (e.g. 6100, 7400) and whether it is binary.
 
-    Raises FileNotFoundError / IsADirectoryError for a bad path and ValueError (naming the file)
-    for a file that is neither encoding or is truncated."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"FBX file {path} does not exist")
-    if not path.is_file():
-        raise IsADirectoryError(f"{path} is a directory, not an FBX file; pass the path of a .fbx file")
+    Raises FileNotFoundError for a missing path and ValueError (naming the file) for a folder, FIFO
+    or device, or a file that is neither encoding or is truncated."""
+    path = check_input_file(path, "FBX file", "pass the path of a .fbx file")
     data = path.read_bytes()
     try:
         if data.startswith(BINARY_MAGIC):

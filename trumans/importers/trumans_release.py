@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from trumans.input_files import file_kind
 from trumans.limits import check_npy_size
 from trumans.scenes.io import Y_UP_TO_Z_UP  # the one y-up -> z-up turn, shared with mesh import
 from trumans.scenes.occupancy import OccupancyGrid
@@ -74,7 +75,7 @@ def _load(folder: Path, name: str, required: bool = True) -> np.ndarray | None:
 def _read_names(path: Path, n: int) -> list[str]:
     try:
         names = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:  # RecursionError: nested too deep
         raise ValueError(f"{path} is not valid JSON ({e}); it must list the {n} object names") from e
     if not isinstance(names, list) or len(names) != n or not all(isinstance(x, str) and x and "/" not in x
                                                                    for x in names):
@@ -105,6 +106,8 @@ def read_release(folder: str | Path, action_names: list[str] | None = None, fps:
     """
     folder = Path(folder)
     if not folder.is_dir():
+        if file_kind(folder) is not None:
+            raise ValueError(f"TRUMANS release folder {folder} is a {file_kind(folder)}, not a folder")
         raise FileNotFoundError(f"TRUMANS release folder {folder} does not exist")
     joints = _load(folder, "human_joints.npy")
     if joints.ndim != 3 or joints.shape[1:] != (24, 3):

@@ -33,6 +33,7 @@ import torch
 from torch import nn
 
 from trumans import __version__
+from trumans.input_files import check_input_file
 from trumans.sequence import atomic_write
 from .diffusion import DiffusionConfig, GaussianDiffusion
 from .episodes import Normalizer
@@ -218,10 +219,8 @@ def load_checkpoint(path: str | Path, kind: CheckpointKind | None = "generator")
     for a corrupt/foreign file, a newer format, a different or unregistered kind, missing fields
     or an inconsistent config.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"checkpoint {path} does not exist; train one with `trumans train --out RUN` "
-                                f"(it writes RUN/checkpoint.pt)")
+    path = check_input_file(path, "checkpoint", "train one with `trumans train --out RUN` (it writes "
+                                                "RUN/checkpoint.pt)")
     try:
         d = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # corrupt bytes surface as many types (UnpicklingError, RuntimeError, IndexError, ...)

@@ -112,7 +112,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--close", dest="close", action=_StepAction, metavar="NAME", help="close a door or drawer")
     p.add_argument("--out", required=True, help="output path stem: writes STEM.npz (+ other --formats)")
     p.add_argument("--formats", default="npz,png", help=f"comma-separated among {','.join(FORMATS)} (default npz,png)")
-    p.add_argument("--num-samples", type=argtypes.int_in(1, MAX_SAMPLES), default=1,
+    p.add_argument("--num-samples", type=argtypes.int_in(1, MAX_SAMPLES, limit="MAX_SAMPLES"), default=1,
                    help=f"variations sampled in one batch (default 1, at most {MAX_SAMPLES})")
     from trumans.sample.sampler import SamplerConfig
 

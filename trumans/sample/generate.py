@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from trumans.limits import MAX_SAMPLES  # bodies sampled in one batch
 from trumans.paths import MODELS_DIR
 from trumans.scenes.spec import SCENE_UP_KEY
 from trumans.sequence import Sequence
@@ -22,7 +23,6 @@ __all__ = ["Generation", "generate_sequences", "default_plan", "resolve_plan", "
            "SAMPLER_CONFIG_KEY", "SCENE_UP_KEY", "MAX_SAMPLES"]
 
 DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
-MAX_SAMPLES = 256  # bodies sampled in one batch, each a few MB per episode
 # the sequence's ``extra`` entry with the sampler config used, JSON (``SamplerConfig.to_dict``);
 # ``SamplerConfig.from_dict(json.loads(...))`` rebuilds it
 SAMPLER_CONFIG_KEY = "sampler_config"

@@ -156,7 +156,7 @@ def load_plan(path: str | Path) -> Plan:
             d = json.loads(text)
         else:
             raise ValueError(f"plan file {path} must end in .json or .toml")
-    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as e:
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError, RecursionError) as e:  # RecursionError: nested too deep
         raise ValueError(f"plan file {path} is not valid {path.suffix[1:].upper()}: {e}") from None
     return plan_from_dict(d, name=path.stem)
 

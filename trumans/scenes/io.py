@@ -251,7 +251,7 @@ def load_scene(folder: str | Path) -> Scene:
         raise FileNotFoundError(f"{path} is missing; a scene folder needs a {SCENE_FILE}")
     try:
         doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:  # RecursionError: nested too deep
         raise ValueError(f"{path} is not valid JSON ({e}); repair it or re-save the scene") from e
     if not isinstance(doc, dict) or doc.get("format", FORMAT) != FORMAT:
         raise ValueError(f"{path} is not a {FORMAT} file")

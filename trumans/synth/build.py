@@ -23,6 +23,7 @@ import numpy as np
 from trumans.dataset import SPLITS, DatasetWriter
 from trumans.sequence import atomic_write, save_sequence
 from trumans.eval import metrics
+from trumans.limits import MAX_ROOMS, MAX_SYNTH_HOURS, check_count
 from trumans.workers import worker_pool
 from .vocab import SYNTH_ACTIONS
 
@@ -54,6 +55,8 @@ class SynthConfig:
             raise ValueError(f"hours must be > 0, got {self.hours}")
         if self.rooms < 1:
             raise ValueError(f"rooms must be >= 1, got {self.rooms}")
+        check_count(self.rooms, MAX_ROOMS, "MAX_ROOMS", "rooms")
+        check_count(self.hours, MAX_SYNTH_HOURS, "MAX_SYNTH_HOURS", "hours")
         if self.workers < 0:
             raise ValueError(f"workers must be >= 0 (0 = all CPUs), got {self.workers}")
         lo, hi = self.take_seconds
@@ -142,7 +145,7 @@ def _build_room(args: tuple[SynthConfig, int]) -> dict:
                     and (out / rec["scene_dir"] / "occupancy.npz").is_file():
                 rec["resumed"] = True
                 return rec
-        except (json.JSONDecodeError, KeyError, TypeError):
+        except (json.JSONDecodeError, KeyError, TypeError, RecursionError):
             pass  # unreadable record: rebuild the room
     t0 = time.perf_counter()
     scene = make_room(_room_seed(cfg.seed, index))

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from trumans.argtypes import float_in, nonneg_int, positive_float, positive_int
+from trumans.argtypes import float_in, int_in, nonneg_int
+from trumans.limits import MAX_ROOMS, MAX_SYNTH_HOURS
 from trumans.summary import print_summary
 from trumans import argtypes
 
@@ -12,8 +13,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="dataset folder to write (scenes/, sequences/, index.json): new, "
                                                 "empty, or an interrupted build of the same settings (it resumes)")
     p.add_argument("--overwrite", action="store_true", help="replace the dataset already in --out")
-    p.add_argument("--hours", type=positive_float, default=2.0, help="hours of motion at 30 fps (default 2)")
-    p.add_argument("--rooms", type=positive_int, default=50, help="number of procedural rooms (default 50)")
+    p.add_argument("--hours", type=float_in(0.0, MAX_SYNTH_HOURS, lo_open=True, limit="MAX_SYNTH_HOURS"), default=2.0,
+                   help=f"hours of motion at 30 fps (default 2, at most {MAX_SYNTH_HOURS:g})")
+    p.add_argument("--rooms", type=int_in(1, MAX_ROOMS, limit="MAX_ROOMS"), default=50,
+                   help=f"number of procedural rooms (default 50, at most {MAX_ROOMS:,})")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (same seed -> same data)")
     p.add_argument("--workers", type=nonneg_int, default=0, help="worker processes, rooms in parallel (default: CPU count)")
     p.add_argument("--real-share", type=float_in(0.0, 1.0), default=1.0,

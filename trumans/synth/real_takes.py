@@ -162,7 +162,7 @@ def build_real_room(out: Path, clip: MocapClip, seed: int, key: str) -> dict:
                     (rec.get("skipped") or (out / rec["scene_dir"] / "occupancy.npz").is_file()):
                 rec["resumed"] = True
                 return rec
-        except (json.JSONDecodeError, KeyError, TypeError):
+        except (json.JSONDecodeError, KeyError, TypeError, RecursionError):
             pass
     made = real_sequence(clip, seed)
     rec: dict = {"room": rid, "key": key, "real": f"cmu:{clip.name}", "scene_dir": f"scenes/{rid}", "sequences": [],

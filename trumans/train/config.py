@@ -18,6 +18,8 @@ from dataclasses import MISSING, asdict, dataclass, field, fields, is_dataclass,
 from pathlib import Path
 from typing import Any
 
+from trumans.input_files import file_kind
+from trumans.limits import check_batch, check_grid, transformer_activation_bytes
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import FeatureLayout
 from trumans.model.nets import ActionEncoderConfig, DenoiserConfig, ScenePerceiverConfig
@@ -59,8 +61,10 @@ class TrainSection:
 
     def __post_init__(self) -> None:
         _need(self.steps >= 0, f"steps must be >= 0, got {self.steps}")
-        for name in ("batch_size", "val_batch_size", "checkpoint_every", "val_every"):
+        for name in ("checkpoint_every", "val_every"):
             _need(getattr(self, name) >= 1, f"{name} must be >= 1, got {getattr(self, name)}")
+        check_batch(self.batch_size, what="batch_size")
+        check_batch(self.val_batch_size, what="val_batch_size")
         _need(self.lr > 0, f"lr must be > 0, got {self.lr}")
         _need(self.weight_decay >= 0 and self.warmup_steps >= 0 and self.grad_clip >= 0,
               f"weight_decay, warmup_steps and grad_clip must be >= 0 (grad_clip 0 = off), got "
@@ -98,8 +102,9 @@ class DataSection:
         _need(self.episode_frames >= 2, f"episode_frames must be >= 2, got {self.episode_frames}")
         _need(0 <= self.transition_frames < self.episode_frames,
               f"transition_frames must be in [0, episode_frames), got {self.transition_frames}")
-        _need(self.stride >= 1 and self.grid >= 1 and self.max_val_episodes >= 1,
-              f"stride, grid and max_val_episodes must be >= 1, got {self.stride}, {self.grid}, {self.max_val_episodes}")
+        _need(self.stride >= 1 and self.max_val_episodes >= 1,
+              f"stride and max_val_episodes must be >= 1, got {self.stride}, {self.max_val_episodes}")
+        check_grid(self.grid, "grid")
         _need(len(self.extent) == 3 and all(e > 0 for e in self.extent), f"extent must be 3 sizes > 0 m, got {self.extent}")
         _need(self.augmented_share is None or 0 <= self.augmented_share <= 1,
               f"augmented_share must be a fraction in [0, 1] (or left out), got {self.augmented_share}")
@@ -149,6 +154,23 @@ class GeneratorConfig:
             self.model, layout=FeatureLayout(rotations=d.rotations), frames=d.episode_frames, extra_features=0,
             frame_cond_dim=0, scene=scene if self.conditions.scene else None,
             action=action if self.conditions.action else None))
+        for name in ("batch_size", "val_batch_size"):
+            check_batch(getattr(self.train, name), self.sample_bytes(), f"train.{name}")
+
+    def sample_bytes(self) -> int:
+        """Bytes one training sample takes (an estimate, checked against ``trumans.limits.MAX_BATCH_BYTES``
+        before anything is allocated): its float32 scene grid plus the activations each transformer
+        keeps for the backward pass (``trumans.limits.transformer_activation_bytes``)."""
+        m = self.model
+        total = transformer_activation_bytes(m.frames + 1, m.d_model, m.layers, m.heads, m.ff)
+        if m.scene is not None:
+            s = m.scene
+            total += 4 * s.grid ** 3 + transformer_activation_bytes((s.grid // s.patch) ** 2 + 1, s.d_model,
+                                                                   s.layers, s.heads, s.ff)
+        if m.action is not None:
+            a = m.action
+            total += transformer_activation_bytes(a.frames, a.d_model, a.layers, a.heads, a.ff)
+        return total
 
     def denoiser_config(self, num_actions: int) -> DenoiserConfig:
         """The denoiser config for a vocabulary of ``num_actions`` actions."""
@@ -273,13 +295,17 @@ def load_toml(name_or_path: str | Path, config_dir: Path = CONFIG_DIR) -> tuple[
     p = Path(name_or_path)
     if not p.suffix and (config_dir / f"{p.name}.toml").is_file():
         p = config_dir / f"{p.name}.toml"
+    if file_kind(p) not in (None, "file"):
+        raise ValueError(f"config {p} is a {file_kind(p)}, not a TOML file; pass a built-in config name or a .toml file")
     if not p.is_file():
         raise FileNotFoundError(f"config {name_or_path!r} is neither a built-in config "
                                 f"{sorted(q.stem for q in config_dir.glob('*.toml'))} nor an existing TOML file")
     try:
         d = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as e:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{p} is not valid TOML: {e}") from e
+    except RecursionError:
+        raise ValueError(f"{p} is not a config: its tables or arrays nest deeper than Python's parser recurses") from None
     d.setdefault("name", p.stem)
     return d, p
 

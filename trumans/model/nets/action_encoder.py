@@ -12,6 +12,8 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
+from trumans.limits import check_transformer
+
 from .blocks import encoder_stack, mlp
 
 __all__ = ["ActionEncoderConfig", "ActionEncoder"]
@@ -32,6 +34,7 @@ class ActionEncoderConfig:
     def __post_init__(self) -> None:
         if self.num_actions < 1 or self.frames < 1:
             raise ValueError(f"num_actions and frames must be >= 1, got {self.num_actions}, {self.frames}")
+        check_transformer(self.d_model, self.layers, self.heads, self.ff, "the action encoder")
 
     def to_dict(self) -> dict:
         return asdict(self)

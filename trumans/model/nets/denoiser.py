@@ -27,6 +27,8 @@ from torch import nn
 
 from trumans.model.episodes import FeatureLayout
 from .action_encoder import ActionEncoder, ActionEncoderConfig
+from trumans.limits import check_transformer
+
 from .blocks import encoder_stack, mlp, sinusoidal_embedding
 from .vit import ScenePerceiver, ScenePerceiverConfig
 
@@ -59,6 +61,7 @@ class DenoiserConfig:
             raise ValueError("frames must be >= 1, extra_features, frame_cond_dim and num_categories >= 0")
         if self.action is not None and self.action.frames != self.frames:
             raise ValueError(f"action.frames ({self.action.frames}) must equal frames ({self.frames})")
+        check_transformer(self.d_model, self.layers, self.heads, self.ff, "the denoiser")
 
     @property
     def feature_dim(self) -> int:

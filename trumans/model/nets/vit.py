@@ -14,6 +14,8 @@ import torch
 from einops import rearrange
 from torch import nn
 
+from trumans.limits import check_grid, check_transformer
+
 from .blocks import encoder_stack
 
 __all__ = ["ScenePerceiverConfig", "ScenePerceiver"]
@@ -32,6 +34,8 @@ class ScenePerceiverConfig:
     dropout: float = 0.1
 
     def __post_init__(self) -> None:
+        check_grid(self.grid)
+        check_transformer(self.d_model, self.layers, self.heads, self.ff, "the scene perceiver")
         if self.grid < 1 or self.patch < 1 or self.grid % self.patch:
             raise ValueError(f"patch ({self.patch}) must divide grid ({self.grid})")
 

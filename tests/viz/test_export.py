@@ -67,8 +67,8 @@ def _read_glb(path) -> tuple[dict, bytes]:
 def _accessor(gltf: dict, bin_: bytes, i: int) -> np.ndarray:
     acc = gltf["accessors"][i]
     view = gltf["bufferViews"][acc["bufferView"]]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[acc["type"]]
-    dtype = {5126: np.float32, 5125: np.uint32}[acc["componentType"]]
+    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc["type"]]
+    dtype = {5126: np.float32, 5125: np.uint32, 5123: np.uint16}[acc["componentType"]]
     a = np.frombuffer(bin_, dtype, acc["count"] * width, view["byteOffset"] + acc.get("byteOffset", 0))
     return a.reshape(acc["count"], width) if width > 1 else a
 
@@ -133,20 +133,27 @@ def test_glb_animation_reproduces_joints_and_objects(tmp_path):
         pose_back = np.eye(4)
         pose_back[:3] = y_from_z.T @ world[box][:3]
         np.testing.assert_allclose(pose_back, seq.objects["box"].pose[f], atol=1e-5)
-    # every limb capsule, posed at the last frame, hugs the bone from its joint to a child joint
+    # one skinned body: its joints are the skeleton's nodes, and every limb capsule, skinned at the last
+    # frame (joint world matrix @ inverse bind matrix, glTF 2.0 §3.7.3), hugs the bone to a child joint
+    (skin,) = gltf["skins"]
+    assert skin["joints"] == jnode and skin["skeleton"] == jnode[0]
+    (body,) = [i for i, n in enumerate(gltf["nodes"]) if n.get("skin") == 0]
+    assert body in gltf["scenes"][0]["nodes"]  # a root node (its own transform is unused)
+    prim = gltf["meshes"][gltf["nodes"][body]["mesh"]]["primitives"][0]
+    v = _accessor(gltf, bin_, prim["attributes"]["POSITION"]).astype(np.float64)
+    owner = _accessor(gltf, bin_, prim["attributes"]["JOINTS_0"])[:, 0].astype(int)
+    assert (_accessor(gltf, bin_, prim["attributes"]["WEIGHTS_0"]) == [1, 0, 0, 0]).all()
+    ibm = _accessor(gltf, bin_, skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
     world, P = _node_matrices(gltf, bin_, T - 1), seq.joints[T - 1].astype(np.float64)
-    for m in gltf["meshes"]:
-        if not m["name"].startswith("body_") or m["name"] == "body_head":
-            continue
-        j = JOINT_NAMES.index(m["name"][5:])
-        v = _accessor(gltf, bin_, m["primitives"][0]["attributes"]["POSITION"]).astype(np.float64)
-        v = (v @ world[jnode[j]][:3, :3].T + world[jnode[j]][:3, 3]) @ y_from_z
+    for j in set(owner.tolist()) - {JOINT_NAMES.index("head")}:
+        M = world[jnode[j]] @ ibm[j]
+        vj = (v[owner == j] @ M[:3, :3].T + M[:3, 3]) @ y_from_z
         dist = []
         for c in children(j):
             a, b = P[j], P[c]
-            u = np.clip((v - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
-            dist.append(np.linalg.norm(v - (a + u[:, None] * (b - a)), axis=-1) - BONE_RADIUS[JOINT_NAMES[c]])
-        assert np.min(dist, axis=0).max() < 2e-3, m["name"]
+            u = np.clip((vj - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+            dist.append(np.linalg.norm(vj - (a + u[:, None] * (b - a)), axis=-1) - BONE_RADIUS[JOINT_NAMES[c]])
+        assert np.min(dist, axis=0).max() < 2e-3, JOINT_NAMES[j]
     table = _node_matrices(gltf, bin_, 0)[names.index("table")]
     np.testing.assert_allclose(y_from_z.T @ table[:3, 3], [2.0, 0.0, 0.35], atol=1e-6)  # static object at its pose
 
@@ -157,7 +164,7 @@ def test_glb_loads_in_trimesh_with_the_body_at_frame0(tmp_path):
     scene = trimesh.load(path)
     assert isinstance(scene, trimesh.Scene)
     geoms = set(scene.geometry)
-    assert {"floor", "table", "box", "body_pelvis", "body_head", "body_left_knee"} <= geoms
+    assert {"floor", "table", "box", "body"} <= geoms
     dumped = scene.to_geometry() if hasattr(scene, "to_geometry") else scene.dump(concatenate=True)
     # the rest-state (frame 0) body lies around the frame-0 joints, in glTF's y-up frame
     y_from_z = Rotation.from_quat(Z_UP_TO_Y_UP).as_matrix()

@@ -28,7 +28,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from trumans.sequence import atomic_write
-from trumans.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, children
+from trumans.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, children, forward_kinematics
 
 __all__ = ["write_glb", "Z_UP_TO_Y_UP", "BONE_RADIUS"]
 
@@ -45,7 +45,7 @@ BONE_RADIUS: dict[str, float] = {
 _HEAD_RADIUS = 0.1  # m, sphere centred _HEAD_RADIUS * 0.8 above the head joint (head frame z)
 _COLORS = {"body": [0.23, 0.49, 0.85, 1.0], "static": [0.75, 0.75, 0.75, 1.0], "dynamic": [0.9, 0.63, 0.24, 1.0]}
 # glTF constants
-_FLOAT, _UINT = 5126, 5125
+_FLOAT, _UINT, _USHORT = 5126, 5125, 5123
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 
@@ -65,12 +65,13 @@ class _Glb:
 
     def accessor(self, data: np.ndarray, kind: str, target: int | None = None, minmax: bool = False) -> int:
         """Append ``data`` ((N,) or (N, k), float32 or uint32) as a bufferView + accessor; returns its index."""
-        ctype = _UINT if data.dtype == np.uint32 else _FLOAT
-        data = np.ascontiguousarray(data, dtype=np.uint32 if ctype == _UINT else np.float32)
+        ctype = {np.dtype(np.uint32): _UINT, np.dtype(np.uint16): _USHORT}.get(np.dtype(data.dtype), _FLOAT)
+        data = np.ascontiguousarray(data, dtype={_UINT: np.uint32, _USHORT: np.uint16}.get(ctype, np.float32))
         view = {"buffer": 0, "byteOffset": len(self.bin), "byteLength": data.nbytes}
         if target is not None:
             view["target"] = target
-        self.bin += data.tobytes()  # every component is 4 bytes, so offsets stay 4-aligned
+        self.bin += data.tobytes()
+        self.bin += b"\0" * (-len(self.bin) % 4)  # every bufferView starts 4-aligned (uint16 data may end off it)
         self.gltf["bufferViews"].append(view)
         acc = {"bufferView": len(self.gltf["bufferViews"]) - 1, "componentType": ctype, "count": int(len(data)),
                "type": kind}
@@ -80,10 +81,18 @@ class _Glb:
         self.gltf["accessors"].append(acc)
         return len(self.gltf["accessors"]) - 1
 
-    def mesh(self, m: trimesh.Trimesh, name: str, material: str) -> int:
-        """A one-primitive mesh (POSITION with min/max, NORMAL, uint32 indices); returns its index."""
+    def mesh(self, m: trimesh.Trimesh, name: str, material: str, joints: np.ndarray | None = None) -> int:
+        """A one-primitive mesh (POSITION with min/max, NORMAL, uint32 indices; with ``joints`` (V,) the
+        skin joint index of every vertex, weight 1: JOINTS_0 / WEIGHTS_0); returns its index."""
         attrs = {"POSITION": self.accessor(np.asarray(m.vertices, np.float32), "VEC3", _ARRAY_BUFFER, minmax=True),
                  "NORMAL": self.accessor(np.asarray(m.vertex_normals, np.float32), "VEC3", _ARRAY_BUFFER)}
+        if joints is not None:
+            J = np.zeros((len(joints), 4), np.uint16)
+            J[:, 0] = joints
+            W = np.zeros((len(joints), 4), np.float32)
+            W[:, 0] = 1.0
+            attrs["JOINTS_0"] = self.accessor(J, "VEC4", _ARRAY_BUFFER)
+            attrs["WEIGHTS_0"] = self.accessor(W, "VEC4", _ARRAY_BUFFER)
         idx = self.accessor(np.asarray(m.faces, np.uint32).reshape(-1), "SCALAR", _ELEMENT_ARRAY_BUFFER)
         self.gltf["meshes"].append({"name": name, "primitives": [
             {"attributes": attrs, "indices": idx, "material": self.material[material]}]})
@@ -128,6 +137,17 @@ def _bone_mesh(j: int, offsets: np.ndarray) -> trimesh.Trimesh | None:
         parts.append(trimesh.creation.icosphere(subdivisions=2, radius=_HEAD_RADIUS).apply_translation(
             [0.0, 0.0, 0.8 * _HEAD_RADIUS]))
     return trimesh.util.concatenate(parts) if parts else None
+
+
+def _bind_matrices(rot0: np.ndarray, root0: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """(24, 4, 4): each joint node's world matrix in the glTF file at the pose rot0 (24, 3, 3), root0 (3,) m,
+    i.e. the y-up root node's turn times our FK (z-up) global transform of the joint."""
+    P, G = forward_kinematics(rot0, root0, offsets)
+    M = np.tile(np.eye(4), (NUM_JOINTS, 1, 1))
+    M[:, :3, :3], M[:, :3, 3] = G, P
+    W = np.eye(4)
+    W[:3, :3] = Rotation.from_quat(Z_UP_TO_Y_UP).as_matrix()
+    return W @ M
 
 
 def _split_pose(pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -191,15 +211,29 @@ def write_glb(path: str | Path, rot: np.ndarray, root: np.ndarray, offsets: np.n
     quats = _continuous(Rotation.from_matrix(rot.reshape(-1, 3, 3)).as_quat().reshape(T, NUM_JOINTS, 4))
     joint_node: list[int] = []
     for j in range(NUM_JOINTS):  # parents precede children in our joint order
-        bones = _bone_mesh(j, offsets)
         n = g.node(name=JOINT_NAMES[j], translation=(root[0] if j == 0 else offsets[j]).tolist(),
-                   rotation=quats[0, j].tolist(), mesh=None if bones is None else g.mesh(bones, f"body_{JOINT_NAMES[j]}", "body"))
+                   rotation=quats[0, j].tolist())
         joint_node.append(n)
         parent = world if j == 0 else joint_node[PARENTS[j]]
         g.gltf["nodes"][parent].setdefault("children", []).append(n)
         if j == 0:
             animate(n, "translation", root)
         animate(n, "rotation", quats[:, j])
+    # one skinned body (glTF 2.0 §3.7.3): every bone's capsule bound rigidly to its joint at the frame-0 pose
+    bind = _bind_matrices(rot[0], root[0], offsets)  # (24, 4, 4) glTF world of each joint node at frame 0
+    parts, owner = [], []
+    for j in range(NUM_JOINTS):
+        bones = _bone_mesh(j, offsets)
+        if bones is not None:
+            parts.append(bones.copy().apply_transform(bind[j]))
+            owner.append(np.full(len(bones.vertices), j))
+    body = trimesh.util.concatenate(parts)
+    ibm = np.linalg.inv(bind).transpose(0, 2, 1).reshape(NUM_JOINTS, 16)  # column-major MAT4
+    skin = {"name": "body_skeleton", "joints": joint_node, "skeleton": joint_node[0],
+            "inverseBindMatrices": g.accessor(ibm.astype(np.float32), "MAT4")}
+    g.gltf["skins"] = [skin]
+    body_node = g.node(name="body", mesh=g.mesh(body, "body", "body", joints=np.concatenate(owner)), skin=0)
+    g.gltf["scenes"][0]["nodes"].append(body_node)  # a skinned mesh's own node transform is unused: a root node
     if samplers:
         g.gltf["animations"] = [{"name": "motion", "samplers": samplers, "channels": channels}]
     data = g.to_bytes()

@@ -30,14 +30,15 @@ from pathlib import Path
 import numpy as np
 from trumans.summary import print_summary
 from trumans import argtypes
+from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
 
 __all__ = ["add_arguments", "run", "simulate_drift", "evaluate"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", nargs="*", default=[], metavar="[DOF=]CHECKPOINT",
-                   help="contact checkpoint (default: the shipped models/contacts.pt, one model with a class head), "
-                        "or DOF=CHECKPOINT for each dof class (slide, hinge, free) to evaluate one model per class")
+    add_checkpoint_arguments(p, "contact checkpoint (default: the shipped models/contacts.pt, one model with a class "
+                                "head), or DOF=CHECKPOINT for each dof class (slide, hinge, free) to evaluate one model "
+                                "per class", many=True, metavar="[DOF=]CHECKPOINT")
     p.add_argument("--data", default=None, help="dataset folder (default: a held-out synthetic set built here)")
     p.add_argument("--split", default="test", help="split of --data (default test)")
     p.add_argument("--rooms", type=int, default=4, help="rooms of the held-out set built without --data (default 4)")
@@ -181,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-seqs and --rooms must be >= 1, got {args.max_seqs}, {args.rooms}")
     if args.stride < 1 or args.stride % 2 == 0:
         raise ValueError(f"--stride must be an odd number >= 1, got {args.stride}")
-    model = load_contact_models(args.checkpoint)
+    model = load_contact_models(resolve_checkpoint(args))
     with tempfile.TemporaryDirectory(prefix="trumans_eval_contacts_") as tmp:
         if args.data is None:
             from trumans.synth.build import SynthConfig, build_dataset

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from trumans.summary import print_summary
 from trumans import argtypes
+from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
 
 __all__ = ["add_arguments", "run", "evaluate_checkpoint"]
 
@@ -42,7 +43,7 @@ def evaluate_checkpoint(path: str, data: str | None = None, ema: bool = True, se
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", help="RUN/checkpoint.pt written by `trumans train`")
+    add_checkpoint_arguments(p, "RUN/checkpoint.pt written by `trumans train`")
     p.add_argument("--data", default=None, help="dataset folder (default: the one recorded in the checkpoint)")
     p.add_argument("--raw", action="store_true", help="evaluate the raw weights instead of the EMA weights")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (validation noise is fixed regardless)")
@@ -51,6 +52,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Bad input raises ValueError / FileNotFoundError: the console script prints it as ``trumans: error: ...``."""
+    if resolve_checkpoint(args) is None:
+        raise ValueError("give the checkpoint to evaluate: --checkpoint RUN/checkpoint.pt")
     res = evaluate_checkpoint(args.checkpoint, args.data, ema=not args.raw, seed=args.seed)
     print(f"val loss {res['val_loss']:.4f} (zero baseline {res['val_loss_zero_baseline']:.4f}, "
           f"ratio {res['val_ratio']:.3f}) on {res['val_episodes']} episodes")

@@ -61,3 +61,27 @@ def test_cmu_mb_neck_and_clavicles_on_spine1_get_length():
     for side in ("left", "right"):  # the clavicle lies between the chest and the shoulder
         c, s = out[0, JOINT_INDEX[f"{side}_collar"]], out[0, JOINT_INDEX[f"{side}_shoulder"]]
         assert np.linalg.norm(c - out[0, JOINT_INDEX["spine3"]]) > 0.02 and np.linalg.norm(c - s) > 0.02
+
+
+def test_joint_resampling_keeps_the_bone_lengths_of_a_fast_swing():
+    """A leg swinging fast about the hip: a low-pass of positions alone shortens the shin and foot;
+    ``resample_joints_smooth`` keeps every bone's length and the swing's slow part."""
+    from trumans.resample import resample_joints_smooth
+
+    t = np.arange(96) / 24.0
+    keys = np.broadcast_to(REST_JOINTS, (len(t), 24, 3)).copy()
+    hip, knee, ankle, foot = (JOINT_INDEX[f"left_{n}"] for n in ("hip", "knee", "ankle", "foot"))
+    angle = 0.6 * np.sin(2 * np.pi * 4.0 * t)  # 4 Hz swing about the hip's x axis, partly above the cutoff
+    c, s = np.cos(angle), np.sin(angle)
+    for j in (knee, ankle, foot):
+        v = REST_JOINTS[j] - REST_JOINTS[hip]
+        keys[:, j] = REST_JOINTS[hip] + np.stack([np.full_like(c, v[0]), c * v[1] - s * v[2], s * v[1] + c * v[2]], -1)
+    rest = np.linalg.norm(REST_JOINTS[1:] - REST_JOINTS[np.asarray(PARENTS[1:])], axis=-1)
+    out = resample_joints_smooth(keys, 24.0, 30.0)
+    bones = np.linalg.norm(out[:, 1:] - out[:, np.asarray(PARENTS[1:])], axis=-1)
+    np.testing.assert_allclose(bones, np.broadcast_to(rest, bones.shape), atol=1e-9)
+    plain = resample_smooth(keys, 24.0, 30.0)
+    shin = np.linalg.norm(plain[:, ankle] - plain[:, knee], axis=-1)
+    assert rest[ankle - 1] - shin.min() > 0.002  # what the plain low-pass would have done
+    with pytest.raises(ValueError, match=r"\(T, 24, 3\)"):
+        resample_joints_smooth(np.zeros((10, 23, 3)), 24.0, 30.0)

@@ -2,8 +2,8 @@
 
 Each clip is converted once (``scripts/build_mocap_corpus.py``) from the raw CMU files: imported
 through ``trumans.importers.fbx`` / ``trumans.bvh`` with the Daz / CMU joint maps, the converter's
-synthetic T-pose first frame dropped, resampled to 30 fps (cubic spline; 120 fps sources
-low-passed first), feet put on the floor, and labelled per frame with ``trumans.motion_labels``.
+synthetic T-pose first frame dropped, resampled once to 30 fps (``trumans.resample.resample_joints_smooth``: a zero-phase
+6 Hz low-pass against the keys' marker noise, a cubic spline, bone lengths kept), feet put on the floor, and labelled per frame with ``trumans.motion_labels``.
 Joints are stored losslessly to 0.1 mm: quantised to int (1e-4 m), the first frame and first
 velocity as int32, the rest as int16 second differences (zlib-compressed), so the corpus is a
 few MB. Clips of the held-out CMU subjects (``split ==
@@ -164,15 +164,15 @@ def source_joints(path: str | Path) -> tuple[np.ndarray, float]:
 
 def convert_clip(path: str | Path, name: str, description: str = "", fps: float = 30.0) -> MocapClip:
     """Convert one raw CMU file (.fbx or .bvh) into a corpus clip (joints only: no rotation fit):
-    its keys (``source_joints``) resampled once to ``fps`` (``trumans.resample.resample_smooth``),
+    its keys (``source_joints``) resampled once to ``fps`` (``trumans.resample.resample_joints_smooth``),
     feet on the floor, stored to 0.1 mm, labelled per frame."""
     from .importers.joint_maps import place_on_floor
     from .motion_labels import label_states
-    from .resample import resample_smooth
+    from .resample import resample_joints_smooth
     from .sequence import Sequence
 
     keys, src_fps = source_joints(path)
-    joints = resample_smooth(keys, src_fps, fps)
+    joints = resample_joints_smooth(keys, src_fps, fps)
     seq = place_on_floor(Sequence(joints=joints.astype(np.float32), fps=float(fps)), True, source=str(path))
     joints = decode_joints(*encode_joints(seq.joints))  # what the corpus stores
     subject = name.split("_")[0]

@@ -22,7 +22,8 @@ from .limits import check_fps, check_frames
 from .rotations import matrix_to_6d, sixd_to_matrix
 from .sequence import ObjectTrack, Sequence
 
-__all__ = ["resample_times", "resample_sequence", "resample_smooth", "interp_rotations", "HUMAN_MOTION_CUTOFF_HZ"]
+__all__ = ["resample_times", "resample_sequence", "resample_smooth", "resample_joints_smooth", "interp_rotations",
+           "HUMAN_MOTION_CUTOFF_HZ"]
 
 HUMAN_MOTION_CUTOFF_HZ = 6.0  # low-pass cutoff of raw capture keys (Winter, see the module doc)
 
@@ -55,6 +56,28 @@ def resample_smooth(keys: np.ndarray, fps_in: float, fps_out: float,
     if pad >= 6:
         x = sosfiltfilt(sos, x, axis=0, padtype="odd", padlen=pad)
     return CubicSpline(np.arange(len(x)), x, axis=0)(t_out)
+
+
+def resample_joints_smooth(keys: np.ndarray, fps_in: float, fps_out: float,
+                           cutoff_hz: float = HUMAN_MOTION_CUTOFF_HZ) -> np.ndarray:
+    """Raw joint keys (T, 24, 3) m at ``fps_in`` -> (T_out, 24, 3) float64 at ``fps_out``: every joint
+    through ``resample_smooth``, then the bones put back to their lengths (the keys' per-frame
+    lengths, resampled the same way), from the root down along the filtered bone directions. A
+    low-pass of positions alone shortens fast-turning bones (a toe in its swing, ~1 cm); the bone
+    lengths of the keys are kept (a rigid rig's stay constant)."""
+    from .skeleton import NUM_JOINTS, PARENTS
+
+    x = np.asarray(keys, np.float64)
+    if x.ndim != 3 or x.shape[1:] != (NUM_JOINTS, 3):
+        raise ValueError(f"keys must be (T, {NUM_JOINTS}, 3) joints, got {x.shape}")
+    par = np.asarray(PARENTS)
+    f = resample_smooth(x, fps_in, fps_out, cutoff_hz)
+    lengths = resample_smooth(np.linalg.norm(x[:, 1:] - x[:, par[1:]], axis=-1), fps_in, fps_out, cutoff_hz)
+    out = f.copy()
+    for j in range(1, NUM_JOINTS):  # parents come first
+        d = f[:, j] - f[:, par[j]]
+        out[:, j] = out[:, par[j]] + lengths[:, j - 1, None] * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+    return out
 
 
 def _lerp(x: np.ndarray, src: np.ndarray) -> np.ndarray:

@@ -258,6 +258,11 @@ def test_sample_sits_on_a_found_seat(room, tmp_path, capsys):
     assert sc.walkmap.query(walk.path[-1][None])[0] and np.linalg.norm(walk.path[-1] - seat[:2]) < 0.8
     np.testing.assert_allclose(sit.goal, seat[:2], atol=1e-6)
     assert sit.info["seat_height"] == pytest.approx(CHAIR_H, abs=0.02) and abs(sit.heading) < np.radians(5)
+    from trumans.sample.generate import default_plan
+
+    default = plan_from_dict(default_plan(sc))  # the default plan sits on a found seat and compiles
+    assert default.steps[0].kind == "sit_on" and sc.scene.objects[default.steps[0].object].name.startswith("seat_")
+    compile_plan(default, sc.scene, sc.walkmap, np.asarray(default.start), {}, 10.0, vocabulary=["walk", "sit_down", "sit"])
 
     ck = tmp_path / "gen.pt"
     save_checkpoint(ck, tiny_checkpoint())

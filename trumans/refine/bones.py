@@ -11,7 +11,7 @@ per-frame errors average out. So:
   zero-mean jitter; the median over frames of the smoothed length is then taken (robust to spikes,
   swaps and dropouts); the remaining jitter's bias (the length of a noisy difference is longer than
   the bone: E|d + n|^2 = |d|^2 + 3 s^2) is removed with the smoothed jitter's variance s^2 measured
-  from the input (its high-frequency residual, ``trumans.refine.gate.input_noise``);
+  from the input (its high-frequency residual, ``trumans.refine.gate.noise_level``);
 - ``project_bone_lengths`` moves the refined joints as little as it can onto those lengths: a few
   rounds of projecting each bone onto its length by moving both its ends half way each (position-
   based dynamics, Gauss-Seidel over the bones, parents first), then one exact pass from the root

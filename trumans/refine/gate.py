@@ -33,7 +33,7 @@ from trumans.skeleton import NUM_JOINTS
 
 from trumans.refine.frame import fill_missing_joints
 
-__all__ = ["GateConfig", "input_noise", "noise_level", "spike_mask", "gate_weights", "gate_joints"]
+__all__ = ["GateConfig", "input_noise", "noise_level", "gate_weights", "gate_joints"]
 
 _RES_STD = np.sqrt(1.0 - 7.0 / 21.0)  # residual std of SG(7, 3) on white noise, per unit noise std
 _NORM_MEDIAN = 1.5382  # median of the norm of a 3D standard normal: sqrt(chi2_3 median 2.366)
@@ -109,13 +109,6 @@ def noise_level(tracked: np.ndarray) -> np.ndarray:
     with np.errstate(all="ignore"):
         med = np.nanmedian(r, axis=0) if seen.any() else np.zeros(NUM_JOINTS)
     return np.nan_to_num(med) / (_NORM_MEDIAN * _RES_STD)
-
-
-def spike_mask(tracked: np.ndarray, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
-    """(T, 24) bool: observed entries of tracked joints (T, 24, 3) m whose cubic-fit residual exceeds
-    ``spike_sigmas`` times the local jitter plus ``spike_m`` (an outlier the input is not trusted on)."""
-    noise, r, seen = _noise_residual(_check(tracked), fps, config)
-    return seen & (r > config.spike_sigmas * _RES_STD * noise + config.spike_m)
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:

@@ -173,6 +173,11 @@ def test_viewer_plays_in_headless_chromium(tmp_path, capsys):
     assert len(a) > 300 and len(b) > 300, (len(a), len(b))  # both bodies drawn
     # between t0 (still standing) and t1 (frame 57) the bodies walked 1.39 m along +x: their pixels moved right
     assert b[:, 0].mean() - a[:, 0].mean() > 15
+    # the joints in contact are drawn as red spheres (no other red in this page: actions are orange and green)
+    for png in ("a.png", "b.png"):
+        img = imageio.imread(tmp_path / png)[:h, :, :3].astype(int)
+        red = (img[..., 0] > 190) & (img[..., 1] < 70) & (img[..., 2] < 70)
+        assert red.sum() > 10, png
     # the page's projected pelvis (at t1) lies on a drawn body: body pixels around it
     for px, py in status["pelvis_px"]:
         near = b[(np.abs(b[:, 0] - px) < 40) & (np.abs(b[:, 1] - py) < 60)]

@@ -287,7 +287,7 @@ function updateStatus() {
 // page costs nothing, which matters in software-rendering (headless) browsers
 let last = performance.now();
 function loop(now) {
-  const dt = Math.min((now - last) / 1000, 0.25);
+  const dt = Math.min(Math.max((now - last) / 1000, 0), 0.25);  // s; a rAF stamp may precede `last`
   last = now;
   if (playing) apply(t + dt * speed > DATA.duration ? 0 : t + dt * speed);
   if (dirty) {

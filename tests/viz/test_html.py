@@ -15,7 +15,7 @@ import trimesh
 
 from trumans.actions import ActionInterval, labels_from_intervals
 from trumans.cli import main as cli_main
-from trumans.sequence import Sequence, save_sequence
+from trumans.sequence import ObjectTrack, Sequence, save_sequence
 from trumans.skeleton import JOINT_NAMES, REST_JOINTS
 from trumans.viz import SceneView
 from trumans.viz.html import THREE_MODULES, action_segments, three_import_map, write_html
@@ -81,13 +81,23 @@ def test_import_map_is_complete_and_versioned():
 
 
 def test_page_is_self_contained(tmp_path):
-    out = write_html([walking()], tmp_path / "v.html", [SceneView(static=[room_mesh()], dynamic={})], ["walk"])
+    seq = walking()
+    pose = np.tile(np.eye(4), (T, 1, 1))
+    pose[:, :3, 3] = seq.joints[:, JOINT_NAMES.index("right_wrist")]
+    seq.objects["box_0"] = ObjectTrack(pose=pose, category="box")  # tracked; the scene has no mesh for it
+    out = write_html([seq], tmp_path / "v.html", [SceneView(static=[room_mesh()], dynamic={})], ["walk"])
     page = out.read_text()
     # nothing is fetched: no src/href attribute, no http(s) URL outside comments and licence text
     assert not re.search(r"""<(script|link|img)[^>]*\s(src|href)=""", page)
     data = json.loads(re.search(r'<script type="application/json" id="trumans-data">(.*?)</script>', page, re.S).group(1))
     (s,) = data["sequences"]
-    assert base64.b64decode(s["glb"])[:4] == b"glTF"
+    glb = base64.b64decode(s["glb"])
+    assert glb[:4] == b"glTF"
+    gltf = json.loads(glb[20:20 + int.from_bytes(glb[12:16], "little")])
+    names = {n.get("name") for n in gltf["nodes"]}
+    assert {"static_0", "box_0", "pelvis"} <= names  # the scene, the marker cube of the tracked box, the body
+    assert any(c["target"]["node"] == [n.get("name") for n in gltf["nodes"]].index("box_0")
+               for c in gltf["animations"][0]["channels"])
     assert s["frames"] == T and s["segments"] == [[0, 20, "stand"], [20, T, "walk"]]
     assert s["goals"] == [[T - 1, 0.75, 0.0, 0.9, "pelvis"]]
     assert np.frombuffer(base64.b64decode(s["contacts"]), np.uint8).reshape(T, 24)[0, JOINT_NAMES.index("left_foot")] == 1
@@ -110,6 +120,10 @@ def test_bad_input(tmp_path):
     bad = walking()
     bad.extra["goals"] = np.zeros((2, 3))
     with pytest.raises(ValueError, match="goals"):
+        write_html([bad], tmp_path / "v.html")
+    bad = walking()
+    bad.objects["box_0"] = ObjectTrack(pose=np.full((T, 4, 4), np.nan), category="box")
+    with pytest.raises(ValueError, match="box_0"):
         write_html([bad], tmp_path / "v.html")
     with pytest.raises(ValueError, match=r"\.html"):
         cli_main(["view", str(tmp_path / "x.npz"), "--html", str(tmp_path / "v.txt")])

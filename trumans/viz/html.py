@@ -42,12 +42,13 @@ from trumans.viz.export import skeleton_motion
 from trumans.viz.glb import write_glb
 from trumans.viz.render import SceneView
 
-__all__ = ["GAP_M", "THREE_MODULES", "ViewerSequence", "action_segments", "check_html_path", "three_import_map",
+__all__ = ["GAP_M", "MARKER_CUBE_M", "THREE_MODULES", "ViewerSequence", "action_segments", "check_html_path", "three_import_map",
            "viewer_sequence", "write_html"]
 
 VENDOR_DIR = Path(__file__).resolve().parent / "vendor" / "three"
 PAGE_DIR = Path(__file__).resolve().parent / "viewer"
 GAP_M = 1.0  # m between the bounding boxes of side-by-side sequences
+MARKER_CUBE_M = 0.1  # m, edge of the cube drawn for a tracked object without a mesh
 # import specifier -> vendored file (path inside the three npm package); "three/addons/" is examples/jsm/
 THREE_MODULES: dict[str, str] = {
     "three": "build/three.module.min.js",
@@ -168,7 +169,8 @@ def _goals(seq: Sequence) -> tuple[np.ndarray, list[str]]:
 def viewer_sequence(seq: Sequence, scene: SceneView | None, title: str = "") -> ViewerSequence:
     """Build the page's data for ``seq`` drawn in ``scene`` (static meshes; dynamic meshes posed
     by the sequence's ``objects/<name>/pose``, else at their scene pose ``scene.dynamic_pose``, else
-    not drawn). The body's rotations come from ``trumans.viz.export.skeleton_motion``."""
+    not drawn; an object the sequence tracks but the scene has no mesh for is a ``MARKER_CUBE_M``
+    cube at its pose). The body's rotations come from ``trumans.viz.export.skeleton_motion``."""
     seq.validate()
     if seq.allow_missing and np.isnan(seq.joints).any():
         raise ValueError(f"sequence {title!r} has missing (NaN) joints; refine it first (`trumans refine`) "
@@ -181,6 +183,12 @@ def viewer_sequence(seq: Sequence, scene: SceneView | None, title: str = "") -> 
         static.update({name: m.copy().apply_transform(scene.dynamic_pose[name]) for name, m in scene.dynamic.items()
                        if name not in seq.objects and name in scene.dynamic_pose})
         objects = {name: (m, seq.objects[name].pose) for name, m in scene.dynamic.items() if name in seq.objects}
+    for name, track in seq.objects.items():
+        if not np.isfinite(track.pose).all():
+            raise ValueError(f"sequence {title!r}: objects/{name}/pose has missing (NaN) or infinite entries; refine "
+                             f"it first (`trumans refine`) and view the refined sequence")
+        if name not in objects:  # tracked, but the scene has no mesh for it: a marker cube shows the track
+            objects[name] = (trimesh.creation.box((MARKER_CUBE_M,) * 3), track.pose)
     rot, root, off = skeleton_motion(seq)
     with tempfile.TemporaryDirectory(prefix="trumans_html_") as tmp:
         glb = write_glb(Path(tmp) / "seq.glb", rot, root, off, seq.fps, static_meshes=static,

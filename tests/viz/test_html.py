@@ -171,9 +171,14 @@ def test_viewer_plays_in_headless_chromium(tmp_path, capsys):
     runs = [chromium(f"{url}#t={t1}&paused&size={size}", "--dump-dom"),
             chromium(f"{url}#t={t0}&paused&size={size}", f"--screenshot={tmp_path / 'a.png'}"),
             chromium(f"{url}#t={t1}&paused&size={size}", f"--screenshot={tmp_path / 'b.png'}")]
-    dom = runs[0].communicate(timeout=180)[0]
-    for r in runs[1:]:
-        r.wait(timeout=180)
+    try:
+        dom = runs[0].communicate(timeout=180)[0]
+        for r in runs[1:]:
+            r.wait(timeout=180)
+    finally:
+        for r in runs:
+            if r.poll() is None:
+                r.kill()
     status = json.loads(htmllib.unescape(re.search(r'<pre id="status">(.*?)</pre>', dom, re.S).group(1)))
     assert status["errors"] == [] and status["warnings"] == [], status
     assert status["ready"] and status["sequences"] == 2 and not status["playing"]

@@ -5,8 +5,10 @@ Outcomes: ``clean`` (exit 2, exactly one ``trumans: error:`` line that names wha
 requires, no traceback), ``unclear`` (the one channel, but the message does not name the problem),
 ``other`` (another prefix, no message, or exit 1 via SystemExit), ``bug-line`` (the one-line "this
 is a bug" report of an unexpected exception), ``traceback`` (an exception escapes), ``silent``
-(exit 0, or a wrong result, where the case must fail or behave otherwise), ``ok`` (a case whose
-right answer is to succeed, and it did). Usage::
+(exit 0, or a wrong result, where the case must fail or behave otherwise; also a refused run that
+leaves its --out behind), ``hang`` (no end within the case's timeout), ``ok`` (a case whose right
+answer is to succeed, and it did). The fixture is a one-room procedural dataset (``--real-share 0``:
+no mocap takes, a few seconds to build). Usage::
 
     python benchmarks/bad_input_survey.py [--work /tmp/survey] [--only PREFIX]
 """
@@ -69,7 +71,7 @@ def call(argv: list[str], timeout: int = 60) -> tuple[int | str, str, str]:
 
 def classify_error(rc, err: str, must: tuple[str, ...]) -> str:
     if rc == "hang":
-        return "silent"
+        return "hang"
     if isinstance(rc, str):
         return "traceback"
     if rc == 0:
@@ -94,7 +96,7 @@ def classify_error(rc, err: str, must: tuple[str, ...]) -> str:
 
 def _synth(path: Path, seed: int = 0) -> None:
     rc, _, err = call(["data", "synth", "--out", path, "--hours", "0.01", "--rooms", "1", "--seed", seed,
-                       "--workers", "1", "--json"], timeout=300)
+                       "--workers", "1", "--real-share", "0", "--json"], timeout=300)
     if rc != 0:
         raise RuntimeError(f"fixture synth failed: {err[-2000:]}")
 
@@ -154,8 +156,16 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
 
     def err(name: str, argv_fn, *must: str, timeout: int = 60) -> None:
         def thunk():
-            rc, _, e = call(argv_fn(), timeout)
-            return classify_error(rc, e, must), e.strip().splitlines()[-1:] if e.strip() else [f"rc={rc}"]
+            argv = [str(a) for a in argv_fn()]
+            out = Path(argv[argv.index("--out") + 1]) if "--out" in argv[:-1] else None
+            watch = [] if out is None else [p for p in (out, out.parent, out.with_suffix(".npz")) if not p.exists()]
+            rc, _, e = call(argv, timeout)
+            note = e.strip().splitlines()[-1:] if e.strip() else [f"rc={rc}"]
+            outcome = classify_error(rc, e, must)
+            left = [p for p in watch if p.exists()]
+            if outcome == "clean" and left:  # a refused run leaves the disk as it was
+                return "silent", [f"refused, but left {left[0]} behind"]
+            return outcome, note
         cases.append((name, thunk))
 
     def custom(name: str, fn) -> None:
@@ -176,7 +186,7 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
     def synth_out_is_file():
         f = w / "afile"
         f.write_text("x")
-        rc, _, e = call(["data", "synth", "--out", f, "--hours", "0.01", "--rooms", "1", "--workers", "1"])
+        rc, _, e = call(["data", "synth", "--out", f, "--hours", "0.01", "--rooms", "1", "--workers", "1", "--real-share", "0"])
         return classify_error(rc, e, (str(f),)), e.strip().splitlines()[-1:]
     custom("synth --out is a file", synth_out_is_file)
 
@@ -185,7 +195,7 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
             d = w / tag
             make(d)
             before = (d / "index.json").read_bytes()
-            rc, _, e = call(["data", "synth", "--out", d, "--hours", "0.01", "--rooms", "1", "--workers", "1"],
+            rc, _, e = call(["data", "synth", "--out", d, "--hours", "0.01", "--rooms", "1", "--workers", "1", "--real-share", "0"],
                             timeout=300)
             changed = (d / "index.json").read_bytes() != before
             if rc == 0 or changed:
@@ -193,10 +203,10 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
             return classify_error(rc, e, ("--overwrite",)), e.strip().splitlines()[-1:]
         return thunk
     custom("synth into another dataset (import)", synth_into_foreign(
-        "s_foreign", lambda d: call(["data", "import", BVH, "--format", "bvh", "--out", d])))
+        "s_foreign", lambda d: call(["data", "import", BVH, "--format", "bvh", "--out", d], timeout=300)))
     custom("synth into a synth of another seed", synth_into_foreign(
         "s_seed", lambda d: call(["data", "synth", "--out", d, "--hours", "0.01", "--rooms", "1", "--seed", "7",
-                                  "--workers", "1"], timeout=300)))
+                                  "--workers", "1", "--real-share", "0"], timeout=300)))
 
     # ---- data import
     err("import: release folder missing", lambda: ["data", "import", w / "nope", "--format", "trumans", "--out",
@@ -522,6 +532,117 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
     err("unknown command", lambda: ["frobnicate"], "frobnicate")
     err("sample without --out", lambda: ["sample"], "--out")
     err("augment --variations abc", lambda: aug("a_abc")() + ["--variations", "abc"], "--variations")
+
+    # ---- size budgets (issue 39 point 3): refused before allocating, naming the limit
+    def toml(text):
+        def fn():
+            p = w / f"cfg{abs(hash(text)) % 10000}.toml"
+            p.write_text(text + "\n")
+            return ["train", "--config", p, "--data", base, "--out", w / "t_size"]
+        return fn
+    for text, must in (("[data]\ngrid = 1024", "MAX_GRID"), ("[model]\nd_model = 1048576", "MAX_PARAMETERS"),
+                       ("[model]\nheads = 0", "heads"), ("[model]\nlayers = 0", "layers"),
+                       ("[scene]\nheads = 7", "heads"), ("[train]\nbatch_size = 1000000000", "MAX_BATCH"),
+                       ("[train]\nbatch_size = 60000", "MAX_BATCH_BYTES")):
+        err(f"train config {text.replace(chr(10), ' ')}", toml(text), must)
+    err("synth --rooms 1000000", lambda: ["data", "synth", "--out", w / "s_big", "--rooms", "1000000"], "MAX_ROOMS")
+    err("synth --hours 1e9", lambda: ["data", "synth", "--out", w / "s_bigh", "--hours", "1e9"], "MAX_SYNTH_HOURS")
+    err("eval augment --cases 100000", lambda: ["eval", "augment", "--cases", "100000"], "MAX_CASES")
+    err("eval augment --max-seqs 1e7", lambda: ["eval", "augment", "--data", base, "--max-seqs", "10000000"],
+        "MAX_EVAL_SEQUENCES")
+    err("sample --num-samples 1000000", lambda: ["sample", "--out", w / "smp" / "x", "--num-samples", "1000000"],
+        "MAX_SAMPLES")
+
+    # ---- eval synthesis: every argument checked before sampling (each case would sample for minutes)
+    for extra, must in ((["--ablation", "noname"], "NAME=CHECKPOINT"),
+                        (["--ablation", f"a={w / 'none.pt'}"], "none.pt"),
+                        (["--motion-encoder", w / "enc.pt", "--data", base], "enc.pt"),
+                        (["--data", w / "nodata"], "nodata"), (["--data", base], "test split"),
+                        (["--save-windows", w / "no" / "w.npz"], "--save-windows"),
+                        (["--steps", "100000"], "--steps"), (["--naive-episodes", "100000"], "--naive-episodes")):
+        err(f"eval synthesis {' '.join(str(x) for x in extra)[-40:]}", lambda x=extra: ["eval", "synthesis", *x], must,
+            timeout=90)
+
+    # ---- inputs that are not regular files: a FIFO never ends a read, a folder or device is not a file
+    def special(kind):
+        p = w / f"special_{kind}"
+        if not p.exists() and not p.is_fifo():
+            if kind == "fifo":
+                os.mkfifo(p)
+            else:
+                p.mkdir()
+        return p
+    for kind in ("fifo", "dir"):
+        err(f"import bvh is a {kind}", lambda k=kind: ["data", "import", special(k), "--format", "bvh", "--out",
+                                                       w / f"sp_i_{k}"], "special_" + kind, "not a file", timeout=20)
+        err(f"import fbx is a {kind}", lambda k=kind: ["data", "import", special(k), "--format", "fbx", "--out",
+                                                       w / f"sp_f_{k}"], "not a file", timeout=20)
+        err(f"view sequence is a {kind}", lambda k=kind: ["view", special(k), "--out", w / f"sp_v_{k}"],
+            "not a file", timeout=20)
+        err(f"train --config is a {kind}", lambda k=kind: ["train", "--config", special(k), "--data", base, "--out",
+                                                           w / f"sp_t_{k}"], "not a", timeout=20)
+        err(f"eval train checkpoint is a {kind}", lambda k=kind: ["eval", "train", special(k)], "not a file",
+            timeout=20)
+        err(f"augment --data is a {kind}" if kind == "fifo" else "augment --data is a folder without index",
+            lambda k=kind: ["augment", "--data", special(k), "--out", w / f"sp_a_{k}"], "special_" + kind, timeout=20)
+    err("import bvh is /dev/zero", lambda: ["data", "import", "/dev/zero", "--format", "bvh", "--out", w / "sp_z"],
+        "device", timeout=20)
+    err("import --action-names is a fifo", lambda: ["data", "import", _release(w / "rel_an"), "--format", "trumans",
+                                                    "--out", w / "sp_an", "--action-names", special("fifo")],
+        "not a file", timeout=20)
+
+    # ---- JSON / TOML nested past Python's recursion limit
+    deep_json = "[" * 100_000 + "]" * 100_000
+    def deep_toml():
+        p = w / "deep.toml"
+        p.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+        return ["train", "--config", p, "--data", base, "--out", w / "t_deep"]
+    err("train --config nested 5000 deep", deep_toml, "deep.toml", "nest")
+    def deep_index():
+        d = D("deep_index")
+        (d / "index.json").write_text(deep_json)
+        return ["augment", "--data", d, "--out", w / "a_deep"]
+    err("augment index.json nested 100000 deep", deep_index, "index.json", "recursion")
+    def deep_scene():
+        d = D("deep_scene")
+        (next((d / "scenes").iterdir()) / "scene.json").write_text(deep_json)
+        return ["view", next((d / "sequences").glob("*.npz")), "--no-animation", "--out", w / "v_deep"]
+    err("view scene.json nested 100000 deep", deep_scene, "scene.json", "recursion")
+    def deep_map():
+        p = w / "deep_map.json"
+        p.write_text(deep_json)
+        return ["data", "import", BVH, "--format", "bvh", "--out", w / "i_deep", "--joint-map", p]
+    err("import --joint-map nested 100000 deep", deep_map, "joint-map", "recursion")
+    def deep_plan():
+        p = w / "deep_plan.json"
+        p.write_text(deep_json)
+        return ["sample", "--plan", p, "--out", w / "smp_deep" / "x"]
+    err("sample --plan nested 100000 deep", deep_plan, "deep_plan.json", "recursion")
+
+    # ---- augment: a source listed twice is refused (each is augmented once)
+    err("augment index lists a sequence twice", lambda: ["augment", "--data", _edit_index(
+        D("a_dup"), lambda i: i["splits"].update(train=i["splits"]["train"] * 2)), "--out", w / "a_dup_out",
+        "--workers", "1"], "listed twice")
+    err("augment --splits train train", lambda: aug("a_dup2")() + ["--splits", "train", "train"], "split twice")
+
+    def seat_triangle():
+        import trimesh
+
+        d = D("a_seat")
+        sd = next((d / "scenes").iterdir())
+        seats = [o for o in json.loads((sd / "scene.json").read_text())["objects"]
+                 if o.get("category") in ("sofa", "chair", "stool")]
+        for o in seats:
+            (x0, y0, _), (x1, y1, _) = trimesh.load(sd / o["mesh"], process=False).bounds
+            trimesh.Trimesh([[x0, y0, 0.45], [x1, y0, 0.45], [x0, y1, 0.45]], [[0, 1, 2]], process=False).export(
+                sd / o["mesh"])
+        rc, out, e = call(["augment", "--data", d, "--out", w / "a_seat_out", "--workers", "1", "--variations", "1",
+                           "--json"], 300)
+        if rc != 0:
+            return classify_error(rc, e, ()), e.strip().splitlines()[-1:]
+        s = json.loads(out.strip().splitlines()[-1])
+        return ("silent" if s["skipped"] else "ok"), [f"outputs {s['outputs']}, skipped {s['skipped']}"]
+    custom("augment one-triangle seat meshes keep their contacts", seat_triangle)
     return cases
 
 
@@ -551,6 +672,8 @@ def main() -> int:
         rows.append({"case": name, "outcome": outcome, "note": (note or [""])[-1][:220]})
         print(f"{outcome:>9}  {name:<48} {rows[-1]['note']}", flush=True)
     print(json.dumps({"cases": len(rows), "counts": counts}))
+    if a.json:
+        print(json.dumps(rows))
     return 0
 
 

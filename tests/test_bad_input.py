@@ -320,6 +320,16 @@ def test_eval_synthesis_checks_every_argument_before_sampling(data, tmp_path, ca
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+def test_failed_augment_leaves_no_output_folder(data, tmp_path, capsys):
+    """Every source failing (here: a truncated sequence) writes no sequence: the run fails with one
+    line and removes the --out folder it made, so a corrected rerun is not blocked by it."""
+    d = _copy(data, tmp_path)
+    _truncate(next((d / "sequences").glob("*.npz")))
+    _refused(capsys, ["augment", "--data", d, "--out", tmp_path / "a", "--workers", "1", "--variations", "1"],
+             "failed", ".npz", watch=[d])
+    assert not (tmp_path / "a").exists()
+
+
 def test_augment_source_listed_twice_is_refused(data, tmp_path, capsys):
     """Rule: each source is augmented once; an index listing one twice (or --splits naming a split twice)
     is refused before any work, naming the entry."""

@@ -219,7 +219,8 @@ class DatasetWriter:
     are an empty ``root`` and the current folder or one above it.
     Stale temp files of killed writers are swept. ``save_occupancy`` writes a scene grid through
     ``OccupancyGrid``; ``finish(index)`` adds the content hash and writes ``index.json``.
-    Call it after every input is validated: a refused run changes nothing on disk."""
+    Call it after every input is validated: a refused run changes nothing on disk, and a run that
+    fails before writing any sequence removes the folder if it made it."""
 
     def __init__(self, root: str | Path, command: str, settings: dict, overwrite: bool = False) -> None:
         if not str(root).strip():
@@ -233,6 +234,7 @@ class DatasetWriter:
         self.settings = json.loads(json.dumps(settings, sort_keys=True, default=str))
         self.overwrite = overwrite
         self._lock = None
+        self._created = False
         self.resumed = False
         self.swept = 0
 
@@ -242,6 +244,7 @@ class DatasetWriter:
         if self.root.exists() and not self.root.is_dir():
             raise NotADirectoryError(f"{self.root} is a file; give --out a folder (new or empty)")
         existed = self.root.is_dir()
+        self._created = not existed
         self._lock = FolderLock(self.root, f"trumans {self.command}").acquire()
         try:
             content = sorted(p.name for p in self.root.iterdir() if p.name != LOCK_FILE) if existed else []
@@ -303,6 +306,10 @@ class DatasetWriter:
         if self._lock is not None:
             self._lock.release()
             self._lock = None
+        # a failed run that made the folder and wrote no sequence leaves the disk as it was (nothing to resume)
+        seqs = self.root / "sequences"
+        if exc[0] is not None and self._created and not (seqs.is_dir() and any(seqs.iterdir())):
+            shutil.rmtree(self.root, ignore_errors=True)
 
     def save_occupancy(self, scene_id: str, grid: OccupancyGrid) -> str:
         """Write ``scenes/<scene_id>/occupancy.npz``; returns the scene folder relative to the root."""

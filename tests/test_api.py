@@ -37,11 +37,17 @@ def test_generate_equals_the_command(ckpt_path, tmp_path):
     seq = trumans.generate(plan=plan, scene="room:2", start=(2.4, 2.5), seed=3, checkpoint=ckpt_path,
                            config=None, progress=False)
     rc = console_main(["sample", "--checkpoint", ckpt_path, "--scene", "room:2", "--start", "2.4,2.5", "--goto",
-                       "2.4,3.4", "--seed", "3", "--out", str(tmp_path / "walk"), "--formats", "npz", "--no-progress"])
+                       "2.4,3.4", "--seed", "3", "--out", str(tmp_path / "walk"), "--formats", "npz", "--no-progress",
+                       "--threads", "0"])  # the threads this process has: bit-identical floats
     assert rc == 0
     ref = load_sequence(tmp_path / "walk.npz")
     np.testing.assert_array_equal(seq.joints, ref.joints)
     assert seq.scene == ref.scene == "room:2" and list(seq.action_names) == SAMPLE_VOCAB
+    goals, joints = ref.extra["goals"], ref.extra["goal_joints"]  # every episode's goal, for the viewer
+    assert goals.shape == (len(joints), 4) and len(goals) >= 1 and np.isfinite(goals).all()
+    assert set(joints.tolist()) == {"pelvis"} and (goals[:, 3] == 0).all()  # floor points
+    assert (np.diff(goals[:, 0]) > 0).all() and goals[-1, 0] < seq.num_frames
+    np.testing.assert_allclose(goals[-1, 1:3], [2.4, 3.4], atol=0.35)  # the last subgoal is the plan's goal
 
 
 def test_generate_refuses_bad_arguments_before_sampling(ckpt_path):

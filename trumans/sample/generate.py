@@ -20,12 +20,15 @@ from trumans.scenes.spec import SCENE_UP_KEY
 from trumans.sequence import Sequence
 
 __all__ = ["Generation", "generate_sequences", "default_plan", "resolve_plan", "DEFAULT_CHECKPOINT",
-           "SAMPLER_CONFIG_KEY", "SCENE_UP_KEY", "MAX_SAMPLES"]
+           "SAMPLER_CONFIG_KEY", "SCENE_UP_KEY", "MAX_SAMPLES", "GOALS_KEY", "GOAL_JOINTS_KEY"]
 
 DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
 # the sequence's ``extra`` entry with the sampler config used, JSON (``SamplerConfig.to_dict``);
 # ``SamplerConfig.from_dict(json.loads(...))`` rebuilds it
 SAMPLER_CONFIG_KEY = "sampler_config"
+# every episode's goal: ``extra[GOALS_KEY]`` (K, 4) rows (frame, x, y, z) m, the frame it is due (a pelvis goal
+# is a floor point, z = 0), and ``extra[GOAL_JOINTS_KEY]`` (K,) the joint that reaches it; ``trumans view --html`` draws them
+GOALS_KEY, GOAL_JOINTS_KEY = "goals", "goal_joints"
 
 
 @dataclass
@@ -134,9 +137,12 @@ def generate_sequences(plan=None, scene: str | Path = "default", *, checkpoint: 
         tracks, its, info = object_tracks(result.joints[b], result.phase[b], result.phases, sc.scene)  # §4.2
         if b == 0:
             carry = carry_figures(result.joints[b], tracks, its, info, sc.scene, result.phases)
+        mine = [(f, j, p) for f, s, j, p in result.goals if s == b]
+        goal_rows = np.array([[f, *(np.r_[p, 0.0] if len(p) == 2 else p)] for f, _, p in mine], np.float64).reshape(-1, 4)
         sequences.append(Sequence(joints=result.joints[b], fps=result.fps, actions=result.labels[b],
                                   action_names=list(result.vocabulary), scene=sc.source, objects=tracks,
-                                  extra=dict(extra)))
+                                  extra={**extra, GOALS_KEY: goal_rows,  # (K, 4): frame, x, y, z (a pelvis goal: z = 0)
+                                         GOAL_JOINTS_KEY: np.asarray([j for _, j, _ in mine], dtype=str)}))
     figures = {"plan": the_plan.name, "scene": sc.source, "samples": int(num_samples),
                "frames": int(result.joints.shape[1]), "seconds_of_motion": round(result.joints.shape[1] / result.fps, 2),
                "episodes": result.episodes, "seconds_per_episode": round(result.seconds_per_episode, 4),

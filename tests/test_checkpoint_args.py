@@ -12,6 +12,10 @@ from trumans.cli import build_parser, console_main
     (["eval", "train", "a.pt", "--checkpoint", "b.pt"], "given twice"),
     (["eval", "train"], "--checkpoint"),
     (["eval", "contacts", "x.pt", "--checkpoint", "y.pt"], "given twice"),
+    (["eval", "synthesis", "x.pt", "--checkpoint", "y.pt"], "given twice"),
+    (["eval", "refine", "x.pt", "--checkpoint", "y.pt"], "given twice"),
+    (["eval", "synthesis", "--checkpoint", "missing.pt", "--rooms", "1"], "does not exist"),
+    (["eval", "refine", "--checkpoint", "missing.pt"], "does not exist"),
 ])
 def test_checkpoint_flag_and_positional(argv, msg, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -21,7 +25,7 @@ def test_checkpoint_flag_and_positional(argv, msg, tmp_path, capsys, monkeypatch
 
 
 def test_every_checkpoint_loading_command_has_the_flag():
-    for cmd in (["sample"], ["refine"], ["eval", "train"], ["eval", "contacts"]):
+    for cmd in (["sample"], ["refine"], ["eval", "train"], ["eval", "contacts"], ["eval", "synthesis"], ["eval", "refine"]):
         p = build_parser(cmd)
         sub = p
         for w in cmd:

@@ -42,6 +42,7 @@ dataset's test split). It needs no dataset.
 """
 from __future__ import annotations
 
+from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
 import argparse
 import time
 from dataclasses import replace
@@ -62,7 +63,7 @@ _HANDS = list(HAND_JOINTS)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", nargs="?", default=None, help="filter checkpoint (default: the shipped models/refine.pt)")
+    add_checkpoint_arguments(p, "filter checkpoint (default: the shipped models/refine.pt)")
     p.add_argument("--data", default=None, help="dataset folder with val and test splits (default: the one "
                                                 "recorded in the checkpoint)")
     p.add_argument("--clip", type=int, default=192, help="frames per evaluation clip (default 192)")
@@ -334,6 +335,8 @@ def run_families(args: argparse.Namespace, filt, opts) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from trumans.refine.corrupt import CorruptionConfig, corrupt
+
+    resolve_checkpoint(args)
 
     from trumans.refine.pipeline import HOIFilter, RefineOptions
 

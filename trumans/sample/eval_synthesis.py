@@ -19,6 +19,7 @@ second of sampling. ``fid`` / ``diversity`` / ``action_acc`` use the project's m
 """
 from __future__ import annotations
 
+from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
 import argparse
 import json
 from dataclasses import replace
@@ -43,7 +44,7 @@ REFERENCE_FILE = MODELS_DIR / "synthesis_reference.npz"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", nargs="?", default=None, help="generator checkpoint (default: the shipped one)")
+    add_checkpoint_arguments(p, "generator checkpoint (default: the shipped one)")
     p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
     from trumans.sample.sampler import SamplerConfig
 
@@ -305,6 +306,8 @@ def _check_inputs(args: argparse.Namespace, default_checkpoint: Path) -> list[tu
 
 def run(args: argparse.Namespace) -> int:
     from trumans.sample.cli import DEFAULT_CHECKPOINT
+
+    resolve_checkpoint(args)
 
     if not 1 <= args.rooms <= len(EVAL_ROOM_SEEDS):
         raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")

@@ -19,9 +19,10 @@ def test_set_threads_sets_and_refuses():
             set_threads(bad)
 
 
-def test_sample_has_the_threads_flag_with_the_documented_default():
+@pytest.mark.parametrize("cmd", [["sample", "--out", "x"], ["refine", "t.npz", "--out", "x"], ["eval", "synthesis"]])
+def test_inference_commands_have_the_threads_flag_with_the_documented_default(cmd):
     from trumans.cli import build_parser
 
-    args = build_parser(["sample"]).parse_args(["sample", "--out", "x"])
+    args = build_parser(cmd).parse_args(cmd)
     assert args.threads == INFERENCE_THREADS == 1
     assert build_parser(["sample"]).parse_args(["sample", "--out", "x", "--threads", "2"]).threads == 2

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from trumans.threads import add_threads_argument, set_threads
 from trumans.refine.post_args import add_post_step_arguments, post_steps_config
 from trumans.track import cli as track_cli
 from trumans.summary import print_summary
@@ -34,6 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
     p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="sampling seed")
+    add_threads_argument(p)
     add_post_step_arguments(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.add_argument("--interactions", action="store_true",
@@ -42,6 +44,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    set_threads(args.threads)
     if args.interactions:
         return int(track_cli.run(args) or 0)
     from trumans.sequence import load_sequence, save_sequence

@@ -20,6 +20,7 @@ second of sampling. ``fid`` / ``diversity`` / ``action_acc`` use the project's m
 from __future__ import annotations
 
 from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
+from trumans.threads import add_threads_argument, set_threads
 import argparse
 import json
 from dataclasses import replace
@@ -45,6 +46,7 @@ REFERENCE_FILE = MODELS_DIR / "synthesis_reference.npz"
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_checkpoint_arguments(p, "generator checkpoint (default: the shipped one)")
+    add_threads_argument(p)
     p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
     from trumans.sample.sampler import SamplerConfig
 
@@ -308,6 +310,7 @@ def run(args: argparse.Namespace) -> int:
     from trumans.sample.cli import DEFAULT_CHECKPOINT
 
     resolve_checkpoint(args)
+    set_threads(args.threads)
 
     if not 1 <= args.rooms <= len(EVAL_ROOM_SEEDS):
         raise ValueError(f"--rooms must be in [1, {len(EVAL_ROOM_SEEDS)}], got {args.rooms}")

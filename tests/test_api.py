@@ -55,15 +55,21 @@ def test_generate_refuses_bad_arguments_before_sampling(ckpt_path):
         generate_sequences(None, "room:2", checkpoint=ckpt_path, num_samples=0)
     with pytest.raises(TypeError, match="plan must be"):
         trumans.generate(plan=3.5, scene="room:2", checkpoint=ckpt_path)
-    with pytest.raises(ValueError, match="not on walkable floor"):
-        trumans.generate(plan=[{"do": "goto", "to": [100.0, 100.0]}], scene="room:2", checkpoint=ckpt_path)
 
 
-def test_view_draws_the_scene_a_sample_records(ckpt_path, tmp_path):
+@pytest.fixture(scope="module")
+def sampled_npz(ckpt_path, tmp_path_factory):
+    """A short walk sampled by the command (its npz records the scene it was sampled in)."""
+    out = tmp_path_factory.mktemp("walk") / "walk"
+    assert console_main(["sample", "--checkpoint", ckpt_path, "--scene", "room:2", "--start", "2.4,2.5", "--goto",
+                         "2.4,3.0", "--out", str(out), "--formats", "npz", "--no-progress"]) == 0
+    return out.with_suffix(".npz")
+
+
+def test_view_draws_the_scene_a_sample_records(sampled_npz, tmp_path):
     from trumans.viz.cli import sequence_scene_view
 
-    seq = trumans.generate(plan=[{"do": "goto", "to": [2.4, 3.0]}], scene="room:2", start=(2.4, 2.5),
-                           checkpoint=ckpt_path)
+    seq = load_sequence(sampled_npz)
     view = sequence_scene_view(tmp_path / "x.npz", seq, None, None)
     assert view is not None and len(view.static) > 3  # the room's walls and furniture, not a floating figure
     bounds = np.concatenate([m.bounds for m in view.static])
@@ -76,13 +82,12 @@ def test_view_draws_the_scene_a_sample_records(ckpt_path, tmp_path):
         sequence_scene_view(tmp_path / "x.npz", seq, "room:x", None)
 
 
-def test_view_command_renders_a_sampled_npz_with_its_scene(ckpt_path, tmp_path, capsys):
+def test_view_command_renders_a_sampled_npz_with_its_scene(sampled_npz, tmp_path, capsys):
     import json
+    import shutil
 
-    out = tmp_path / "walk"
-    assert console_main(["sample", "--checkpoint", ckpt_path, "--scene", "room:2", "--start", "2.4,2.5", "--goto",
-                         "2.4,3.0", "--out", str(out), "--formats", "npz", "--no-progress"]) == 0
-    assert console_main(["view", str(out) + ".npz", "--no-animation", "--json"]) == 0
+    npz = shutil.copy(sampled_npz, tmp_path / "walk.npz")  # view writes beside its input
+    assert console_main(["view", str(npz), "--no-animation", "--json"]) == 0
     written = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     from PIL import Image
 

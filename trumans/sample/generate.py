@@ -111,6 +111,8 @@ def generate_sequences(plan=None, scene: str | Path = "default", *, checkpoint: 
         dev = torch.device(device)
     except RuntimeError:
         raise ValueError(f"device {device!r} is not a torch device; use cpu or cuda[:N]") from None
+    if plan is not None and not isinstance(plan, (dict, list, tuple, str, Path)) and type(plan).__name__ != "Plan":
+        raise TypeError(f"plan must be None, a Plan, a dict, a list of steps or a file path, got {type(plan).__name__}")
     config = SamplerConfig() if config is None else config
     ckpt = load_checkpoint(checkpoint or DEFAULT_CHECKPOINT, kind="generator")
     sc = load_sample_scene(None if scene is None else str(scene), up=up)

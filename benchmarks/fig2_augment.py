@@ -22,7 +22,7 @@ from trumans.augment.variations import Variation
 from trumans.scenes.io import save_scene
 from trumans.sequence import save_sequence
 from trumans.skeleton import JOINT_INDEX, bone_lengths
-from trumans.viz.cli import load_scene_view
+from trumans.viz.scene_view import load_scene_view
 from trumans.viz.render import render_animation, render_still
 
 _FEET = [JOINT_INDEX["left_foot"], JOINT_INDEX["right_foot"]]

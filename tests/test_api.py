@@ -67,7 +67,7 @@ def sampled_npz(ckpt_path, tmp_path_factory):
 
 
 def test_view_draws_the_scene_a_sample_records(sampled_npz, tmp_path):
-    from trumans.viz.cli import sequence_scene_view
+    from trumans.viz.scene_view import sequence_scene_view
 
     seq = load_sequence(sampled_npz)
     view = sequence_scene_view(tmp_path / "x.npz", seq, None, None)

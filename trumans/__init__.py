@@ -16,8 +16,8 @@ _API = ("generate", "refine_tracked", "track_interactions")  # trumans.api, impo
 
 
 def __getattr__(name: str):
-    if name in _API:
-        from . import api
+    if name in _API:  # the API sits above every job: imported by name on first use, as trumans.scenes' names
+        import importlib
 
-        return getattr(api, name)
+        return getattr(importlib.import_module("trumans.api"), name)
     raise AttributeError(f"module 'trumans' has no attribute {name!r}")

@@ -12,6 +12,14 @@ import numpy as np
 
 from .intervals import run_bounds
 
+# The action vocabulary of the embedded dataset (``trumans data synth``, and BVH/FBX imports labelled from
+# the motion: ``trumans.importers.labels``); saved with the data, so never assume its order elsewhere.
+SYNTH_ACTIONS: tuple[str, ...] = (
+    "stand", "walk", "turn", "sit_down", "sit", "stand_up", "lie_down", "lie", "get_up",
+    "reach", "grasp", "pick_up", "carry", "put_down", "drink", "phone_call", "type", "use_mouse",
+    "open_door", "close_door", "open_drawer", "close_drawer", "push", "pull",
+)
+
 __all__ = ["ActionInterval", "labels_from_intervals", "intervals_from_labels", "remap_labels"]
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .bvh import CORPUS_FROM_PROJECT_TURN, CORPUS_Y_UP_FROM_Z_UP
+from .importers.labels import drop_tpose_frame  # the converters' T-pose rule, defined with the importers
 from .motion_labels import MOTION_STATES
 from trumans.paths import DATA_DIR
 
@@ -63,18 +64,6 @@ def decode_joints(start: np.ndarray, d2: np.ndarray) -> np.ndarray:
     vel = np.concatenate([start[1:2].astype(np.int64), d2.astype(np.int64)]).cumsum(axis=0)
     q = np.concatenate([start[:1].astype(np.int64), start[:1] + vel.cumsum(axis=0)])
     return (q * QUANTUM_M).astype(np.float32)
-
-
-def drop_tpose_frame(joints: np.ndarray) -> np.ndarray:
-    """Drop frame 0 when it is the converters' synthetic T-pose (arms straight out at shoulder
-    height: wrists > 1.2 m apart and within 10 cm of the shoulders' height)."""
-    from .skeleton import JOINT_INDEX as J
-
-    f = joints[0]
-    span = np.linalg.norm(f[J["left_wrist"]] - f[J["right_wrist"]])
-    level = max(abs(f[J["left_wrist"], 2] - f[J["left_shoulder"], 2]),
-                abs(f[J["right_wrist"], 2] - f[J["right_shoulder"], 2]))
-    return joints[1:] if span > 1.2 and level < 0.10 else joints
 
 
 def write_corpus(path: str | Path, clips: list[MocapClip], meta: dict) -> None:

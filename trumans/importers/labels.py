@@ -11,14 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.actions import ActionInterval, labels_from_intervals
+from trumans.actions import SYNTH_ACTIONS, ActionInterval, labels_from_intervals
 from trumans.intervals import run_bounds
-from trumans.mocap_corpus import drop_tpose_frame
 from trumans.motion_labels import MOTION_STATES, label_states
 from trumans.sequence import Sequence
-from trumans.synth.vocab import SYNTH_ACTIONS
 
-__all__ = ["motion_labels", "label_sequence", "drop_converter_tpose"]
+__all__ = ["motion_labels", "label_sequence", "drop_tpose_frame", "drop_converter_tpose"]
 
 
 def motion_labels(joints: np.ndarray, fps: float) -> np.ndarray:
@@ -40,9 +38,21 @@ def label_sequence(seq: Sequence) -> Sequence:
     return seq
 
 
+def drop_tpose_frame(joints: np.ndarray) -> np.ndarray:
+    """Drop frame 0 when it is the converters' synthetic T-pose (arms straight out at shoulder
+    height: wrists > 1.2 m apart and within 10 cm of the shoulders' height)."""
+    from trumans.skeleton import JOINT_INDEX as J
+
+    f = joints[0]
+    span = np.linalg.norm(f[J["left_wrist"]] - f[J["right_wrist"]])
+    level = max(abs(f[J["left_wrist"], 2] - f[J["left_shoulder"], 2]),
+                abs(f[J["right_wrist"], 2] - f[J["right_shoulder"], 2]))
+    return joints[1:] if span > 1.2 and level < 0.10 else joints
+
+
 def drop_converter_tpose(seq: Sequence) -> tuple[Sequence, bool]:
     """Drop frame 0 of every per-frame field when it is a converter's synthetic T-pose
-    (``trumans.mocap_corpus.drop_tpose_frame``: cgspeed and Daz BVHs start with one). Returns the
+    (``drop_tpose_frame``: cgspeed and Daz BVHs start with one). Returns the
     sequence and whether a frame was dropped."""
     if seq.num_frames < 2 or len(drop_tpose_frame(np.asarray(seq.joints))) == seq.num_frames:
         return seq, False

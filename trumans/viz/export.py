@@ -23,7 +23,7 @@ from trumans.ik.fit import fit_error, fit_rotations
 from trumans.rotations import sixd_to_matrix
 from trumans.sequence import Sequence, save_sequence
 from trumans.skeleton import NUM_JOINTS, forward_kinematics, rest_offsets
-from trumans.viz.cli import load_scene_view, scene_view
+from trumans.viz.scene_view import load_scene_view, scene_view
 from trumans.viz.render import SceneView, render_animation, render_topdown
 
 from trumans.viz.glb import write_glb

@@ -51,7 +51,8 @@ def test_sample_writes_files_and_figures(ckpt_path, tmp_path, capsys):
 @pytest.mark.parametrize("args, msg", [
     (["--sit-on", "sofa_99"], "no object 'sofa_99'"),
     (["--act", "dance"], "unknown action 'dance'"),
-    (["--goto", "100,100"], "not on walkable floor"),
+    (["--goto", "100,100"], "outside the scene"),  # refused before the occupancy grid is built
+    (["--goto", "0.05,0.05"], "not on walkable floor"),  # inside the room, in its wall corner
     (["--goto", "1,2", "--formats", "npz,avi"], "--formats"),
     (["--plan", "missing.toml"], "does not exist"),
     (["--goto", "1,2", "--num-samples", "0"], "--num-samples"),

@@ -19,7 +19,7 @@ from trumans.paths import MODELS_DIR
 from trumans.scenes.spec import SCENE_UP_KEY
 from trumans.sequence import Sequence
 
-__all__ = ["Generation", "generate_sequences", "default_plan", "resolve_plan", "DEFAULT_CHECKPOINT",
+__all__ = ["Generation", "generate_sequences", "check_points_inside", "default_plan", "resolve_plan", "DEFAULT_CHECKPOINT",
            "SAMPLER_CONFIG_KEY", "SCENE_UP_KEY", "MAX_SAMPLES", "GOALS_KEY", "GOAL_JOINTS_KEY"]
 
 DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
@@ -80,6 +80,23 @@ def resolve_plan(plan, sc):
     raise TypeError(f"plan must be None, a Plan, a dict, a list of steps or a file path, got {type(plan).__name__}")
 
 
+def check_points_inside(plan, scene, start: tuple[float, float] | None = None) -> None:
+    """Refuse a plan whose start or ``goto`` / ``reach`` points lie outside the scene's horizontal bounds
+    (``scene.bounds()``, m): the cheap part of the plan's checks, run before the scene's occupancy grid."""
+    b = np.asarray(scene.bounds(), np.float64)
+    points = [("start", plan.start if start is None else start)]
+    points += [(f"plan step {i + 1} ({s.kind})", s.to if s.kind == "goto" else s.target)
+               for i, s in enumerate(plan.steps) if s.kind in ("goto", "reach") and not isinstance(s.target, str)]
+    for where, p in points:
+        if p is None:
+            continue
+        xy = np.asarray(p, np.float64)[:2]
+        if not ((b[0, :2] <= xy) & (xy <= b[1, :2])).all():
+            raise ValueError(f"{where}: point {np.round(xy, 2).tolist()} is outside the scene (x in "
+                             f"[{b[0, 0]:.2f}, {b[1, 0]:.2f}], y in [{b[0, 1]:.2f}, {b[1, 1]:.2f}] m); give a point "
+                             f"on its floor")
+
+
 def generate_sequences(plan=None, scene: str | Path = "default", *, checkpoint: str | Path | None = None,
                        seed: int = 0, num_samples: int = 1, config=None, start: tuple[float, float] | None = None,
                        heading: float | None = None, body: np.ndarray | None = None, up: str = "z",
@@ -115,8 +132,10 @@ def generate_sequences(plan=None, scene: str | Path = "default", *, checkpoint: 
         raise TypeError(f"plan must be None, a Plan, a dict, a list of steps or a file path, got {type(plan).__name__}")
     config = SamplerConfig() if config is None else config
     ckpt = load_checkpoint(checkpoint or DEFAULT_CHECKPOINT, kind="generator")
-    sc = load_sample_scene(None if scene is None else str(scene), up=up)
-    the_plan = resolve_plan(plan, sc)
+    the_plan = None if plan is None else resolve_plan(plan, None)  # the default plan needs the walkable floor
+    check = None if the_plan is None else (lambda s: check_points_inside(the_plan, s, start))
+    sc = load_sample_scene(None if scene is None else str(scene), up=up, check=check)
+    the_plan = resolve_plan(plan, sc) if the_plan is None else the_plan
     if start is not None or heading is not None:
         xy = None if start is None else tuple(float(v) for v in start)
         if xy is not None and (len(xy) != 2 or not np.isfinite(xy).all()):

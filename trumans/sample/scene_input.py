@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Callable
 from pathlib import Path
 
 import numpy as np
@@ -45,15 +46,19 @@ def _writable(folder: Path) -> bool:
 
 
 def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", default_seed: int = DEFAULT_ROOM_SEED,
-                      cache_dir: str | Path | None = None) -> SampleScene:
+                      cache_dir: str | Path | None = None, check: Callable[[Scene], None] | None = None) -> SampleScene:
     """spec: None / 'default' (the default procedural room), 'room:SEED' (another procedural room),
     a scene folder (scene.json), or a mesh file trimesh reads (a scan or room model; ``up`` 'y'
-    converts a y-up file). Raises FileNotFoundError / ValueError naming the problem."""
+    converts a y-up file). Raises FileNotFoundError / ValueError naming the problem.
+    ``check(scene)`` runs on the scene as soon as it is read, before the occupancy grid (the slow part):
+    a caller's checks that need only the geometry refuse bad input before any heavy work."""
     seed = procedural_seed(spec)
     found_in = None
     if seed is not None:
         seed = default_seed if spec in (None, "", "default") else seed
         scene = make_room(seed)
+        if check is not None:
+            check(scene)
         folder = Path(cache_dir) / scene.name if cache_dir is not None else None
         if folder is not None:
             folder.mkdir(parents=True, exist_ok=True)
@@ -66,11 +71,15 @@ def load_sample_scene(spec: str | None, voxel: float = 0.02, up: str = "z", defa
                 raise FileNotFoundError(f"scene folder {path} has no scene.json; give a scene folder written by "
                                         f"trumans (trumans.scenes.io.save_scene), a mesh file, or 'default'")
             scene = load_scene(path)
+            if check is not None:
+                check(scene)
             occ = scene_occupancy(scene, path if _writable(path) else None, voxel=voxel)
         elif path.is_file():
             mesh = import_mesh(path, up=up)
             found_in = path  # seats, beds and tables are found after the occupancy (its cache key is the mesh's)
             scene = Scene(name=path.stem, static={"mesh": mesh})
+            if check is not None:
+                check(scene)
             cache = path.parent / f"{path.stem}.occupancy" if _writable(path.parent) else None
             if cache is not None:
                 cache.mkdir(exist_ok=True)

@@ -6,7 +6,7 @@ One-call API (``trumans.api``, imported on first use): ``generate``, ``refine_tr
 from .skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, forward_kinematics, heading, rest_offsets
 from .sequence import ObjectTrack, Sequence, load_sequence, save_sequence
 
-__version__ = "0.1.0"
+from .version import __version__
 __all__ = [
     "JOINT_NAMES", "NUM_JOINTS", "PARENTS", "forward_kinematics", "heading", "rest_offsets",
     "ObjectTrack", "Sequence", "load_sequence", "save_sequence", "__version__",

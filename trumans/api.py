@@ -6,7 +6,7 @@
     driven = trumans.track_interactions(seq_with_rotations, "data/synth/scenes/room_000")  # iReplica §4
 
 Each function is the library call behind its command (``trumans sample``, ``trumans refine``,
-``trumans refine --interactions``) without the files: it returns a ``trumans.Sequence`` and writes
+``trumans track``) without the files: it returns a ``trumans.Sequence`` and writes
 nothing (``trumans.save_sequence`` or ``trumans.viz.export.export`` write one).
 """
 from __future__ import annotations
@@ -67,9 +67,9 @@ def refine_tracked(seq: Sequence | str | Path, *, category: str | None = None, o
 
 def track_interactions(seq: Sequence | str | Path, scene, *, contact_checkpoints: list[str] | None = None,
                        config=None, anchors: tuple[np.ndarray, np.ndarray] | None = None) -> Sequence:
-    """Track a body's interactions with a scene's objects (iReplica §4.1-4.3), as ``trumans refine
-    --interactions`` does: contacts predicted from the pose, the root path corrected by them, objects
-    driven by the hands within their degrees of freedom.
+    """Track a body's interactions with a scene's objects (iReplica §4.1-4.3), as ``trumans track``
+    does: contacts predicted from the pose, the root path corrected by them, objects driven by the
+    hands within their degrees of freedom.
 
     seq: a ``Sequence`` or .npz path with ``rotations`` (T, 24, 6) and joints in the scene's frame; scene:
     a scene folder or a ``trumans.scenes.Scene``; contact_checkpoints: as ``--contact-checkpoint``

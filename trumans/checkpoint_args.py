@@ -2,7 +2,7 @@
 
 ``trumans sample`` and ``trumans refine`` take ``--checkpoint PATH``; the ``eval`` commands take the same
 flag and, as before, the checkpoint as a positional argument (kept so existing command lines work; giving
-both is an error). ``refine --interactions`` and ``eval contacts`` take one contact model or one per
+both is an error). ``track`` and ``eval contacts`` take one contact model or one per
 degree-of-freedom class (``--checkpoint DOF=PATH``, repeatable).
 """
 from __future__ import annotations

@@ -29,6 +29,7 @@ COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("train",), "trumans.train.cli", "train the generator (or filter / contact model) from a config"),
     (("sample",), "trumans.sample.cli", "sample a long motion in a scene from a plan"),
     (("refine",), "trumans.refine.cli", "refine a tracked HOI sequence with the diffusion filter"),
+    (("track",), "trumans.track.cli", "contact-driven interaction tracking of a body in a scene (iReplica)"),
     (("view",), "trumans.viz.cli", "render a sequence to GIF/MP4 and a top-down PNG"),
     (("scene", "inspect"), "trumans.scenes.inspect_cli", "list the seats, beds and tables found in a mesh or scene folder"),
     (("eval", "synthesis"), "trumans.sample.eval_synthesis", "synthesis benchmark figures"),
@@ -75,7 +76,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     (the others are listed with their one-line help)."""
     selected = _selected(argv)
     parser = _Parser(prog="trumans", description="Human-scene interaction motion framework.")
-    from . import __version__
+    from .version import __version__
 
     parser.add_argument("--version", action="version", version=f"trumans {__version__}")
     groups: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="command", metavar="COMMAND")}
@@ -106,8 +107,15 @@ def _usage(p: argparse.ArgumentParser):
     return run
 
 
+def _older_spellings(argv: list[str]) -> list[str]:
+    """``refine X --interactions ...`` -> ``track X ...`` (the tracker was a mode of refine)."""
+    if argv[:1] == ["refine"] and "--interactions" in argv and "-h" not in argv and "--help" not in argv:
+        return ["track"] + [a for a in argv[1:] if a != "--interactions"]
+    return argv
+
+
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
+    argv = _older_spellings(sys.argv[1:] if argv is None else list(argv))
     args = build_parser(argv).parse_args(argv)
     return int(args._run(args) or 0)
 

@@ -32,7 +32,7 @@ import importlib
 import torch
 from torch import nn
 
-from trumans import __version__
+from trumans.version import __version__
 from trumans.input_files import check_input_file
 from trumans.sequence import atomic_write
 from .diffusion import DiffusionConfig, GaussianDiffusion

@@ -1,8 +1,8 @@
 """`trumans refine tracked.npz --out refined.npz [--category C]`: the HOI filter (I'm-HOI §3.2).
 
-With ``--interactions`` the command is the contact-driven tracker instead (iReplica): it dispatches
-to ``trumans.track.cli.run(args)`` (args.input, --out, --seed, --json are shared); that module
-adds its own options through ``add_interaction_arguments(group)``.
+``trumans refine --interactions ...`` is the older spelling of ``trumans track ...`` (the iReplica
+tracker, its own job in ``trumans.track``): the console script's front door (``trumans.cli.main``)
+hands it to ``track`` before this module is read, so the filter does not depend on the tracker.
 """
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ import time
 
 from trumans.threads import add_threads_argument, set_threads
 from trumans.refine.post_args import add_post_step_arguments, post_steps_config
-from trumans.track import cli as track_cli
 from trumans.summary import print_summary
 from trumans import argtypes
 
@@ -39,14 +38,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_post_step_arguments(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     p.add_argument("--interactions", action="store_true",
-                   help="contact-driven interaction tracking (iReplica) instead of the filter")
-    track_cli.add_interaction_arguments(p.add_argument_group("interactions mode (--interactions)"))
+                   help="the older spelling of `trumans track` (contact-driven interaction tracking, iReplica): "
+                        "`trumans refine X --interactions ...` runs `trumans track X ...`; see `trumans track --help`")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.interactions:  # reached only when called without the front door (trumans.cli.main rewrites it)
+        raise ValueError("--interactions is `trumans track`: run `trumans track INPUT --scene SCENE --out OUT`")
     set_threads(args.threads)
-    if args.interactions:
-        return int(track_cli.run(args) or 0)
     from trumans.sequence import load_sequence, save_sequence
 
     from trumans.refine.pipeline import HOIFilter, RefineOptions

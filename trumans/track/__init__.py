@@ -6,5 +6,5 @@ thresholds / gap filling / contact segments, ``trajectory`` the bending-energy r
 ``objects`` object motion driven by the hands within their degrees of freedom, ``object_choice``
 which object a contact grasps, ``interactions`` the whole tracker, ``scores`` AP and friends,
 ``evaluate`` its benchmark (``trumans eval contacts``) and ``cli`` its front end
-(``trumans refine --interactions``).
+(``trumans track``).
 """

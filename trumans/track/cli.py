@@ -1,9 +1,8 @@
-"""`trumans refine tracked.npz --interactions --scene SCENE --out out.npz`: the interaction tracker.
+"""`trumans track tracked.npz --scene SCENE --out out.npz`: the interaction tracker (iReplica §4).
 
-``add_interaction_arguments`` adds the tracker's own options (for the shared ``refine`` command,
-which adds ``--interactions`` and dispatches to ``run`` when it is set); ``add_arguments`` adds
-them plus the input / --out / --seed / --json options for standalone use
-(``python -m trumans.track.cli``).
+``add_arguments`` adds the input / --out / --seed / --json options and the tracker's own
+(``add_interaction_arguments``). ``trumans refine X --interactions ...``, the older spelling, is
+handed here by the console script's front door (``trumans.cli``).
 """
 from __future__ import annotations
 
@@ -101,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m trumans.track.cli", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="trumans track", description=__doc__.splitlines()[0])
     add_arguments(p)
     return run(p.parse_args(argv))
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from torch import nn
 
-from trumans import __version__
+from trumans.version import __version__
 from trumans.model.checkpoint import Checkpoint, KindSpec, load_checkpoint, save_checkpoint
 
 from trumans.track.per_dof import DOFS, check_dof

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from trumans import __version__
+from trumans.version import __version__
 from trumans.dataset import Dataset
 from trumans.refine.corrupt import CorruptionConfig, corrupt
 from trumans.refine.data import FilterWindows, load_filter_windows

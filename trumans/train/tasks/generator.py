@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from trumans import __version__
+from trumans.version import __version__
 from trumans.dataset import Dataset
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import GaussianDiffusion

@@ -12,7 +12,8 @@ import pytest
 import torch
 
 from helpers import TINY_TOML, make_tiny_dataset
-from trumans.train.config import GeneratorConfig, TrainSection, build_config, load_config
+from trumans.config_data import config_from_dict
+from trumans.train.config import GeneratorConfig, TrainSection, load_config
 from trumans.train.tasks import TASKS, TaskLoss, make_task, register_task
 from trumans.model.checkpoint import KINDS, Checkpoint, KindSpec, load_checkpoint
 from trumans.model.nets import DenoiserConfig
@@ -108,7 +109,7 @@ class RegressionConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "RegressionConfig":
-        return build_config(cls, d)
+        return config_from_dict(cls, d)
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ def test_config_loading_and_errors(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="unknown key"):
         load_config(bad)
     bad.write_text("[train]\nsteps = 'many'\n")
-    with pytest.raises(ValueError, match="train.steps must be a int"):
+    with pytest.raises(ValueError, match="train.steps must be a whole number"):
         load_config(bad)
     with pytest.raises(FileNotFoundError, match="built-in"):
         load_config("no-such-config")
@@ -43,7 +43,7 @@ def test_config_loading_and_errors(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="augmented_share must be a fraction"):
         load_config(bad)
     bad.write_text("[data]\naugmented_share = 'half'\n")
-    with pytest.raises(ValueError, match="data.augmented_share must be a number"):
+    with pytest.raises(ValueError, match="data.augmented_share must be a finite number"):
         load_config(bad)
 
 

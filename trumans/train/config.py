@@ -12,12 +12,12 @@ Built-in configs live in ``train/configs/<name>.toml``.
 """
 from __future__ import annotations
 
-import math
 import tomllib
-from dataclasses import MISSING, asdict, dataclass, field, fields, is_dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from trumans.config_data import config_from_dict
 from trumans.input_files import file_kind
 from trumans.limits import check_batch, check_grid, transformer_activation_bytes
 from trumans.model.diffusion import DiffusionConfig
@@ -25,7 +25,7 @@ from trumans.model.episodes import FeatureLayout
 from trumans.model.nets import ActionEncoderConfig, DenoiserConfig, ScenePerceiverConfig
 
 __all__ = ["TrainSection", "DataSection", "ConditionsSection", "GeneratorConfig", "TrainConfig", "load_config",
-           "load_toml", "build_config", "CONFIG_DIR", "builtin_configs"]
+           "load_toml", "CONFIG_DIR", "builtin_configs"]
 
 CONFIG_DIR = Path(__file__).parent / "configs"
 
@@ -188,7 +188,7 @@ class GeneratorConfig:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "config") -> "GeneratorConfig":
-        return build_config(cls, _migrate(d), source, derived=_DERIVED)
+        return config_from_dict(cls, _migrate(d), source, derived=_DERIVED)
 
     def with_overrides(self, **sections: dict) -> "GeneratorConfig":
         """A copy with ``section={key: value}`` replaced (keys checked)."""
@@ -225,65 +225,6 @@ def _migrate(d: Any) -> Any:
         if isinstance(d.get("action"), dict):
             d["action"].pop("patch", None)
     return d
-
-
-def build_config(cls, d: Any, where: str = "config", derived: dict[str, dict[str, str]] | None = None,
-                 refuse: dict[str, str] | None = None, base: Any = None):
-    """A config dataclass from plain data: unknown keys, wrong types and non-finite numbers are
-    errors naming the key and the value; so are the keys the data decide: ``derived`` =
-    {section: {key: what sets it}} for the sections of ``cls`` (``refuse`` is one section's).
-    Sections start from ``cls``'s default section (``base``), so keys a file leaves out keep it."""
-    refuse = refuse or {}
-    if not isinstance(d, dict):
-        raise ValueError(f"{where} must be a table, got {type(d).__name__}")
-    for k in d:
-        if k in refuse:
-            raise ValueError(f"{where}.{k} is set by {refuse[k]}, not in a config; remove it")
-    defaults = {f.name: getattr(base, f.name) if base is not None else f.default if f.default is not MISSING
-                else f.default_factory() if f.default_factory is not MISSING else MISSING for f in fields(cls)}
-    unknown = sorted(set(d) - set(defaults))
-    if unknown:
-        raise ValueError(f"{where}: unknown key(s) {unknown}; known keys: {sorted(set(defaults) - set(refuse))}")
-    kwargs = {}
-    for k, v in d.items():
-        default = defaults[k]
-        if is_dataclass(default):
-            kwargs[k] = build_config(type(default), v, f"{where}.{k}", refuse=(derived or {}).get(k), base=default)
-        elif isinstance(default, tuple) and all(isinstance(x, str) for x in default) and isinstance(v, (list, tuple)) \
-                and v and all(isinstance(x, str) for x in v):  # a list of names
-            kwargs[k] = tuple(v)
-        elif isinstance(default, tuple):
-            if not isinstance(v, (list, tuple)) or not all(_is_number(x) for x in v):
-                raise ValueError(f"{where}.{k} must be a list of numbers, got {v!r}")
-            kwargs[k] = tuple(_finite(float(x), f"{where}.{k}") for x in v)
-        elif isinstance(default, bool):
-            if not isinstance(v, bool):
-                raise ValueError(f"{where}.{k} must be true/false, got {v!r}")
-            kwargs[k] = v
-        elif isinstance(default, float) and _is_number(v):
-            kwargs[k] = _finite(float(v), f"{where}.{k}")
-        elif isinstance(default, int) and isinstance(v, int) and not isinstance(v, bool):
-            kwargs[k] = v
-        elif isinstance(default, str) and isinstance(v, str):
-            kwargs[k] = v
-        elif default is None and (v is None or _is_number(v)):  # an optional number (None: not set)
-            kwargs[k] = None if v is None else _finite(float(v), f"{where}.{k}")
-        else:
-            raise ValueError(f"{where}.{k} must be a {'number' if default is None else type(default).__name__}, got {v!r}")
-    try:
-        return replace(base, **kwargs) if base is not None else cls(**kwargs)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"{where}: {e}") from e
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _finite(v: float, where: str) -> float:
-    if not math.isfinite(v):
-        raise ValueError(f"{where} must be a finite number, got {v}")
-    return v
 
 
 def builtin_configs() -> list[str]:

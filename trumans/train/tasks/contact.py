@@ -34,7 +34,8 @@ from trumans.dataset import Dataset
 from trumans.resample import resample_sequence
 from trumans.model.checkpoint import Checkpoint
 
-from trumans.train.config import TrainSection, build_config, load_toml, override_sections
+from trumans.config_data import config_from_dict
+from trumans.train.config import TrainSection, load_toml, override_sections
 from trumans.train.tasks import TaskLoss
 
 __all__ = ["ContactDataSection", "ContactTaskConfig", "ContactTask", "ContactData", "load_contact_data",
@@ -175,7 +176,7 @@ class ContactTaskConfig:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "config") -> "ContactTaskConfig":
-        return build_config(cls, d, source, base=cls())
+        return config_from_dict(cls, d, source)
 
     def with_overrides(self, **sections: dict) -> "ContactTaskConfig":
         return override_sections(self, sections)

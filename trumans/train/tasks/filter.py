@@ -39,7 +39,8 @@ from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
 from trumans.model.episodes import Normalizer
 from trumans.rotations import sixd_to_matrix
 
-from trumans.train.config import TrainSection, build_config, load_toml, override_sections
+from trumans.config_data import config_from_dict
+from trumans.train.config import TrainSection, load_toml, override_sections
 from trumans.train.tasks import TaskLoss
 
 __all__ = ["FilterSection", "FilterConfig", "load_filter_config", "FilterTask", "FilterBatch", "make_batch",
@@ -111,7 +112,7 @@ class FilterConfig:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "filter config") -> "FilterConfig":
-        return build_config(cls, d, source)
+        return config_from_dict(cls, d, source)
 
     def with_overrides(self, **sections: dict) -> "FilterConfig":
         return override_sections(self, sections)

@@ -10,7 +10,10 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import shutil
+import stat
+from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
 
 from trumans.input_files import file_kind
@@ -18,7 +21,8 @@ from trumans.scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 
 from .sequence import Sequence, atomic_write, load_sequence
 
-__all__ = ["INDEX_FILE", "SPLITS", "Dataset", "DatasetWriter", "load_index", "write_index", "content_hash"]
+__all__ = ["INDEX_FILE", "OUTPUTS_FILE", "SPLITS", "Dataset", "DatasetWriter", "load_index", "write_index",
+           "content_hash", "record_outputs", "listed_outputs"]
 
 INDEX_FILE = "index.json"
 SPLITS: tuple[str, ...] = ("train", "val", "test")
@@ -201,9 +205,133 @@ class Dataset:
 
 CLAIM_FILE = ".trumans-output.json"
 NOT_OURS = "holds no trumans output"
-# what a writer may remove under --overwrite: the outputs of synth, augment and the importers
-_OUTPUT_NAMES = (INDEX_FILE, "manifest.json", "summary.json", "summary.png", "sequences", "scenes", "records",
-                 "rooms", CLAIM_FILE)
+# the output manifest: every file a dataset writer (synth, augment, the importers) wrote, one path
+# relative to the folder a line, appended *before* the file is written (so a killed run's files are
+# listed too); --overwrite removes exactly these files and nothing else
+OUTPUTS_FILE = ".trumans-outputs.txt"
+# the top-level files of a dataset folder (an older output without the manifest: see ``_derived_outputs``)
+_TOP_FILES = (INDEX_FILE, "manifest.json", "summary.json", "summary.png")
+
+
+def _inside(rel: object) -> str | None:
+    """``rel`` if it is a non-empty relative path with no '..' (a path that stays inside the folder), else None."""
+    if not isinstance(rel, str) or not rel.strip() or "\0" in rel:
+        return None
+    pp = PurePosixPath(rel)
+    if pp.is_absolute() or ".." in pp.parts or not pp.parts or pp.parts == (".",):
+        return None
+    return pp.as_posix()
+
+
+def record_outputs(root: str | Path, rels: Iterable[str]) -> None:
+    """Append ``rels`` (paths relative to the dataset folder ``root``) to its output manifest
+    ``OUTPUTS_FILE``. Call it *before* writing those files, from the writer or its workers (one
+    ``O_APPEND`` write per call, so concurrent workers do not interleave lines). The manifest is
+    never written through a link (``O_NOFOLLOW``). Raises ValueError for a path leaving ``root``."""
+    lines = []
+    for r in rels:
+        ok = _inside(r)
+        if ok is None or "\n" in r:
+            raise ValueError(f"output path {r!r} is not a relative path inside {root}; this is a bug")
+        lines.append(ok + "\n")
+    if not lines:
+        return
+    data = "".join(lines).encode()
+    fd = os.open(Path(root) / OUTPUTS_FILE, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+    try:
+        while data:
+            data = data[os.write(fd, data):]
+    finally:
+        os.close(fd)
+
+
+def _read_json(path: Path) -> object:
+    try:
+        if path.is_symlink() or not path.is_file():
+            return None
+        return json.loads(path.read_text())
+    except (OSError, ValueError, RecursionError):
+        return None
+
+
+def _derived_outputs(root: Path) -> set[str]:
+    """The outputs of a dataset folder written before the output manifest existed (or of a dataset
+    with an ``index.json`` but no claim), derived from what it lists: the top-level files, every
+    sequence of ``index.json``'s splits, every scene folder's ``scene.json``, the meshes it names
+    and ``occupancy.npz``, the room records ``rooms/<id>.json`` of its scenes and, from
+    ``manifest.json`` (augment), every output sequence and scene and ``records/<source stem>.json``."""
+    files: set[str] = set(_TOP_FILES)
+    index = _read_json(root / INDEX_FILE)
+    index = index if isinstance(index, dict) else {}
+    splits = index.get("splits") if isinstance(index.get("splits"), dict) else {}
+    scenes = index.get("scenes") if isinstance(index.get("scenes"), dict) else {}
+    seqs = [p for v in splits.values() if isinstance(v, list) for p in v]
+    scene_dirs = list(scenes.values())
+    manifest = _read_json(root / "manifest.json")
+    outputs = manifest.get("outputs") if isinstance(manifest, dict) else None
+    for o in outputs if isinstance(outputs, list) else []:
+        if isinstance(o, dict):
+            seqs.append(o.get("sequence"))
+            scene_dirs.append(o.get("scene_dir"))
+            if isinstance(o.get("source"), str):
+                files.add(f"records/{PurePosixPath(o['source']).stem}.json")
+    files.update(r for r in map(_inside, seqs) if r)
+    for d in filter(None, map(_inside, scene_dirs)):
+        files.update({f"{d}/scene.json", f"{d}/occupancy.npz", f"rooms/{PurePosixPath(d).name}.json"})
+        doc = _read_json(root / d / "scene.json")
+        for key in ("static", "objects"):
+            entries = doc.get(key) if isinstance(doc, dict) else None
+            for e in entries if isinstance(entries, list) else []:
+                mesh = _inside(e.get("mesh")) if isinstance(e, dict) else None
+                if mesh:
+                    files.add(f"{d}/{mesh}")
+    return files
+
+
+def listed_outputs(root: str | Path) -> list[str]:
+    """The files (relative paths, sorted) that ``--overwrite`` may remove from the trumans output
+    ``root``: those its output manifest lists (``_derived_outputs`` for an older output without
+    one), plus the claim and the manifest themselves. Lines that would leave ``root`` are ignored."""
+    root = Path(root)
+    ledger = root / OUTPUTS_FILE
+    if ledger.is_file() and not ledger.is_symlink():
+        files = {r for r in map(_inside, ledger.read_text(errors="replace").splitlines()) if r}
+    else:
+        files = _derived_outputs(root)
+    return sorted(files | {CLAIM_FILE, OUTPUTS_FILE})
+
+
+def _remove_outputs(root: Path) -> int:
+    """Delete the files ``listed_outputs(root)`` names, then the folders that became empty; returns
+    the number of files removed. Only regular files are deleted: a listed path that is now a link or
+    a folder, or that is reached through a linked folder, is left alone (links are never followed),
+    and a folder still holding anything (a user's file) stays."""
+    removed, parents = 0, set()
+    for rel in listed_outputs(root):
+        parts = PurePosixPath(rel).parts
+        d, through_link = root, False
+        for part in parts[:-1]:
+            d = d / part
+            if d.is_symlink() or not d.is_dir():
+                through_link = True
+                break
+        if through_link:
+            continue
+        path = d / parts[-1]
+        try:
+            if not stat.S_ISREG(os.lstat(path).st_mode):
+                continue
+        except OSError:
+            continue
+        path.unlink()
+        removed += 1
+        parents.update(root.joinpath(*parts[:i]) for i in range(1, len(parts)))
+    for d in sorted(parents, key=lambda p: len(p.parts), reverse=True):
+        try:
+            os.rmdir(d)  # only an empty folder (never a link: rmdir refuses one)
+        except OSError:
+            pass
+    return removed
 
 
 class DatasetWriter:
@@ -214,10 +342,12 @@ class DatasetWriter:
     a new or empty folder, or one claimed by the same command with the same ``settings``
     (a resume), is accepted; a folder holding other data (another dataset's ``index.json``, the
     output of other settings) is refused unless ``overwrite``, which first removes the previous
-    outputs (``index.json``, ``sequences/``, ``scenes/``, ...; nothing else; links are unlinked, never
-    followed). A folder of files that are no trumans output is refused even with ``overwrite``, and so
-    are an empty ``root`` and the current folder or one above it.
-    Stale temp files of killed writers are swept. ``save_occupancy`` writes a scene grid through
+    outputs: exactly the files its output manifest (``OUTPUTS_FILE``) lists, then the folders they
+    leave empty; a file of the user's inside ``sequences/`` stays, and links are never followed
+    (``_remove_outputs``). A folder of files that are no trumans output is refused even with
+    ``overwrite``, and so are an empty ``root`` and the current folder or one above it.
+    Every file written into the folder is recorded first (``record``, or ``record_outputs`` from a
+    worker). Stale temp files of killed writers are swept. ``save_occupancy`` writes a scene grid through
     ``OccupancyGrid``; ``finish(index)`` adds the content hash and writes ``index.json``.
     Call it after every input is validated: a refused run changes nothing on disk, and a run that
     fails before writing any sequence removes the folder if it made it."""
@@ -237,6 +367,7 @@ class DatasetWriter:
         self._created = False
         self.resumed = False
         self.swept = 0
+        self.removed = 0  # files of a previous output removed by --overwrite
 
     def __enter__(self) -> "DatasetWriter":
         from .io_lock import LOCK_FILE, FolderLock, sweep_temp_files
@@ -253,13 +384,7 @@ class DatasetWriter:
                 fix = ("choose another --out (--overwrite replaces only a trumans output)" if refusal.endswith(NOT_OURS)
                        else "pass --overwrite to replace it, or choose another --out")
                 raise FileExistsError(f"{self.root} {refusal}; {fix}")
-            if refusal:
-                for name in _OUTPUT_NAMES:
-                    p = self.root / name
-                    if p.is_dir() and not p.is_symlink():
-                        shutil.rmtree(p)
-                    elif p.exists() or p.is_symlink():
-                        p.unlink()
+            self.removed = _remove_outputs(self.root) if refusal else 0
             self.resumed = bool(content) and not refusal
             self.swept = sweep_temp_files(self.root)
             claim = {"command": self.command, "settings": self.settings}
@@ -311,9 +436,14 @@ class DatasetWriter:
         if exc[0] is not None and self._created and not (seqs.is_dir() and any(seqs.iterdir())):
             shutil.rmtree(self.root, ignore_errors=True)
 
+    def record(self, *rels: str) -> None:
+        """Record files (relative to the root) as this run's outputs before writing them (``record_outputs``)."""
+        record_outputs(self.root, rels)
+
     def save_occupancy(self, scene_id: str, grid: OccupancyGrid) -> str:
         """Write ``scenes/<scene_id>/occupancy.npz``; returns the scene folder relative to the root."""
         rel = f"scenes/{scene_id}"
+        self.record(f"{rel}/{OCCUPANCY_FILE}")
         grid.save(self.root / rel / OCCUPANCY_FILE)
         return rel
 
@@ -323,6 +453,7 @@ class DatasetWriter:
         if not files:
             raise ValueError(f"no sequences to write into {self.root}; the inputs hold no usable motion")
         index["hash"] = content_hash(self.root, files)
+        self.record(INDEX_FILE)
         write_index(self.root, index)
         load_index(self.root)  # what we wrote must read back
         return index["hash"]

@@ -29,10 +29,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from trumans.scenes.io import save_scene
+from trumans.scenes.io import save_scene, scene_files
 from trumans.scenes.scene import Scene
 from trumans.contacts.rule import FLOOR_NAME, HOLD_THRESHOLD
-from trumans.dataset import Dataset, DatasetWriter, content_hash
+from trumans.dataset import Dataset, DatasetWriter, content_hash, record_outputs
 from trumans.eval.metrics import joint_centre_inside_cm
 from trumans.limits import MAX_VARIATIONS
 from trumans.sequence import Sequence, atomic_write, save_sequence
@@ -42,7 +42,7 @@ from trumans.augment.variations import KINDS, sample_variation
 
 SOURCES = ("all", "real", "procedural")
 
-__all__ = ["PipelineConfig", "augment_dataset", "contacted_objects", "vary_sequence"]
+__all__ = ["PipelineConfig", "augment_dataset", "finish_merged", "contacted_objects", "vary_sequence"]
 
 
 @dataclass(frozen=True)
@@ -203,6 +203,7 @@ def _process(args: tuple[PipelineConfig, int, str, str, str]) -> dict:
         return {"key": key, "source": rel, "split": split, "frames": 0, "outputs": [],
                 "error": " ".join(str(e).split()) or type(e).__name__}
     record = Path(cfg.out) / "records" / f"{stem}.json"
+    record_outputs(cfg.out, [f"records/{stem}.json"])
     atomic_write(record, lambda tmp: Path(tmp).write_text(json.dumps(rec, indent=1)))
     return rec
 
@@ -222,15 +223,17 @@ def _augment_source(cfg: PipelineConfig, idx: int, rel: str, split: str, key: st
         sid = f"{scene.name}__{stem}__{name}_v{k}"
         res.scene.name = sid
         res.sequence.scene = sid
+        seq_rel = f"sequences/{stem}__{name}_v{k}.npz"
+        record_outputs(out, [f"scenes/{sid}/{f}" for f in scene_files(res.scene, occupancy=cfg.occupancy)] + [seq_rel])
         save_scene(res.scene, out / "scenes" / sid)
         if cfg.occupancy:
             from trumans.scenes.occupancy import scene_occupancy
             scene_occupancy(res.scene, out / "scenes" / sid)
-        seq_rel = f"sequences/{stem}__{name}_v{k}.npz"
         save_sequence(res.sequence, out / seq_rel)
         items.append({"object": name, "k": k, "sequence": seq_rel, "scene": sid, "scene_dir": f"scenes/{sid}",
                       "source_scene": scene.name, **res.report})
     rec = {"key": key, "source": rel, "split": split, "frames": seq.num_frames, "outputs": items, "error": ""}
+    record_outputs(out, [f"records/{stem}.json"])
     atomic_write(out / "records" / f"{stem}.json", lambda tmp: Path(tmp).write_text(json.dumps(rec, indent=1)))
     return rec
 
@@ -260,10 +263,13 @@ def torch_threads() -> None:
     one_thread()
 
 
-def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool = False) -> dict:
+def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool = False, shard=None) -> dict:
     """Run the pipeline (module doc); returns the summary written into manifest.json. ``overwrite``
     replaces another dataset or run in ``cfg.out``. Raises ValueError after writing the index and
-    manifest of what succeeded if some sources failed (they are retried by the next run)."""
+    manifest of what succeeded if some sources failed (they are retried by the next run).
+    ``shard`` (``trumans.shards.Shard``): augment only its source sequences (each seeded by its
+    position among all sources, so its outputs are those of the unsharded run) and write
+    ``shard.json`` instead of the index and manifest; ``trumans data merge`` joins the shards."""
     t0 = time.perf_counter()
     ds = Dataset(cfg.data)
     out = Path(cfg.out)
@@ -281,9 +287,16 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool 
         raise ValueError(f"no {'' if cfg.source == 'all' else cfg.source + ' '}sequences in splits {list(cfg.splits)} "
                          f"of {cfg.data}; choose splits (or --source) that hold some")
     _check_once(jobs, ds)
+    total = len(jobs)
+    if shard is not None:
+        from trumans.shards import check_shard_items
+
+        check_shard_items(shard, total, "source sequences")
+        jobs = [j for j in jobs if shard.owns(j[1])]
     digest = scenes_digest(ds)
     jobs = [(c, i, rel, split, cfg.key(ds.root / rel, i, digest)) for c, i, rel, split in jobs]
-    with DatasetWriter(out, "augment", cfg.settings(), overwrite=overwrite) as writer:
+    settings = cfg.settings() if shard is None else {**cfg.settings(), "shard": str(shard)}
+    with DatasetWriter(out, "augment", settings, overwrite=overwrite) as writer:
         recs: list[dict | None] = [_done_record(out, rel, key) for _, _, rel, _, key in jobs]
         todo = [j for j, r in zip(jobs, recs) if r is None]
         workers = max(1, min(cfg.workers or os.cpu_count() or 1, len(todo)))
@@ -304,7 +317,43 @@ def augment_dataset(cfg: PipelineConfig, progress: bool = True, overwrite: bool 
         bar.close()
         it = iter(fresh)
         recs = [r if r is not None else next(it) for r in recs]
+        if shard is not None:
+            return _finish_shard(cfg, ds, digest, writer, jobs, recs, total, shard)
         return _finish(cfg, ds, writer, recs, workers, time.perf_counter() - t0)
+
+
+@dataclass(frozen=True)
+class _SourceInfo:
+    """What the index takes from the source dataset (``Dataset``'s fields of that name)."""
+
+    name: str
+    fps: float
+    vocabulary: list
+    hash: str
+
+
+def _finish_shard(cfg: PipelineConfig, ds: Dataset, digest: str, writer: DatasetWriter, jobs: list[tuple],
+                  recs: list[dict], total: int, shard) -> dict:
+    """``shard.json`` of a sharded run (``trumans.shards``); refused while a source of the shard failed."""
+    from trumans.shards import write_shard_manifest
+
+    failed = [r for r in recs if r["error"]]
+    if failed:
+        raise ValueError(f"{len(failed)} of {len(recs)} source sequences of shard {shard} failed (e.g. "
+                         f"{failed[0]['source']}: {failed[0]['error'][:200]}); fix them and re-run the same command "
+                         f"(finished sources resume); the shard is not mergeable until every source is done")
+    source = {"name": ds.name, "fps": ds.fps, "vocabulary": ds.vocabulary, "hash": ds.hash}
+    entries = [{"i": j[1], "id": j[2], "record": r} for j, r in zip(jobs, recs)]
+    return write_shard_manifest(writer, "augment", cfg.settings(), {"source": source, "scenes_digest": digest},
+                                shard, total, entries)
+
+
+def finish_merged(writer: DatasetWriter, settings: dict, inputs: dict, entries: list[dict], progress: bool) -> dict:
+    """``trumans data merge`` of ``augment`` shards: index.json and manifest.json of all shards' source
+    records, as the unsharded run writes them (``trumans.shards``)."""
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in settings.items()}
+    cfg = PipelineConfig(out=str(writer.root), workers=1, **kw)
+    return _finish(cfg, _SourceInfo(**inputs["source"]), writer, [e["record"] for e in entries], 1, 0.0)
 
 
 def _finish(cfg: PipelineConfig, ds: Dataset, writer: DatasetWriter, recs: list[dict], workers: int,
@@ -338,7 +387,7 @@ def _finish(cfg: PipelineConfig, ds: Dataset, writer: DatasetWriter, recs: list[
         "unreachable_frames": unreachable,
         "unreachable_frac": unreachable / cframes.sum() if cframes.sum() else 0.0,
         "seconds": seconds,
-        "frames_per_s": frames_out / max(seconds, 1e-9),  # wall clock, this run (resumed sources count too)
+        "frames_per_s": frames_out / seconds if seconds > 0 else 0.0,  # wall clock, this run (resumed sources count too; 0 for a merge)
         "workers": workers,
         "config": asdict(cfg),
     }
@@ -347,6 +396,7 @@ def _finish(cfg: PipelineConfig, ds: Dataset, writer: DatasetWriter, recs: list[
     else:
         (out / "index.json").unlink(missing_ok=True)  # an index of an earlier run would list nothing of this one
     manifest = {"summary": summary, "outputs": outputs}
+    writer.record("manifest.json")
     atomic_write(out / "manifest.json", lambda tmp: Path(tmp).write_text(json.dumps(manifest, indent=1)))
     if failed:
         raise SourcesFailed(summary, f"{len(failed)} of {len(recs)} source sequences failed (e.g. {failed[0]['source']}: "

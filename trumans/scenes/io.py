@@ -33,7 +33,7 @@ from trumans.scenes.occupancy import OCCUPANCY_FILE
 from trumans.scenes.scene import DOFS, Scene, SceneObject
 from trumans.scenes.atomic import umask_mode
 
-__all__ = ["save_scene", "load_scene", "import_mesh", "SCENE_FILE", "Y_UP_TO_Z_UP"]
+__all__ = ["save_scene", "load_scene", "import_mesh", "scene_files", "SCENE_FILE", "Y_UP_TO_Z_UP"]
 
 SCENE_FILE = "scene.json"
 FORMAT, VERSION = "trumans-scene", 1
@@ -86,6 +86,22 @@ def _unique_file(folder: str, name: str, used: set[str]) -> str:
     return rel
 
 
+def _mesh_files(scene: Scene) -> tuple[list[str], list[str]]:
+    """The relative mesh files ``save_scene`` writes for ``scene``: (static, objects), in scene order."""
+    used: set[str] = set()
+    static = [_unique_file("static", name, used) for name in scene.static]
+    objects = [_unique_file("objects", name, used) for name in scene.objects]
+    return static, objects
+
+
+def scene_files(scene: Scene, occupancy: bool = True) -> list[str]:
+    """Every file (relative to the scene folder) that ``save_scene(scene, folder)`` writes, plus
+    ``occupancy.npz`` unless ``occupancy`` is False: what a dataset writer records as its outputs
+    before writing them (``trumans.dataset.record_outputs``)."""
+    static, objects = _mesh_files(scene)
+    return [SCENE_FILE, *static, *objects] + ([OCCUPANCY_FILE] if occupancy else [])
+
+
 def _jsonable(x):
     return None if x is None else np.asarray(x, dtype=np.float64).tolist()
 
@@ -111,15 +127,13 @@ def save_scene(scene: Scene, folder: str | Path) -> None:
     tmp = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{folder.name}.", suffix=".tmp"))
     os.chmod(tmp, umask_mode(0o777))  # mkdtemp makes it private
     try:
-        used: set[str] = set()
+        static_files, object_files = _mesh_files(scene)
         doc = {"format": FORMAT, "version": VERSION, "name": scene.name, "meta": scene.meta,
                "static": [], "objects": []}
-        for name, m in scene.static.items():
-            rel = _unique_file("static", name, used)
+        for (name, m), rel in zip(scene.static.items(), static_files):
             _export(m, tmp / rel)
             doc["static"].append({"name": name, "mesh": rel})
-        for name, o in scene.objects.items():
-            rel = _unique_file("objects", name, used)
+        for (name, o), rel in zip(scene.objects.items(), object_files):
             _export(o.mesh, tmp / rel)
             doc["objects"].append({
                 "name": name, "category": o.category, "mesh": rel, "pose": _jsonable(o.pose),

@@ -20,14 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from trumans.dataset import SPLITS, DatasetWriter
+from trumans.dataset import SPLITS, DatasetWriter, record_outputs
 from trumans.sequence import atomic_write, save_sequence
 from trumans.eval import metrics
 from trumans.limits import MAX_ROOMS, MAX_SYNTH_HOURS, check_count
 from trumans.workers import worker_pool
 from .vocab import SYNTH_ACTIONS
 
-__all__ = ["SynthConfig", "build_dataset", "room_ids", "split_rooms", "DATASET_NAME", "DATASET_VERSION"]
+__all__ = ["SynthConfig", "build_dataset", "finish_merged", "room_ids", "split_rooms", "DATASET_NAME", "DATASET_VERSION"]
 
 DATASET_NAME = "trumans-synth"
 DATASET_VERSION = "1"
@@ -128,7 +128,7 @@ def _room_seed(seed: int, index: int) -> int:
 def _build_room(args: tuple[SynthConfig, int]) -> dict:
     """Generate one room and its takes; returns the room record (also written to rooms/<id>.json)."""
     cfg, index = args
-    from trumans.scenes.io import save_scene
+    from trumans.scenes.io import save_scene, scene_files
     from trumans.scenes.occupancy import scene_occupancy
     from trumans.scenes.procedural import make_room
 
@@ -151,10 +151,12 @@ def _build_room(args: tuple[SynthConfig, int]) -> dict:
     scene = make_room(_room_seed(cfg.seed, index))
     scene.name = rid
     scene_dir = out / "scenes" / rid
+    record_outputs(out, [f"scenes/{rid}/{f}" for f in scene_files(scene)])
     save_scene(scene, scene_dir)
     occ = scene_occupancy(scene, scene_dir)
     rng = np.random.default_rng([cfg.seed, index, 1])
     takes = script_room(scene, occ, rng, total_frames=cfg.room_frames, take_seconds=cfg.take_seconds, fps=FPS)
+    record_outputs(out, [f"sequences/{rid}_t{k:02d}.npz" for k in range(len(takes))] + [f"rooms/{rid}.json"])
     seqs, frames, slides, gaps = [], 0, [], []
     bone_dev = pen = 0.0
     action_frames = {a: 0 for a in SYNTH_ACTIONS}
@@ -213,33 +215,41 @@ def _init_worker() -> None:
         pass
 
 
-def build_dataset(cfg: SynthConfig, progress: bool = True, overwrite: bool = False) -> dict:
+def build_dataset(cfg: SynthConfig, progress: bool = True, overwrite: bool = False, shard=None) -> dict:
     """Build (or resume) the dataset of ``cfg``; returns the summary figures (also in summary.json).
     The folder is locked while building and must be new, empty or a build of the same settings
     (``trumans.dataset.DatasetWriter``; ``overwrite`` replaces what it holds). Workers die with
     the builder (kill -9 leaves no orphan writing); rerunning resumes from the finished rooms.
+    ``shard`` (``trumans.shards.Shard``): build only its rooms and real clips (each seeded by its
+    position, so its files are those of the unsharded build) and write ``shard.json`` instead of
+    the index; ``trumans data merge`` joins the shards (``finish_merged``).
 
     Summary: sequences, frames, hours, rooms, action_frames (per action), frames_per_s (frames
     generated in this run per wall-clock second), bone_length_dev_mm, foot_skate_per_step_cm (mean slide
     per planned floor step), penetration_max_cm, grasp_dist_cm (see ``trumans.eval.metrics``), splits, categories,
     activities (per scripted activity: performed / skipped as infeasible), hash."""
-    from tqdm import tqdm
+    from trumans.shards import check_shard_items
 
-    with DatasetWriter(cfg.out, "data synth", _settings(cfg), overwrite=overwrite) as writer:
-        return _build(cfg, writer, progress)
-
-
-def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
-    from tqdm import tqdm
-
-    out = writer.root
-    t0 = time.perf_counter()
-    workers = cfg.workers or os.cpu_count() or 1
     jobs: list[tuple] = [("room", cfg, i) for i in range(cfg.rooms)]
     if cfg.real_share > 0:
         from .real_takes import train_clips
 
         jobs += [("real", cfg, clip) for clip in train_clips(cfg.real_share, cfg.seed)]
+    check_shard_items(shard, len(jobs), "rooms and real clips")
+    settings = _settings(cfg) if shard is None else {**_settings(cfg), "shard": str(shard)}
+    with DatasetWriter(cfg.out, "data synth", settings, overwrite=overwrite) as writer:
+        return _build(cfg, writer, progress, jobs, shard)
+
+
+def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool, jobs: list[tuple], shard=None) -> dict:
+    from tqdm import tqdm
+
+    t0 = time.perf_counter()
+    workers = cfg.workers or os.cpu_count() or 1
+    total = len(jobs)
+    if shard is not None:
+        mine = shard.pick(jobs)
+        jobs, positions = [j for _, j in mine], [i for i, _ in mine]
     records: list[dict] = []
     bar = tqdm(total=len(jobs), desc="synth rooms", unit="room", disable=not progress, file=sys.stderr)
     if workers == 1 or len(jobs) == 1:
@@ -249,11 +259,34 @@ def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
             bar.update(1)
     else:
         with worker_pool(min(workers, len(jobs)), "fork") as pool:
-            for rec in pool.imap_unordered(_run_job, jobs):
+            for rec in pool.imap(_run_job, jobs):
                 records.append(rec)
                 bar.update(1)
     bar.close()
-    elapsed = time.perf_counter() - t0
+    if shard is not None:
+        from trumans.shards import write_shard_manifest
+
+        entries = [{"i": i, "id": r["room"], "record": {k: v for k, v in r.items() if k != "resumed"}}
+                   for i, r in zip(positions, records)]
+        return write_shard_manifest(writer, "data synth", _settings(cfg), {"version": DATASET_VERSION}, shard,
+                                    total, entries)
+    return _finish(cfg, writer, records, time.perf_counter() - t0, workers)
+
+
+def finish_merged(writer: DatasetWriter, settings: dict, inputs: dict, entries: list[dict], progress: bool) -> dict:
+    """``trumans data merge`` of ``data synth`` shards: the index, summary.json and summary.png of all
+    shards' room records, as the unsharded build writes them (``trumans.shards``)."""
+    if inputs.get("version") != DATASET_VERSION:
+        raise ValueError(f"the shards are of dataset version {inputs.get('version')}, this trumans builds "
+                         f"{DATASET_VERSION}; rebuild them with this version")
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in settings.items()}
+    cfg = SynthConfig(out=str(writer.root), workers=1, **kw)
+    return _finish(cfg, writer, [e["record"] for e in entries], 0.0, 1)  # nothing generated: frames_per_s 0
+
+
+def _finish(cfg: SynthConfig, writer: DatasetWriter, records: list[dict], elapsed: float, workers: int) -> dict:
+    """Index, summary.json and summary.png of the room records (all rooms and real clips of ``cfg``)."""
+    out = writer.root
     real_records = sorted((r for r in records if "real" in r), key=lambda r: r["room"])
     records = sorted((r for r in records if "real" not in r), key=lambda r: r["room"])
     placed = [r for r in real_records if not r.get("skipped")]
@@ -331,6 +364,7 @@ def _build(cfg: SynthConfig, writer: DatasetWriter, progress: bool) -> dict:
     if cfg.real_share > 0:
         index["real"] = {p: r["real"] for r in placed for p in r["sequences"]}
     summary["hash"] = writer.finish(index)
+    writer.record("summary.json", "summary.png")
 
     def _write(tmp: str) -> None:
         with open(tmp, "w") as f:

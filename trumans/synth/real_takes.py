@@ -149,7 +149,8 @@ def build_real_room(out: Path, clip: MocapClip, seed: int, key: str) -> dict:
     """Write the room and the take of one real clip under ``out``; returns the room record (the same
     fields as a procedural room's, ``trumans.synth.build``), also written to ``rooms/<id>.json``.
     A clip that fits no room gives a record with ``skipped`` and no sequences."""
-    from trumans.scenes.io import save_scene
+    from trumans.dataset import record_outputs
+    from trumans.scenes.io import save_scene, scene_files
     from trumans.scenes.occupancy import scene_occupancy
 
     t0 = time.perf_counter()
@@ -174,9 +175,10 @@ def build_real_room(out: Path, clip: MocapClip, seed: int, key: str) -> dict:
     else:
         seq, terms = made
         pl = terms["placement"]
+        rel = f"sequences/{rid}.npz"
+        record_outputs(out, [f"scenes/{rid}/{f}" for f in scene_files(pl.scene)] + [rel])
         save_scene(pl.scene, out / "scenes" / rid)
         scene_occupancy(pl.scene, out / "scenes" / rid)
-        rel = f"sequences/{rid}.npz"
         save_sequence(seq, out / rel)
         slides = metrics.foot_slides(seq.joints[:, list(FEET)], terms["foot_floor"])
         on = seq.actions > 0
@@ -198,6 +200,7 @@ def build_real_room(out: Path, clip: MocapClip, seed: int, key: str) -> dict:
         with open(tmp, "w") as f:
             json.dump(rec, f, indent=1)
 
+    record_outputs(out, [f"rooms/{rid}.json"])
     atomic_write(rec_path, _write)
     return rec
 

@@ -25,6 +25,7 @@ import sys
 COMMANDS: list[tuple[tuple[str, ...], str, str]] = [
     (("data", "synth"), "trumans.synth.cli", "build the embedded synthetic HSI dataset"),
     (("data", "import"), "trumans.importers.cli", "import TRUMANS-release, BVH or FBX data into the dataset format"),
+    (("data", "merge"), "trumans.shards", "merge the shard folders of a `--shard K/N` build into one dataset"),
     (("augment",), "trumans.augment.cli", "contact-preserving CCD-IK augmentation of a dataset"),
     (("train",), "trumans.train.cli", "train the generator (or filter / contact model) from a config"),
     (("sample",), "trumans.sample.cli", "sample a long motion in a scene from a plan"),

@@ -11,14 +11,17 @@ from trumans.augment.pipeline import SOURCES, PipelineConfig, SourcesFailed, aug
 from trumans.augment.variations import KINDS
 from trumans.summary import print_summary
 from trumans import argtypes
+from trumans.common_args import add_no_progress_argument, out_help
+from trumans.shards import add_shard_argument
 
 __all__ = ["add_arguments", "run"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", required=True, help="source dataset folder (index.json + sequences + scenes)")
-    p.add_argument("--out", required=True, help="output dataset folder (new, empty, or this command's own: re-running "
-                                                "with the same settings resumes where it stopped; one writer at a time)")
+    p.add_argument("--out", required=True, help=out_help("folder", "the augmented dataset (sequences/, scenes/, "
+                   "records/, manifest.json, index.json; with --shard: the shard's files and shard.json); new, empty, "
+                   "or this command's own: re-running with the same settings resumes where it stopped"))
     p.add_argument("--overwrite", action="store_true", help="replace the dataset or other run already in --out")
     p.add_argument("--variations", type=int_in(1, MAX_VARIATIONS, limit="MAX_VARIATIONS"), default=2,
                    help=f"variations per touched object, 1..{MAX_VARIATIONS} (default 2, as the paper)")
@@ -37,6 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=nonneg_int, default=0,
                    help="worker processes (default 0: CPU count; never more than the sequences to do)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (same seed -> same outputs)")
+    add_shard_argument(p, "source sequences (in index order, the --splits in turn)")
+    add_no_progress_argument(p)
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
 
 
@@ -46,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
                          occupancy=args.occupancy, window_s=args.window, threshold=args.threshold,
                          max_unreachable=args.max_unreachable, source=args.source)
     try:
-        summary = augment_dataset(cfg, progress=not args.json, overwrite=args.overwrite)
+        summary = augment_dataset(cfg, progress=not (args.json or args.no_progress), overwrite=args.overwrite,
+                                  shard=args.shard)
     except SourcesFailed as e:  # print what was done, then fail with the one error line
         _print(e.summary, args.json)
         raise

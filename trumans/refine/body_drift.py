@@ -35,6 +35,7 @@ from scipy.ndimage import label, uniform_filter1d
 from scipy.sparse import csr_matrix
 
 from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS
+from trumans.stance import planted
 
 from trumans.refine.frame import FRAME_DIM, JOINTS
 
@@ -85,16 +86,14 @@ def _check(joints: np.ndarray, fps: float) -> np.ndarray:
 
 
 def stance_mask(joints: np.ndarray, fps: float, cfg: DriftConfig = DriftConfig()) -> np.ndarray:
-    """(T, 24, 3) joints (m) at ``fps`` -> (T, 4) bool: each foot joint of ``FOOT_JOINTS`` planted."""
+    """(T, 24, 3) joints (m) at ``fps`` -> (T, 4) bool: each foot joint of ``FOOT_JOINTS`` planted
+    (``trumans.stance.planted`` on its smoothed 3-D speed alone, stances of ``min_stance_s`` or more)."""
     J = _check(joints, fps)
     if len(J) < 2:
         return np.zeros((len(J), len(FOOT_JOINTS)), bool)
     speed = np.linalg.norm(np.gradient(J[:, FOOT_JOINTS], axis=0), axis=-1) * fps
     speed = uniform_filter1d(speed, max(1, round(cfg.smooth_s * fps)), axis=0)
-    planted = speed < cfg.speed_m_s
-    runs, _ = label(planted.T, structure=[[0, 0, 0], [1, 1, 1], [0, 0, 0]])  # runs along time per joint
-    length = np.bincount(runs.ravel())
-    return (planted.T & (length[runs] >= cfg.min_stance_s * fps)).T
+    return planted(speed, enter_speed=cfg.speed_m_s, min_frames=cfg.min_stance_s * fps)
 
 
 def _design(T: int, fps: float, knot_s: float) -> csr_matrix:

@@ -47,6 +47,7 @@ import numpy as np
 from trumans.contacts.rule import JOINT_CORE_RADIUS
 from trumans.ik.limb import two_bone_positions
 from trumans.skeleton import FOOT_REST_HEIGHT, LEG_CHAINS
+from trumans.stance import planted
 
 from trumans.sample.cleanup.common import episode_joints, smoothstep
 
@@ -126,26 +127,21 @@ def _foot_height(joints: np.ndarray, ankle: int, toe: int) -> np.ndarray:
 
 def foot_contacts(joints: np.ndarray, fps: float, config: FootCleanupConfig = FootCleanupConfig(),
                   initial: np.ndarray | bool = False) -> np.ndarray:
-    """joints (B, T, 24, 3) world m -> (B, T, 2) bool contacts of the (left, right) foot.
-    ``initial`` (B, 2) or bool: the state before frame 0 (for frames neither entering nor leaving)."""
+    """joints (B, T, 24, 3) world m -> (B, T, 2) bool contacts of the (left, right) foot
+    (``trumans.stance.planted`` on the lower of ankle / toe above rest and the horizontal speed of
+    their midpoint). ``initial`` (B, 2) or bool: the state before frame 0 (for frames neither
+    entering nor leaving)."""
     B, T = joints.shape[:2]
-    out = np.zeros((B, T, 2), dtype=bool)
-    init = np.broadcast_to(np.asarray(initial, dtype=bool), (B, 2))
+    height = np.zeros((B, T, 2))
+    speed = np.zeros((B, T, 2))
     for s, (_, _, ankle, toe) in enumerate(LEG_CHAINS):
-        h = _foot_height(joints, ankle, toe)  # (B, T)
+        height[..., s] = _foot_height(joints, ankle, toe)
         mid = 0.5 * (joints[..., ankle, :2] + joints[..., toe, :2])
-        v = np.zeros((B, T))
-        v[:, 1:] = np.linalg.norm(np.diff(mid, axis=1), axis=-1) * fps
+        speed[:, 1:, s] = np.linalg.norm(np.diff(mid, axis=1), axis=-1) * fps
         if T > 1:
-            v[:, 0] = v[:, 1]
-        enter = (h < config.enter_height) & (v < config.enter_speed)
-        leave = (h > config.exit_height) | (v > config.exit_speed)
-        decisive = enter | leave
-        idx = np.where(decisive, np.arange(T)[None], -1)
-        last = np.maximum.accumulate(idx, axis=1)  # last decisive frame at or before t (hysteresis)
-        state = np.take_along_axis(enter, np.maximum(last, 0), axis=1)
-        out[..., s] = np.where(last >= 0, state, init[:, s:s + 1])
-    return out
+            speed[:, 0, s] = speed[:, 1, s]
+    return planted(speed, height, enter_speed=config.enter_speed, exit_speed=config.exit_speed,
+                   enter_height=config.enter_height, exit_height=config.exit_height, initial=initial)
 
 
 def support_foot(contact: np.ndarray, joints: np.ndarray, leg_length: float, fps: float, fixed: int = 0,

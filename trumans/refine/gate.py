@@ -29,6 +29,7 @@ import numpy as np
 from scipy.ndimage import binary_dilation, median_filter
 from scipy.signal import savgol_filter
 
+from trumans.easing import smoothstep
 from trumans.skeleton import NUM_JOINTS
 
 from trumans.refine.frame import fill_missing_joints
@@ -111,17 +112,12 @@ def noise_level(tracked: np.ndarray) -> np.ndarray:
     return np.nan_to_num(med) / (_NORM_MEDIAN * _RES_STD)
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3 - 2 * x)
-
-
 def gate_weights(tracked: np.ndarray, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
     """The filter's weight per frame and joint (T, 24) in [0, 1] for tracked joints (T, 24, 3) m
     (NaN = missing) at ``fps``: 1 on failures (missing, spikes; widened by ``fail_pad``, ramped down
     over ``feather`` frames), else by the local jitter (``input_noise``)."""
     noise, r, seen = _noise_residual(_check(tracked), fps, config)
-    w = _smoothstep((noise - config.keep_below_m) / (config.filter_above_m - config.keep_below_m))
+    w = smoothstep((noise - config.keep_below_m) / (config.filter_above_m - config.keep_below_m))
     fail = ~seen | (r > config.spike_sigmas * _RES_STD * noise + config.spike_m)
     if config.fail_pad > 0:
         fail = binary_dilation(fail, np.ones((2 * config.fail_pad + 1, 1), bool))

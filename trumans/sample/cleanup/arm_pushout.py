@@ -32,7 +32,8 @@ import torch
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import gaussian_filter1d
 
-from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, push_radii, smoothstep
+from trumans.easing import smoothstep
+from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, push_radii
 from trumans.scenes.sdf import SceneSDF
 
 __all__ = ["ArmPushConfig", "arm_push", "push_arms_out"]

@@ -13,7 +13,7 @@ from trumans.ik.limb import two_bone_positions
 from trumans.rotations import least_rotation
 from trumans.skeleton import JOINT_INDEX, SEAT
 
-__all__ = ["episode_joints", "smoothstep", "ARMS", "arm_ik", "push_radii"]
+__all__ = ["episode_joints", "ARMS", "arm_ik", "push_radii"]
 
 # (shoulder, elbow, wrist, index1) per arm; side 0 = left, 1 = right
 ARMS = tuple(tuple(JOINT_INDEX[f"{side}_{n}"] for n in ("shoulder", "elbow", "wrist", "index1"))
@@ -29,12 +29,6 @@ def episode_joints(joints: np.ndarray, fixed: int) -> np.ndarray:
     if not 0 <= fixed <= J.shape[1]:
         raise ValueError(f"fixed must be in [0, {J.shape[1]}] frames, got {fixed}")
     return J
-
-
-def smoothstep(x: np.ndarray) -> np.ndarray:
-    """3x^2 - 2x^3 of x clipped to [0, 1]."""
-    s = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    return s * s * (3.0 - 2.0 * s)
 
 
 def arm_ik(J: np.ndarray, arm: tuple[int, int, int, int], goal: np.ndarray, lengths: np.ndarray

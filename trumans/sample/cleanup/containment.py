@@ -33,7 +33,8 @@ from scipy import ndimage
 from trumans.scenes.sdf import SceneSDF
 from trumans.skeleton import JOINT_INDEX
 
-from trumans.sample.cleanup.common import episode_joints, smoothstep
+from trumans.easing import smoothstep
+from trumans.sample.cleanup.common import episode_joints
 
 __all__ = ["ContainmentConfig", "contain"]
 

@@ -49,7 +49,8 @@ from trumans.ik.limb import two_bone_positions
 from trumans.skeleton import FOOT_REST_HEIGHT, LEG_CHAINS
 from trumans.stance import planted
 
-from trumans.sample.cleanup.common import episode_joints, smoothstep
+from trumans.easing import smoothstep
+from trumans.sample.cleanup.common import episode_joints
 
 __all__ = ["FootCleanupConfig", "foot_contacts", "support_foot", "out_of_scene", "knee_out_of_scene",
            "clean_feet"]

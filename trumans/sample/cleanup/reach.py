@@ -45,7 +45,8 @@ import numpy as np
 from trumans.rotations import rodrigues, unit
 from trumans.skeleton import JOINT_INDEX, SUBTREE
 
-from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints, smoothstep
+from trumans.easing import smoothstep
+from trumans.sample.cleanup.common import ARMS, arm_ik, episode_joints
 
 __all__ = ["ReachCleanupConfig", "reach_schedule", "release_weights", "lean_angle", "tilt_limit", "clean_reach"]
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.sample.cleanup.common import smoothstep
+from trumans.easing import smoothstep
 
 __all__ = ["SeamConfig", "blend_seam", "seam_weights"]
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT
 
-from trumans.sample.cleanup.common import smoothstep
+from trumans.easing import smoothstep
 
 __all__ = ["SEATED_ACTIONS", "SupportLiftConfig", "support_weights", "lowest_foot_height", "lift_onto_feet"]
 

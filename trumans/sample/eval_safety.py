@@ -49,7 +49,11 @@ TARGETS: tuple[tuple[str, float], ...] = (("crossings", 0), ("exits", 0), ("pene
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("checkpoint", nargs="?", default=None, help="generator checkpoint (default: the shipped one)")
+    from trumans.checkpoint_args import add_checkpoint_arguments
+    from trumans.common_args import add_device_argument
+
+    add_checkpoint_arguments(p, "generator checkpoint (default: the shipped one)")
+    add_device_argument(p)
     p.add_argument("--plans", type=int, default=12, help="plans, spread over the rooms (default 12)")
     p.add_argument("--rooms", type=int, default=6, help="procedural test rooms (1-6, default 6)")
     p.add_argument("--mesh-rooms", type=int, default=3, help=f"OBJ room models among {', '.join(MESH_ROOMS)} "
@@ -242,7 +246,7 @@ def _worst(runs: list[dict]) -> dict:
 
 def evaluate(ckpt_path, plans: int, rooms: int, mesh_rooms: int, perturbations: tuple[str, ...], seed: int,
              config=None, mesh_dir: str | Path = "out/safety_rooms", max_seconds: float = 120.0,
-             log=None, demo: bool = False) -> dict:
+             log=None, demo: bool = False, device: str = "cpu") -> dict:
     """Run the benchmark (module doc) -> {"runs": [...], "worst": {...}, "targets": {...}}; ``demo``:
     also the default plan in the default room from its default start (what ``make demo`` samples,
     seed 0), under every perturbation ('seed': seed 1)."""
@@ -268,7 +272,7 @@ def evaluate(ckpt_path, plans: int, rooms: int, mesh_rooms: int, perturbations: 
         if not todo:
             continue
         sc = load_sample_scene(spec)
-        sampler = EpisodeSampler(ckpt, sc.grids, config)
+        sampler = EpisodeSampler(ckpt, sc.grids, config, device=device)
         sdf = sampler.scene_sdf_all if sampler.scene_sdf_all is not None else None
         if sdf is None:
             from trumans.scenes.sdf import SceneSDF
@@ -313,8 +317,10 @@ def evaluate(ckpt_path, plans: int, rooms: int, mesh_rooms: int, perturbations: 
 def run(args: argparse.Namespace) -> int:
     import sys
 
+    from trumans.checkpoint_args import resolve_checkpoint
     from trumans.sample.generate import DEFAULT_CHECKPOINT
 
+    resolve_checkpoint(args)
     perts = tuple(p.strip() for p in args.perturbations.split(",") if p.strip())
     bad = [p for p in perts if p not in PERTURBATIONS]
     if bad or not perts:
@@ -326,7 +332,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-seconds must be > 0, got {args.max_seconds}")
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.plans, args.rooms, args.mesh_rooms, perts, args.seed,
                     sampler_config(args), args.mesh_dir, args.max_seconds,
-                    log=lambda line: print(line, file=sys.stderr, flush=True), demo=args.demo)
+                    log=lambda line: print(line, file=sys.stderr, flush=True), demo=args.demo, device=args.device)
     if args.json:
         print(json.dumps(figs))
     else:

@@ -20,6 +20,7 @@ second of sampling. ``fid`` / ``diversity`` / ``action_acc`` use the project's m
 from __future__ import annotations
 
 from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
+from trumans.common_args import add_device_argument
 from trumans.threads import add_threads_argument, set_threads
 import argparse
 import json
@@ -47,6 +48,7 @@ REFERENCE_FILE = MODELS_DIR / "synthesis_reference.npz"
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_checkpoint_arguments(p, "generator checkpoint (default: the shipped one)")
     add_threads_argument(p)
+    add_device_argument(p)
     p.add_argument("--rooms", type=int, default=3, help=f"how many evaluation rooms (1-{len(EVAL_ROOM_SEEDS)})")
     from trumans.sample.sampler import SamplerConfig
 
@@ -86,7 +88,8 @@ def eval_plan(sc, seed: int):
 
 
 def evaluate(ckpt_path, rooms: int, seed: int, naive_episodes: int, config: SamplerConfig | None = None,
-             reference: str | None = None, encoder: str | None = None, save_windows: str | None = None) -> dict:
+             reference: str | None = None, encoder: str | None = None, save_windows: str | None = None,
+             device: str = "cpu") -> dict:
     """The figures (see the module doc); ``config``: the fast sampler's (default ``SamplerConfig()``,
     what ``trumans sample`` does; the naive sampler takes its classifier-free guidance scales);
     ``encoder``: motion encoder checkpoint of fid / action_acc (default: the shipped one);
@@ -108,7 +111,7 @@ def evaluate(ckpt_path, rooms: int, seed: int, naive_episodes: int, config: Samp
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
         plan = eval_plan(sc, seed * 1000 + r)
-        sampler = EpisodeSampler(ckpt, sc.grids, config)
+        sampler = EpisodeSampler(ckpt, sc.grids, config, device=device)
         res = sample_plan(ckpt, sampler, sc.scene, sc.walkmap, plan, seed=seed + r)
         per.append(motion_figures(res, sc))
         results.append(res)
@@ -129,11 +132,11 @@ def evaluate(ckpt_path, rooms: int, seed: int, naive_episodes: int, config: Samp
         sc, plan, res = first
         naive = EpisodeSampler(ckpt, sc.grids, SamplerConfig(steps=ckpt.diffusion_config.steps, eta=1.0, naive=True,
                                                              goal_guidance=0.0, scene_scale=config.scene_scale,
-                                                             action_scale=config.action_scale))
-        fast = EpisodeSampler(ckpt, sc.grids, config)
+                                                             action_scale=config.action_scale), device=device)
+        fast = EpisodeSampler(ckpt, sc.grids, config, device=device)
         samplers = {"fast": fast, "naive": naive}
         if config.goal_guidance > 0:  # the same fast sampler without goal guidance: like for like with the naive one
-            samplers["unguided"] = EpisodeSampler(ckpt, sc.grids, replace(fast.config, goal_guidance=0.0))
+            samplers["unguided"] = EpisodeSampler(ckpt, sc.grids, replace(fast.config, goal_guidance=0.0), device=device)
         t = {name: [] for name in samplers}
         for rep in range(3):  # interleaved, the median of each: the machine's speed drifts
             for name, s in samplers.items():
@@ -325,8 +328,9 @@ def run(args: argparse.Namespace) -> int:
     ablations = _check_inputs(args, DEFAULT_CHECKPOINT)
     config = sampler_config(args)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.rooms, args.seed, args.naive_episodes, config,
-                    args.data, args.motion_encoder, args.save_windows)
+                    args.data, args.motion_encoder, args.save_windows, device=args.device)
     for name, path in ablations:
-        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.seed, 0, config, args.data, args.motion_encoder)
+        figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.seed, 0, config, args.data, args.motion_encoder,
+                                               device=args.device)
     print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

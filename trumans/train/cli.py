@@ -10,6 +10,7 @@ import math
 import os
 from trumans.summary import print_summary
 from trumans import argtypes
+from trumans.common_args import add_device_argument, add_hidden_alias, add_no_progress_argument, out_help
 
 __all__ = ["add_arguments", "run", "main"]
 
@@ -22,10 +23,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", default=None,
                    help="built-in config of the task (generator: cpu-small (default), paper; contact: slide, hinge, free = one model per dof class) or a TOML file")
     p.add_argument("--data", required=True, help="dataset folder (with index.json)")
-    p.add_argument("--out", required=True, help="run folder: checkpoint.pt, loss.png, cache/")
+    p.add_argument("--out", required=True, help=out_help("folder", "the run (checkpoint.pt, loss.png, cache/); "
+                   "--resume continues it"))
     p.add_argument("--augmented", action="append", default=[], metavar="DIR",
                    help="augmented dataset folder (`trumans augment` output) added to the train split; repeatable")
-    p.add_argument("--steps", type=int, default=None, help="total optimisation steps (default: the config's)")
+    p.add_argument("--max-steps", dest="steps", type=int, default=None, metavar="N",
+                   help="total optimiser steps (default: the config's; --steps is the denoising steps of sample / refine)")
+    add_hidden_alias(p, "--steps", "steps", type=int)  # the spelling before issue 37
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--init", default=None, metavar="CHECKPOINT",
                    help="fine-tune: start from this checkpoint's weights and normalisation (same task and model; "
@@ -35,9 +39,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="switch off a part (generator: progress (indicator), scene / action (condition), "
                         "augmented (data)); repeatable")
     p.add_argument("--time-limit", type=float, default=None, help="stop after this many seconds (overrides config)")
-    p.add_argument("--device", default=None, help="cpu or cuda (default: cuda if available)")
+    add_device_argument(p, default=None)
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
-    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_no_progress_argument(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
 
 
@@ -55,9 +59,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--threads must be >= 1, got {args.threads}")
         torch.set_num_threads(args.threads)
     if args.steps is not None and args.steps < 0:
-        raise ValueError(f"--steps must be >= 0, got {args.steps}")
-    if args.device is not None and args.device not in DEVICES:
-        raise ValueError(f"--device must be one of {list(DEVICES)}, got {args.device!r}")
+        raise ValueError(f"--max-steps must be >= 0, got {args.steps}")
     over: dict[str, dict] = {}
     if args.time_limit is not None:
         if not (math.isfinite(args.time_limit) and args.time_limit >= 0):

@@ -33,12 +33,18 @@ class DistInfo:
 
 
 def setup(device: str | None = None) -> DistInfo:
-    """Join the process group if WORLD_SIZE > 1 (torchrun); device: 'cpu', 'cuda' or None (auto)."""
-    if device not in (None, "cpu", "cuda"):
-        raise ValueError(f"device must be 'cpu' or 'cuda' (or None: cuda if available), got {device!r}")
+    """Join the process group if WORLD_SIZE > 1 (torchrun); device: 'cpu', 'cuda', 'cuda:N' (one process
+    only: under torchrun each process takes cuda:LOCAL_RANK) or None (cuda if available)."""
     world = int(os.environ.get("WORLD_SIZE", "1"))
     rank = int(os.environ.get("RANK", "0"))
     local = int(os.environ.get("LOCAL_RANK", str(rank)))
+    index = device[5:] if device is not None and device.startswith("cuda:") else None
+    if device not in (None, "cpu", "cuda") and not (index is not None and index.isdigit()):
+        raise ValueError(f"device must be 'cpu', 'cuda' or 'cuda:N' (or None: cuda if available), got {device!r}")
+    if index is not None:
+        if world > 1:
+            raise ValueError(f"--device {device}: under torchrun each process takes cuda:LOCAL_RANK; give --device cuda")
+        local = int(index)
     use_cuda = torch.cuda.is_available() if device is None else device.startswith("cuda")
     if use_cuda and not torch.cuda.is_available():
         raise ValueError("device 'cuda' requested but CUDA is not available; use --device cpu")

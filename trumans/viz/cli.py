@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         check_html_path(args.html)
         if args.out:
             raise ValueError(f"--html {args.html} writes only the viewer; drop --out {args.out} (the GIF/PNG prefix)")
+    formats = view_formats(args.formats, getattr(args, "animation_format", None), args.no_animation)
     paths = [Path(p) for p in args.seq]
     seqs = [load_sequence(p) for p in paths]
     # each sequence in its own scene (an augmented sequence lives in its changed scene)

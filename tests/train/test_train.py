@@ -254,3 +254,49 @@ def test_run_folder_has_one_writer_and_sweeps_killed_temp_files(tiny, tmp_path: 
     with FolderLock(run, "another trainer"):
         with pytest.raises(FolderLocked, match="another trainer"):
             train(cfg, root, run, steps=2, seed=1, resume=True, progress=False)
+
+
+def test_seam_loss_analytic_cases() -> None:
+    from trumans.train.tasks.generator import seam_loss
+
+    B, L, F, k = 3, 8, 5, 2
+    x0 = torch.randn(B, L, F, generator=torch.Generator().manual_seed(0))
+    mask = torch.zeros(B, L, F, dtype=torch.bool)
+    mask[:2, :k] = True  # samples 0, 1 continue a context; sample 2 starts from nothing
+    assert seam_loss(x0, x0, mask, k).item() == 0.0
+    jumped = x0.clone()
+    jumped[:, k:] += 0.5  # every new frame moved by 0.5: one step of 0.5 across the seam
+    # over frames 0..4: 1st differences, one of 4 off by 0.5; 2nd, two of 3 by +-0.5; 3rd, the two by
+    # 0.5 - 3 * 0.5 = -1 and 3 * 0.5 - 3 * 0.5 + 0.5 = 0.5
+    expected = 0.5 / 4 + 2 * 0.5 / 3 + (1.0 + 0.5) / 2
+    torch.testing.assert_close(seam_loss(jumped, x0, mask, k), torch.tensor(expected))
+    later = x0.clone()
+    later[:, k + 3:] += 0.5  # a jump after the seam window is not the seam term's business
+    assert seam_loss(later, x0, mask, k).item() == 0.0
+    only_free = x0.clone()
+    only_free[2] += 1.0  # the sample without a context does not count
+    assert seam_loss(only_free, x0, mask, k).item() == 0.0
+    with pytest.raises(ValueError, match="one shape"):
+        seam_loss(x0[:, :4], x0, mask, k)
+
+
+def test_seam_weight_adds_the_term_and_zero_leaves_the_loss_alone(tiny) -> None:
+    from trumans.train.tasks.generator import GeneratorTask
+    from trumans.train.config import load_config
+
+    root, cfg_path = tiny
+    cfg = load_config(cfg_path)
+    with pytest.raises(ValueError, match="seam_weight must be >= 0"):
+        cfg.with_overrides(train={"seam_weight": -1.0})
+    losses = {}
+    for w in (0.0, 2.0):
+        task = GeneratorTask(cfg.with_overrides(train={"seam_weight": w}))
+        task.setup(root, root.parent / f"out_{w}", is_main=True, barrier=lambda: None, prev=None, progress=False)
+        torch.manual_seed(0)
+        model = task.build_model()
+        out = task.loss(model, task.batch(0, 0, 1), torch.Generator().manual_seed(1), torch.device("cpu"))
+        losses[w] = out
+    assert "seam" not in losses[0.0].terms and "seam" in losses[2.0].terms
+    torch.testing.assert_close(losses[2.0].terms["simple"], losses[0.0].terms["simple"])
+    torch.testing.assert_close(losses[2.0].loss, losses[0.0].loss + 2.0 * losses[2.0].terms["seam"])
+    assert losses[2.0].terms["seam"].item() > 0

@@ -15,7 +15,7 @@ from __future__ import annotations
 import tomllib
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from trumans.config_data import config_from_dict
 from trumans.input_files import file_kind
@@ -37,11 +37,15 @@ def _need(ok: bool, msg: str) -> None:
 
 @dataclass(frozen=True)
 class TrainSection:
-    """Optimisation, shared by every task: Adam (lr, weight_decay), linear warm-up, EMA decay in
-    [0, 1), gradient clipping (0 = off), steps, checkpoint / validation intervals, batch sizes,
-    the inpainting-mask probabilities, condition dropout (classifier-free guidance) and a time
-    limit in seconds (0 = none; the run stops and checkpoints after it)."""
+    """Optimisation, shared by every task: the optimizer ("adam": weight_decay is an L2 term added
+    to the gradient, torch's Adam; "adamw": decoupled weight decay, Loshchilov & Hutter 2019 §2),
+    lr, weight_decay, linear warm-up, EMA decay in [0, 1), gradient clipping (0 = off), steps,
+    checkpoint / validation intervals, batch sizes, the inpainting-mask probabilities, condition
+    dropout (classifier-free guidance), a time limit in seconds (0 = none; the run stops and
+    checkpoints after it) and, for the generator, ``seam_weight``: the weight of the seam-continuity
+    term (``trumans.train.tasks.generator.seam_loss``; 0 = off, the paper's loss alone)."""
 
+    optimizer: Literal["adam", "adamw"] = "adam"
     steps: int = 100_000
     batch_size: int = 64
     lr: float = 1e-4
@@ -58,8 +62,10 @@ class TrainSection:
     p_drop_scene: float = 0.1
     p_drop_action: float = 0.1
     time_limit_s: float = 0.0
+    seam_weight: float = 0.0
 
     def __post_init__(self) -> None:
+        _need(self.seam_weight >= 0, f"seam_weight must be >= 0 (0 = off), got {self.seam_weight}")
         _need(self.steps >= 0, f"steps must be >= 0, got {self.steps}")
         for name in ("checkpoint_every", "val_every"):
             _need(getattr(self, name) >= 1, f"{name} must be >= 1, got {getattr(self, name)}")

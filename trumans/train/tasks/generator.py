@@ -3,7 +3,8 @@ model on canonical episodes with scene and action conditions (``trumans.train.ta
 
 Per step: a batch of episodes (``trumans.train.data.BatchStream``), random inpainting masks
 (``MaskSampler``: M_trans, M_goal), random condition dropout for classifier-free guidance, and
-``GaussianDiffusion.training_loss`` (its "simple" term is the loss). Validation: the same loss of
+``GaussianDiffusion.training_loss`` (its "simple" term is the loss), plus, with
+``train.seam_weight`` > 0, the seam-continuity term ``seam_loss``. Validation: the same loss of
 the EMA model on the val split with fixed noise, masks and steps, beside the loss of a model that
 outputs 0.
 """
@@ -28,7 +29,7 @@ from trumans.train.config import GeneratorConfig, load_config
 from trumans.train.data import Batch, BatchStream, EpisodeSet, load_episodes
 from trumans.train.tasks import TaskLoss
 
-__all__ = ["GeneratorTask", "ABLATIONS", "model_config", "mask_sampler", "condition_inputs", "validation_loss",
+__all__ = ["GeneratorTask", "ABLATIONS", "seam_loss", "SEAM_WINDOW", "model_config", "mask_sampler", "condition_inputs", "validation_loss",
            "VAL_SEED", "DEFAULT_CONFIG"]
 
 DEFAULT_CONFIG = "cpu-small"
@@ -39,6 +40,35 @@ ABLATIONS = {  # --ablate NAME -> (section, key) set to False
     "action": ("conditions", "action"),
     "augmented": ("data", "augmented"),
 }
+
+
+SEAM_WINDOW = 3  # new frames after the context that the seam term covers
+
+
+def seam_loss(x0_hat: torch.Tensor, x0: torch.Tensor, mask: torch.Tensor, k: int,
+              window: int = SEAM_WINDOW) -> torch.Tensor:
+    """The seam-continuity term: mean absolute error of the 1st, 2nd and 3rd time differences of the
+    predicted episode against the clean one over its first ``k + window`` frames (the ``k`` context
+    frames and the first new ones), on the samples whose transition frames are given.
+
+    x0_hat, x0: (B, L, F) normalised features (x0_hat with the given entries at their clean values);
+    mask: (B, L, F) bool, True = given; k: context frames -> scalar. Not in TRUMANS: its loss weighs
+    the first new frame like any other, and generated motion jerked at every seam (the network's
+    first new frames did not continue the context's velocity and acceleration; docs/sampling_log.md,
+    "The seams, measured at their peak"). Velocity terms of this kind are MDM's geometric losses
+    (Tevet et al. 2023, §3 eq. 4), here only across the seam."""
+    if x0_hat.shape != x0.shape or x0.dim() != 3 or mask.shape != x0.shape:
+        raise ValueError(f"need x0_hat, x0 and mask of one shape (B, L, F), got {tuple(x0_hat.shape)}, "
+                         f"{tuple(x0.shape)}, {tuple(mask.shape)}")
+    end = min(k + window, x0.shape[1])
+    if k < 1 or end < 4:
+        raise ValueError(f"the seam term needs k >= 1 and at least 4 frames from the context on, got k={k}, L={x0.shape[1]}")
+    trans = mask[:, :k].flatten(1).all(dim=1).to(x0.dtype)  # (B,) the transition frames are given
+    per = x0.new_zeros(x0.shape[0])
+    for n in (1, 2, 3):
+        err = torch.diff(x0_hat[:, :end], n=n, dim=1) - torch.diff(x0[:, :end], n=n, dim=1)
+        per = per + err.abs().mean(dim=(1, 2))
+    return (per * trans).sum() / trans.sum().clamp_min(1.0)
 
 
 def model_config(cfg: GeneratorConfig, num_actions: int) -> DenoiserConfig:
@@ -195,9 +225,12 @@ class GeneratorTask:
             cond["drop_scene"] = (torch.rand(B, generator=generator) < tc.p_drop_scene).to(device)
         if "actions" in cond:
             cond["drop_action"] = (torch.rand(B, generator=generator) < tc.p_drop_action).to(device)
-        out = self._diffusion(device).training_loss(model, batch.x.to(device), mask=mask.to(device),
-                                                      generator=generator, **cond)
-        return TaskLoss(out.loss, out.terms)
+        x0, mask = batch.x.to(device), mask.to(device)
+        out = self._diffusion(device).training_loss(model, x0, mask=mask, generator=generator, **cond)
+        if tc.seam_weight == 0:
+            return TaskLoss(out.loss, out.terms)
+        seam = seam_loss(out.x0_hat, x0, mask, self.config.data.transition_frames)
+        return TaskLoss(out.loss + tc.seam_weight * seam, {**out.terms, "seam": seam})
 
     def validate(self, model: nn.Module) -> tuple[float, float]:
         dev = next(model.parameters()).device

@@ -18,12 +18,14 @@ __all__ = ["add_arguments", "run", "main"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from trumans.common_args import out_help
+
     p.add_argument("input", metavar="tracked.npz",
                    help="tracked sequence .npz: joints (T, 24, 3) m z-up, optional rotations (T, 24, 6), one object's "
                         "pose (T, 4, 4) and category, optional object IMU imu_rot (T, 6) / imu_acc (T, 3); NaN marks "
                         "a missing frame or joint (docs/refine.md 'Input and output'; example: "
                         "examples/tracked_carry.npz, its clean truth examples/tracked_carry_truth.npz)")
-    p.add_argument("--out", required=True, help="refined sequence .npz (same frames and fps)")
+    p.add_argument("--out", required=True, help=out_help("file", "the refined sequence .npz (same frames and fps)"))
     p.add_argument("--category", default=None,
                    help="object category (default: the object's own); must be one the filter knows")
     p.add_argument("--object", default=None, help="object to refine with the human (default: the only one, "

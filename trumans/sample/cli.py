@@ -20,6 +20,7 @@ import numpy as np
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 from trumans.sample.generate import DEFAULT_CHECKPOINT, MAX_SAMPLES, SAMPLER_CONFIG_KEY, default_plan
 from trumans import argtypes
+from trumans.common_args import add_device_argument, add_no_progress_argument, out_help
 from trumans.threads import add_threads_argument, set_threads
 
 __all__ = ["add_arguments", "run", "steps_from_flags", "body_frame", "DEFAULT_CHECKPOINT", "SAMPLER_CONFIG_KEY",
@@ -110,7 +111,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="put a held object down (on a surface object or at a point; default where it was)")
     g.add_argument("--open", dest="open", action=_StepAction, metavar="NAME", help="open a door or drawer")
     g.add_argument("--close", dest="close", action=_StepAction, metavar="NAME", help="close a door or drawer")
-    p.add_argument("--out", required=True, help="output path stem: writes STEM.npz (+ other --formats)")
+    p.add_argument("--out", required=True, help=out_help("stem", "writes STEM.npz (+ STEM.bvh, .gif ... for the other "
+                                                             "--formats; STEM_00.npz ... with --num-samples)"))
     p.add_argument("--formats", default="npz,png", help=f"comma-separated among {','.join(FORMATS)} (default npz,png)")
     p.add_argument("--num-samples", type=argtypes.int_in(1, MAX_SAMPLES, limit="MAX_SAMPLES"), default=1,
                    help=f"variations sampled in one batch (default 1, at most {MAX_SAMPLES})")
@@ -123,11 +125,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_postprocess_arguments(p)
     p.add_argument("--max-seconds", type=argtypes.float_in(0.0, 86400.0, lo_open=True), default=600.0,
                    help="give up when the plan is not done by then (seconds of motion, at most a day)")
-    p.add_argument("--device", type=argtypes.device, default="cpu", help="torch device (cpu, cuda, cuda:1)")
+    add_device_argument(p)
     add_threads_argument(p)
-    p.add_argument("--seed", type=argtypes.seed, default=0)
+    p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (same seed -> same motion)")
     p.add_argument("--json", action="store_true", help="print one JSON object of figures as the last line")
-    p.add_argument("--no-progress", action="store_true")
+    add_no_progress_argument(p)
 
 
 def body_frame(spec: str) -> np.ndarray:

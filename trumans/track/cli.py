@@ -33,8 +33,11 @@ def add_interaction_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
+    from trumans.common_args import out_help
+
     p.add_argument("input", help="tracked sequence .npz (body motion with rotations, in the scene's frame)")
-    p.add_argument("--out", required=True, help="output sequence .npz (corrected body + object trajectories)")
+    p.add_argument("--out", required=True, help=out_help("file", "the tracked sequence .npz (corrected body + object "
+                                                             "trajectories)"))
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (the tracker is deterministic; kept for the CLI contract)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
     add_interaction_arguments(p)

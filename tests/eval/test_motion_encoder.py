@@ -9,7 +9,7 @@ import torch
 from trumans.eval.motion_encoder import (DEFAULT_MOTION_ENCODER, MotionEncoder, MotionEncoderConfig,
                                           MotionEncoderNet, action_acc, diversity, dominant_action, fid,
                                           like_sample, load_motion_encoder, matched_weights, motion_windows,
-                                          split_features)
+                                          save_motion_encoder, split_features)
 from trumans.importers.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
@@ -151,9 +151,12 @@ def test_encoder_is_invariant_to_world_placement_and_round_trips(tmp_path):
     with pytest.raises(ValueError, match="not in the vocabulary"):
         enc.window_labels(acts, ["sit", "fly"], fps=30.0)
     path = tmp_path / "enc.pt"
-    torch.save(enc.state(), path)
+    enc.info = {"test_acc": 0.5}
+    save_motion_encoder(enc, path, data={"name": "toy", "hash": "abc"})
     back = load_motion_encoder(path)
-    assert back.vocabulary == ["stand", "walk", "sit"] and back.cfg == enc.cfg
+    assert back.vocabulary == ["stand", "walk", "sit"] and back.cfg == enc.cfg and back.info == {"test_acc": 0.5}
+    np.testing.assert_array_equal(back.mean, enc.mean.astype(np.float32))
+    np.testing.assert_array_equal(back.std, enc.std.astype(np.float32))
     np.testing.assert_allclose(back.encode(J, 30.0), feats[:1], atol=1e-6)
     with pytest.raises(ValueError, match="shorter than"):
         enc.encode(J[:10], 30.0)
@@ -179,22 +182,76 @@ def test_split_features_skip_clips_shorter_than_the_window():
 
 
 def test_bad_checkpoints_are_refused(tmp_path):
-    with pytest.raises(FileNotFoundError, match="train one with"):
+    """Missing, junk, foreign, corrupted, wrong-kind and retired-format files: each a ValueError
+    (FileNotFoundError) naming the problem and the fix; nothing is unpickled beyond plain data."""
+    from trumans.model.checkpoint import save_checkpoint
+
+    from helpers import tiny_checkpoint
+
+    with pytest.raises(FileNotFoundError, match="trumans train --task motion_encoder"):
         load_motion_encoder(tmp_path / "none.pt")
     (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
-    with pytest.raises(ValueError, match="not a readable motion encoder"):
+    with pytest.raises(ValueError, match="not a readable trumans checkpoint"):
         load_motion_encoder(tmp_path / "junk.pt")
     torch.save({"weights": torch.zeros(3)}, tmp_path / "other.pt")
-    with pytest.raises(ValueError, match="not a trumans motion encoder"):
+    with pytest.raises(ValueError, match="not a trumans checkpoint"):
         load_motion_encoder(tmp_path / "other.pt")
+    save_checkpoint(tmp_path / "gen.pt", tiny_checkpoint())
+    with pytest.raises(ValueError, match="is a 'generator' checkpoint, but a 'motion_encoder' checkpoint is needed"):
+        load_motion_encoder(tmp_path / "gen.pt")
+    enc = _tiny_encoder()
+    good = tmp_path / "enc.pt"
+    save_motion_encoder(enc, good)
+    raw = torch.load(good, weights_only=True)
+    raw["model"]["head.bias"] = raw["model"]["head.bias"] + 1.0  # altered weights, digest unchanged
+    torch.save(raw, tmp_path / "altered.pt")
+    with pytest.raises(ValueError, match="does not match the digest"):
+        load_motion_encoder(tmp_path / "altered.pt")
+    retired = {"format": "trumans-motion-encoder-1", "config": enc.cfg.to_dict(), "state_dict": enc.net.state_dict(),
+               "mean": torch.from_numpy(enc.mean), "std": torch.from_numpy(enc.std), "vocabulary": enc.vocabulary}
+    torch.save(retired, tmp_path / "retired.pt")
+    with pytest.raises(ValueError, match=r"retired format .*scripts/ship_motion_encoder.py"):
+        load_motion_encoder(tmp_path / "retired.pt")
     with pytest.raises(ValueError, match="unknown motion encoder config keys"):
         MotionEncoderConfig.from_dict({"num_actions": 2, "layers": 3})
     with pytest.raises(ValueError, match="window must be >= 4, got 2"):
         MotionEncoderConfig(num_actions=2, window=2)
 
 
+def test_ship_script_converts_the_retired_format_without_changing_a_weight(tmp_path):
+    """scripts/ship_motion_encoder.py on a retired-format file: the same tensors, vocabulary and
+    config, the report as meta figures, identical features and probabilities."""
+    import runpy
+    import sys
+
+    from helpers import REPO_ROOT
+
+    enc = _tiny_encoder(3)
+    enc.info = {"test_acc": 0.25, "fid_train_vs_test": 1.5}
+    retired = {"format": "trumans-motion-encoder-1", "config": enc.cfg.to_dict(),
+               "state_dict": {k: v.clone() for k, v in enc.net.state_dict().items()},
+               "mean": torch.from_numpy(enc.mean), "std": torch.from_numpy(enc.std), "vocabulary": enc.vocabulary,
+               "info": enc.info}
+    torch.save(retired, tmp_path / "old.pt")
+    argv = sys.argv
+    try:
+        sys.argv = ["ship_motion_encoder.py", str(tmp_path / "old.pt"), "--out", str(tmp_path / "new.pt")]
+        with pytest.raises(SystemExit) as done:
+            runpy.run_path(str(REPO_ROOT / "scripts" / "ship_motion_encoder.py"), run_name="__main__")
+    finally:
+        sys.argv = argv
+    assert done.value.code == 0
+    new = load_motion_encoder(tmp_path / "new.pt")
+    assert new.cfg == enc.cfg and new.vocabulary == enc.vocabulary and new.info == enc.info
+    for k, v in enc.net.state_dict().items():
+        assert torch.equal(new.net.state_dict()[k], v)
+    J = _walk(T=60)
+    assert new.encode(J, 30.0).tobytes() == enc.encode(J, 30.0).tobytes()
+    assert new.classify(J, 30.0).tobytes() == enc.classify(J, 30.0).tobytes()
+
+
 def test_shipped_encoder_loads_and_recognises_actions():
-    assert DEFAULT_MOTION_ENCODER.is_file(), "models/motion_encoder.pt is missing (python -m trumans.train.tasks.motion_encoder)"
+    assert DEFAULT_MOTION_ENCODER.is_file(), "models/motion_encoder.pt is missing (trumans train --task motion_encoder)"
     assert DEFAULT_MOTION_ENCODER.stat().st_size < 3 * 2**20
     enc = load_motion_encoder()
     assert len(enc.vocabulary) == enc.cfg.num_actions and "walk" in enc.vocabulary

@@ -5,8 +5,12 @@ A small 1D-convolutional network over windows of canonical joint positions (10 f
 dominant action (softmax over the dataset's vocabulary). Its penultimate features give the
 Fréchet distance (``fid``) and the mean distance between random pairs (``diversity``), as in the
 HumanML3D / MDM evaluation protocol (Guo et al. 2022 §5; Tevet et al. 2023 §5); its head gives
-``action_acc``. Training lives in ``train/motion_encoder.py``; the shipped weights are
-``models/motion_encoder.pt`` (a plain dict of tensors + config + vocabulary, ``weights_only`` safe).
+``action_acc``. Training: ``trumans train --task motion_encoder`` (``trumans.train.tasks.motion_encoder``).
+Files: the shared checkpoint format (``trumans.model.checkpoint``) with kind "motion_encoder"
+(``MOTION_ENCODER_KIND``): ``model_config`` (``MotionEncoderConfig``), ``model`` / ``ema``, ``norm``
+(the (144,) input mean / std), ``vocabulary``, ``fps``, ``meta["figures"]`` (the training report:
+accuracies, majority baseline, real-vs-real FID / diversity); read with ``weights_only`` and
+checked against its digest. The shipped file is ``models/motion_encoder.pt``.
 """
 from __future__ import annotations
 
@@ -20,17 +24,24 @@ from scipy import linalg
 from torch import nn
 
 from trumans.actions import remap_labels
-from trumans.model.episodes import canonical_frame, canonicalize, episode_starts
+from trumans.model.checkpoint import Checkpoint, KindSpec, load_checkpoint, save_checkpoint
+from trumans.model.episodes import Normalizer, canonical_frame, canonicalize, episode_starts
 from trumans.resample import resample_sequence
 from trumans.sequence import Sequence
 from trumans.skeleton import NUM_JOINTS
 from trumans.paths import MODELS_DIR
+from trumans.version import __version__
 
 __all__ = [
     "MotionEncoderConfig",
     "MotionEncoderNet",
     "MotionEncoder",
     "DEFAULT_MOTION_ENCODER",
+    "KIND",
+    "MOTION_ENCODER_KIND",
+    "INPUT_DIM",
+    "encoder_checkpoint",
+    "save_motion_encoder",
     "load_motion_encoder",
     "split_features",
     "split_features_and_labels",
@@ -44,6 +55,8 @@ __all__ = [
 ]
 
 DEFAULT_MOTION_ENCODER = MODELS_DIR / "motion_encoder.pt"
+KIND = "motion_encoder"  # its checkpoint kind (trumans.model.checkpoint.KINDS)
+INPUT_DIM = 2 * NUM_JOINTS * 3  # per frame: joint positions then velocities (window_inputs)
 
 
 @dataclass(frozen=True)
@@ -84,8 +97,9 @@ class MotionEncoderNet(nn.Module):
 
     def __init__(self, cfg: MotionEncoderConfig) -> None:
         super().__init__()
+        self.config = cfg
         c1, c2, c3 = cfg.channels
-        d_in = 2 * NUM_JOINTS * 3
+        d_in = INPUT_DIM
         self.convs = nn.Sequential(
             nn.Conv1d(d_in, c1, 5, padding=2), nn.GELU(),
             nn.Conv1d(c1, c2, 5, stride=2, padding=2), nn.GELU(),
@@ -195,30 +209,74 @@ class MotionEncoder:
         return np.stack([dominant_action(remap_labels(x, list(action_names), self.vocabulary), fps, self.cfg.window,
                                          self.cfg.fps, stride) for x in a])
 
-    def state(self) -> dict:
-        """What ``load_motion_encoder`` reads: tensors, config, vocabulary (``weights_only`` safe)."""
-        return {"format": "trumans-motion-encoder-1", "config": self.cfg.to_dict(),
-                "state_dict": {k: v.detach().cpu().clone() for k, v in self.net.state_dict().items()},
-                "mean": torch.from_numpy(self.mean), "std": torch.from_numpy(self.std),
-                "vocabulary": list(self.vocabulary), "info": self.info}
+    def checkpoint(self, data: dict | None = None, meta: dict | None = None) -> Checkpoint:
+        """This encoder as a checkpoint of kind "motion_encoder" (an export: its weights, no EMA or
+        training state); ``meta["figures"]`` is ``info``."""
+        state = {k: v.detach().cpu().clone() for k, v in self.net.state_dict().items()}
+        return encoder_checkpoint(self.cfg, state, Normalizer(self.mean, self.std), self.vocabulary, data=data,
+                                  meta={**(meta or {}), "figures": dict(self.info)})
+
+
+def _check(ck: Checkpoint) -> None:
+    cfg: MotionEncoderConfig = ck.model_config
+    if ck.normalizer.mean.shape != (INPUT_DIM,):
+        raise ValueError(f"its input normalisation has {ck.normalizer.mean.shape[0]} features, the encoder reads "
+                         f"{INPUT_DIM}; the checkpoint is inconsistent - retrain it")
+    if len(ck.vocabulary) != cfg.num_actions:
+        raise ValueError(f"its vocabulary has {len(ck.vocabulary)} actions but the head {cfg.num_actions}; "
+                         f"the checkpoint is inconsistent - retrain it")
+    if abs(float(ck.fps) - cfg.fps) > 1e-9:
+        raise ValueError(f"its fps {ck.fps} differs from its model config's {cfg.fps}; the checkpoint is inconsistent")
+
+
+MOTION_ENCODER_KIND = KindSpec(config_from_dict=MotionEncoderConfig.from_dict, build=MotionEncoderNet,
+                               required=("norm", "vocabulary", "fps"), check=_check)
+
+
+def encoder_checkpoint(cfg: MotionEncoderConfig, model_state: dict, normalizer: Normalizer, vocabulary: list[str], *,
+                       ema_state: dict | None = None, data: dict | None = None, meta: dict | None = None,
+                       train_state: dict | None = None) -> Checkpoint:
+    """The checkpoint (kind "motion_encoder") of an encoder: weights as CPU state dicts, the (144,)
+    input normalisation, the action vocabulary (the head's columns)."""
+    return Checkpoint(kind=KIND, model_config=cfg, model_state=model_state, ema_state=ema_state, normalizer=normalizer,
+                      vocabulary=list(vocabulary), fps=float(cfg.fps), data=dict(data or {}), meta=dict(meta or {}),
+                      train_state=train_state, code_version=__version__)
+
+
+def save_motion_encoder(enc: MotionEncoder, path: str | Path, data: dict | None = None, meta: dict | None = None) -> None:
+    """Write ``enc`` as an export (``MotionEncoder.checkpoint``) to ``path`` atomically."""
+    save_checkpoint(path, enc.checkpoint(data, meta))
+
+
+_RETIRED_FORMAT = "trumans-motion-encoder-1"  # the private format before kind "motion_encoder"
 
 
 def load_motion_encoder(path: str | Path | None = None) -> MotionEncoder:
-    """Load a motion encoder (default: the shipped ``models/motion_encoder.pt``); never runs code."""
+    """Load a motion encoder checkpoint (default: the shipped ``models/motion_encoder.pt``; a
+    training run's ``RUN/checkpoint.pt``: its EMA weights) without running code. ``info`` of the
+    result is the checkpoint's ``meta["figures"]`` (empty when it has none)."""
     path = Path(path) if path is not None else DEFAULT_MOTION_ENCODER
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(f"motion encoder {path} does not exist; train one with "
-                                f"`python -m trumans.train.tasks.motion_encoder --data DATASET --out {path}`")
+                                f"`trumans train --task motion_encoder --data DATASET --out RUN` (RUN/checkpoint.pt)")
+    try:
+        ck = load_checkpoint(path, kind=KIND)
+    except ValueError as e:
+        if _is_retired(path):
+            raise ValueError(f"{path} is a motion encoder in the retired format {_RETIRED_FORMAT!r}; convert it "
+                             f"(same weights) with `python scripts/ship_motion_encoder.py {path} --out NEW.pt`") from None
+        raise ValueError(f"motion encoder: {e}") from None
+    net = ck.build_model()
+    return MotionEncoder(ck.model_config, net, ck.normalizer.mean, ck.normalizer.std, ck.vocabulary,
+                         ck.meta.get("figures"))
+
+
+def _is_retired(path: Path) -> bool:
     try:
         d = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # noqa: BLE001 - torch raises many types; never suggest unsafe loading
-        raise ValueError(f"{path} is not a readable motion encoder ({type(e).__name__}); re-train or re-download it") from None
-    if not isinstance(d, dict) or d.get("format") != "trumans-motion-encoder-1":
-        raise ValueError(f"{path} is not a trumans motion encoder (no 'format': 'trumans-motion-encoder-1')")
-    cfg = MotionEncoderConfig.from_dict(d["config"])
-    net = MotionEncoderNet(cfg)
-    net.load_state_dict(d["state_dict"])
-    return MotionEncoder(cfg, net, d["mean"].numpy(), d["std"].numpy(), list(d["vocabulary"]), d.get("info"))
+    except Exception:  # noqa: BLE001 - unreadable: not the retired format either
+        return False
+    return isinstance(d, dict) and d.get("format") == _RETIRED_FORMAT
 
 
 def split_features_and_labels(enc: MotionEncoder, data, split: str) -> tuple[np.ndarray, np.ndarray]:

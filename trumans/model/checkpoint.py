@@ -4,7 +4,7 @@ A checkpoint is a plain dict of tensors / str / int / float / lists / dicts, wri
 with ``torch.save`` and read with ``torch.load(weights_only=True)`` (never executes code):
 
 ``format`` ("trumans-checkpoint"), ``format_version``, ``kind`` (``CheckpointKind``: "generator",
-"filter" or "contact"; files without one are generators), ``code_version``, ``model_config`` (the
+"filter", "contact" or "motion_encoder"; files without one are generators), ``code_version``, ``model_config`` (the
 kind's model config ``to_dict()``), ``model`` (state dict), ``ema`` (state dict or None),
 ``diffusion_config``, ``norm`` ({"mean", "std"} tensors), ``vocabulary`` (action names), ``fps``,
 ``L_epi``, ``k``, ``grid`` ({"n", "extent"}) - each present when set -, ``extra`` (the kind's own
@@ -45,7 +45,7 @@ __all__ = ["Checkpoint", "CheckpointKind", "KindSpec", "KINDS", "register_kind",
 
 FORMAT = "trumans-checkpoint"
 FORMAT_VERSION = 1
-CheckpointKind = Literal["generator", "filter", "contact"]
+CheckpointKind = Literal["generator", "filter", "contact", "motion_encoder"]
 COMMON_KEYS = ("model_config", "model")  # every kind's payload has these
 
 
@@ -108,6 +108,7 @@ KINDS: dict[str, KindSpec | str] = {
     "generator": "trumans.model.checkpoint:GENERATOR_KIND",  # the TRUMANS denoiser
     "filter": "trumans.refine.filter:FILTER_KIND",  # the I'm-HOI filter
     "contact": "trumans.track.model_io:CONTACT_KIND",  # the iReplica contact predictor
+    "motion_encoder": "trumans.eval.motion_encoder:MOTION_ENCODER_KIND",  # the evaluation network (FID, action acc)
 }
 
 

@@ -19,9 +19,10 @@ DEVICES = ("cpu", "cuda")
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--task", default="generator",
-                   help="what to train: a registered task (generator; the filter and contact tasks register theirs)")
+                   help="what to train: a registered task (generator, filter, contact, motion_encoder)")
     p.add_argument("--config", default=None,
-                   help="built-in config of the task (generator: cpu-small (default), paper; contact: slide, hinge, free = one model per dof class) or a TOML file")
+                   help="built-in config of the task (generator: cpu-small (default), paper; contact: slide, hinge, free = one "
+                        "model per dof class; filter: cpu; motion_encoder: default) or a TOML file")
     p.add_argument("--data", required=True, help="dataset folder (with index.json)")
     p.add_argument("--out", required=True, help=out_help("folder", "the run (checkpoint.pt, loss.png, cache/); "
                    "--resume continues it"))

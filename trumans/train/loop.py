@@ -1,6 +1,6 @@
 """The training loop (TRUMANS §4, appendix A.2), shared by every task (``trumans.train.tasks.Task``):
-Adam with linear warm-up, EMA, gradient clipping, validation and atomic checkpoints at their
-cadence, exact resume, the loss curve, DDP.
+Adam (or AdamW, ``train.optimizer``) with linear warm-up, EMA, gradient clipping, validation and
+atomic checkpoints at their cadence, exact resume, the loss curve, DDP.
 
 Randomness is a pure function of (seed, step, rank): the task's batch, its diffusion steps, noise,
 masks and condition dropout come from a generator seeded per step, and the global torch seed
@@ -187,7 +187,8 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
 
         model = initial_model(task, seed).to(info.device)
         ema = copy.deepcopy(model).eval().requires_grad_(False)
-        opt = torch.optim.Adam(model.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
+        optimizer = torch.optim.AdamW if tc.optimizer == "adamw" else torch.optim.Adam
+        opt = optimizer(model.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
         sched = torch.optim.lr_scheduler.LambdaLR(opt, _lr_lambda(tc.warmup_steps))
         history: dict = {"train": [], "val_step": [], "val": [], "zero": [], "terms": {}}
         step, elapsed_before = 0, 0.0

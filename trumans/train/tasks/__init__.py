@@ -2,9 +2,9 @@
 
 A task owns its model, data, loss, validation and checkpoint payload; the loop (``trumans.train.loop``)
 owns everything they share: the optimiser, warm-up, EMA, clipping, DDP, exact resume, checkpoint
-and validation cadence. ``trumans train --task NAME`` builds the task registered under NAME: the
-generator (``trumans.train.tasks.generator.GeneratorTask``) here; the HOI filter and the contact model add one
-line to ``TASKS`` (a lazily imported ``"module:factory"``) or call ``register_task``.
+and validation cadence. ``trumans train --task NAME`` builds the task registered under NAME in ``TASKS``
+(a lazily imported ``"module:factory"``): the generator, the HOI filter, the contact model and the
+motion encoder (``trumans.train.tasks.<name>``); another component calls ``register_task``.
 
 A factory is called as ``factory(config, overrides=..., ablate=...)``: config is a built-in
 config name or TOML path (None = the task's default), overrides ``{section: {key: value}}``
@@ -74,7 +74,8 @@ TaskFactory = Callable[..., Task]
 # name -> "module:attribute" (imported when first used) or a factory
 TASKS: dict[str, str | TaskFactory] = {"generator": "trumans.train.tasks.generator:GeneratorTask.from_config",
                                       "filter": "trumans.train.tasks.filter:FilterTask.from_config",
-                                      "contact": "trumans.train.tasks.contact:ContactTask.from_config"}
+                                      "contact": "trumans.train.tasks.contact:ContactTask.from_config",
+                                      "motion_encoder": "trumans.train.tasks.motion_encoder:MotionEncoderTask.from_config"}
 
 
 def register_task(name: str, factory: str | TaskFactory) -> None:

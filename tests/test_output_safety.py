@@ -201,3 +201,57 @@ def test_a_tampered_output_manifest_cannot_reach_outside(tmp_path):
     assert outside.read_text() == "keep"
     with pytest.raises(ValueError, match="not a relative path inside"):
         DatasetWriter(out, "data synth", {"seed": 1}).record("../x")
+
+
+# ---- single-file and run-folder outputs: refused before any work ------------------------------------------------
+
+def _one_line_refusal(capsys, argv, *must) -> str:
+    rc = _cli(*argv)
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("trumans: error:")]
+    assert rc == 2 and len(lines) == 1 and "Traceback" not in err and "this is a bug" not in err, (rc, err)
+    for m in must:
+        assert m in lines[0], (m, lines[0])
+    return lines[0]
+
+
+def _bytes(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in root.rglob("*") if p.is_file()}
+
+
+def test_outputs_never_replace_a_file_of_a_dataset(synth_out, capsys):
+    """`sample --out DS/sequences/<stem>` (and refine/track onto a dataset sequence) would silently
+    change that dataset: refused before sampling, the dataset byte-identical."""
+    seq = next((synth_out / "sequences").glob("*.npz"))
+    scene = next((synth_out / "scenes").iterdir())
+    before = _bytes(synth_out)
+    for argv in (["sample", "--out", seq.with_suffix(""), "--goto", "1,1"],
+                 ["refine", seq, "--out", seq],
+                 ["track", seq, "--scene", scene, "--out", seq]):
+        _one_line_refusal(capsys, argv, "a file of the trumans dataset", "choose an --out outside it")
+    assert _bytes(synth_out) == before
+
+
+def test_empty_out_is_refused_by_every_command(synth_out, tmp_path, monkeypatch, capsys):
+    """`--out "$UNSET"` is refused by every command (it never means the current folder), before any work."""
+    from helpers import CMU_WALK_BVH
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.txt").write_text("keep")
+    seq = next((synth_out / "sequences").glob("*.npz"))
+    for argv in (["sample"], ["refine", seq], ["track", seq, "--scene", "default"], ["view", seq],
+                 ["train", "--data", synth_out], ["augment", "--data", synth_out],
+                 ["data", "synth"], ["data", "import", CMU_WALK_BVH, "--format", "bvh"]):
+        _one_line_refusal(capsys, [*argv, "--out", ""], "--out is empty")
+    _one_line_refusal(capsys, ["data", "merge", " ", str(tmp_path)], "--out is empty")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.txt"]
+
+
+def test_out_that_is_a_folder_or_the_current_folder_is_refused(synth_out, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    seq = next((synth_out / "sequences").glob("*.npz"))
+    _one_line_refusal(capsys, ["refine", seq, "--out", tmp_path], "is a folder", "result.npz")
+    _one_line_refusal(capsys, ["sample", "--out", "sub/"], "is a folder")
+    for out in (".", "..", str(tmp_path)):
+        _one_line_refusal(capsys, ["train", "--data", synth_out, "--out", out], "current folder")
+    assert list(tmp_path.iterdir()) == []

@@ -118,6 +118,9 @@ def _older_spellings(argv: list[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     argv = _older_spellings(sys.argv[1:] if argv is None else list(argv))
     args = build_parser(argv).parse_args(argv)
+    out = getattr(args, "out", None)
+    if isinstance(out, str) and not out.strip():  # every command: `--out "$UNSET"` never means "here"
+        raise UsageError("--out is empty (an unset shell variable?); give the output path")
     return int(args._run(args) or 0)
 
 

@@ -47,6 +47,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.interactions:  # reached only when called without the front door (trumans.cli.main rewrites it)
         raise ValueError("--interactions is `trumans track`: run `trumans track INPUT --scene SCENE --out OUT`")
+    from trumans.out_paths import check_out, refuse_dataset_file
+
+    check_out(args.out, "file")
+    refuse_dataset_file(args.out)
     set_threads(args.threads)
     from trumans.sequence import load_sequence, save_sequence
 

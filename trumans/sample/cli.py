@@ -157,6 +157,14 @@ def run(args: argparse.Namespace) -> int:
     bad = formats - set(FORMATS)
     if bad or not formats:
         raise ValueError(f"--formats must name some of {','.join(FORMATS)}, got {args.formats!r}")
+    from trumans.out_paths import check_out, refuse_dataset_file
+    from trumans.viz.export import export_paths
+
+    check_out(args.out, "stem")
+    for b in range(args.num_samples):  # before sampling: no output may replace a dataset's file
+        stem = Path(args.out) if args.num_samples == 1 else Path(args.out).with_name(f"{Path(args.out).name}_{b:02d}")
+        for p in export_paths(stem, formats).values():
+            refuse_dataset_file(p)
     flags = list(getattr(args, "plan_steps", None) or [])
     if args.plan and flags:
         raise ValueError("give either --plan FILE or step flags (--goto, --sit-on, ...), not both")

@@ -76,7 +76,10 @@ def run(args: argparse.Namespace) -> int:
     from trumans.sequence import load_sequence, save_sequence
 
     from trumans.track.interactions import TrackerConfig, track
+    from trumans.out_paths import check_out, refuse_dataset_file
 
+    check_out(args.out, "file")
+    refuse_dataset_file(args.out)
     seq = load_sequence(args.input)
     scene = load_scene(_scene_folder(args.scene, seq.scene, Path(args.input)))
     model = load_contact_models(args.contact_checkpoint)

@@ -52,6 +52,9 @@ def run(args: argparse.Namespace) -> int:
     from trumans.train.loop import train
     from trumans.train.tasks import make_task
 
+    from trumans.out_paths import check_out
+
+    check_out(args.out, "folder")
     if args.init is not None and args.resume:
         raise ValueError("--init starts a new run from a checkpoint's weights and --resume continues the run in "
                          "--out; give one of them")

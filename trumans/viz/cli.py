@@ -47,6 +47,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from trumans.out_paths import check_out
+
+    check_out(args.out, "stem")
     if args.html:
         from .html import check_html_path
 

@@ -120,7 +120,11 @@ def export(seq: Sequence, out: str | Path | dict[str, str | Path], formats: set[
     scene: a ``trumans.scenes.Scene``, a scene folder (meshes + cached occupancy for the top-down map) or
     None; stride: animation frame step (default: enough to keep at most ``max_frames`` frames).
     Returns {format: written path}."""
+    from trumans.out_paths import refuse_dataset_file
+
     paths = export_paths(out, formats)
+    for p in paths.values():
+        refuse_dataset_file(p)
     seq.validate()
     if "mp4" in paths and importlib.util.find_spec("imageio_ffmpeg") is None:
         raise ValueError("mp4 export needs imageio's ffmpeg plugin (pip install 'imageio[ffmpeg]'); ask for gif instead")

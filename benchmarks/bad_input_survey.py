@@ -591,33 +591,33 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
                                                     "--out", w / "sp_an", "--action-names", special("fifo")],
         "not a file", timeout=20)
 
-    # ---- JSON / TOML nested past Python's recursion limit
+    # ---- JSON / TOML nested past the stated limit (trumans.limits.MAX_NESTING), far past Python's recursion limit
     deep_json = "[" * 100_000 + "]" * 100_000
     def deep_toml():
         p = w / "deep.toml"
         p.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
         return ["train", "--config", p, "--data", base, "--out", w / "t_deep"]
-    err("train --config nested 5000 deep", deep_toml, "deep.toml", "nest")
+    err("train --config nested 5000 deep", deep_toml, "deep.toml", "MAX_NESTING")
     def deep_index():
         d = D("deep_index")
         (d / "index.json").write_text(deep_json)
         return ["augment", "--data", d, "--out", w / "a_deep"]
-    err("augment index.json nested 100000 deep", deep_index, "index.json", "recursion")
+    err("augment index.json nested 100000 deep", deep_index, "index.json", "MAX_NESTING")
     def deep_scene():
         d = D("deep_scene")
         (next((d / "scenes").iterdir()) / "scene.json").write_text(deep_json)
         return ["view", next((d / "sequences").glob("*.npz")), "--no-animation", "--out", w / "v_deep"]
-    err("view scene.json nested 100000 deep", deep_scene, "scene.json", "recursion")
+    err("view scene.json nested 100000 deep", deep_scene, "scene.json", "MAX_NESTING")
     def deep_map():
         p = w / "deep_map.json"
         p.write_text(deep_json)
         return ["data", "import", BVH, "--format", "bvh", "--out", w / "i_deep", "--joint-map", p]
-    err("import --joint-map nested 100000 deep", deep_map, "joint-map", "recursion")
+    err("import --joint-map nested 100000 deep", deep_map, "joint-map", "MAX_NESTING")
     def deep_plan():
         p = w / "deep_plan.json"
         p.write_text(deep_json)
         return ["sample", "--plan", p, "--out", w / "smp_deep" / "x"]
-    err("sample --plan nested 100000 deep", deep_plan, "deep_plan.json", "recursion")
+    err("sample --plan nested 100000 deep", deep_plan, "deep_plan.json", "MAX_NESTING")
 
     # ---- augment: a source listed twice is refused (each is augmented once)
     err("augment index lists a sequence twice", lambda: ["augment", "--data", _edit_index(

@@ -16,6 +16,8 @@ from dataclasses import MISSING, Field, fields, is_dataclass, replace
 from types import UnionType
 from typing import Any, Literal, Union, get_args, get_origin, get_type_hints
 
+from trumans.input_files import parse_json
+
 __all__ = ["config_from_dict", "set_entries"]
 
 
@@ -26,8 +28,8 @@ def _set_entry(text: str, roots: tuple[str, ...], example: str) -> tuple[list[st
         raise ValueError(f"--set must be PATH=VALUE with PATH under {' or '.join(roots)} (like "
                          f"{example}), got {text!r}")
     try:
-        return keys, json.loads(value)
-    except (json.JSONDecodeError, RecursionError):
+        return keys, parse_json(value, f"--set {path.strip()}", "give a number, true / false, \"text\" or a flat list")
+    except json.JSONDecodeError:
         raise ValueError(f"--set {path}: VALUE must be JSON (a number, true / false, \"text\", [..]), got {value!r}") \
             from None
 

@@ -16,7 +16,7 @@ import stat
 from collections.abc import Iterable
 from pathlib import Path, PurePosixPath
 
-from trumans.input_files import file_kind
+from trumans.input_files import file_kind, parse_json
 from trumans.scenes.occupancy import OCCUPANCY_FILE, OccupancyGrid
 
 from .sequence import Sequence, atomic_write, load_sequence
@@ -86,8 +86,8 @@ def load_index(root: str | Path) -> dict:
         raise FileNotFoundError(f"{path} does not exist; {root} is not a dataset folder "
                                 f"(build one with `trumans data synth --out DIR`)")
     try:
-        index = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:  # RecursionError: nested too deep
+        index = parse_json(path.read_text(), f"dataset index {path}", "rebuild the dataset")
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{path} is not valid JSON ({e}); rebuild the dataset") from e
     if not isinstance(index, dict):
         raise ValueError(f"{path} must hold a JSON object, got {type(index).__name__}; rebuild the dataset")

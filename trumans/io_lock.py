@@ -93,7 +93,9 @@ class FolderLock:
 
 def _read_owner(path: Path) -> dict:
     try:
-        d = json.loads(path.read_text() or "{}")
+        from trumans.input_files import parse_json
+
+        d = parse_json(path.read_text() or "{}", f"lock file {path}")
         return d if isinstance(d, dict) else {}
     except (OSError, ValueError):
         return {}

@@ -16,7 +16,7 @@ import numpy as np
 
 __all__ = ["MIN_FPS", "MAX_FPS", "MAX_FRAMES", "MAX_PARAMETERS", "MAX_GRID", "MAX_BATCH", "MAX_BATCH_BYTES",
            "MAX_ROOMS", "MAX_SYNTH_HOURS", "MAX_CASES", "MAX_EVAL_SEQUENCES", "MAX_SAMPLES", "MAX_VARIATIONS",
-           "check_fps", "check_frames", "check_npy_size", "transformer_parameters",
+           "MAX_NESTING",           "check_fps", "check_frames", "check_npy_size", "transformer_parameters",
            "transformer_activation_bytes", "check_transformer", "check_grid", "check_batch", "check_count"]
 
 MIN_FPS = 1.0  # Hz: slower is not motion capture (a BVH 'Frame Time: 1e6' is a broken file)
@@ -39,6 +39,7 @@ MAX_CASES = 1_000  # `eval augment --cases`: synthetic clips per contact kind (5
 MAX_EVAL_SEQUENCES = 100_000  # `eval augment --max-seqs`: sequences read and augmented by one evaluation
 MAX_SAMPLES = 256  # bodies sampled in one batch (`sample --num-samples`), a few MB each per episode
 MAX_VARIATIONS = 50  # augment: variations per touched object (the paper uses 2); each is a written sequence
+MAX_NESTING = 100  # levels of nested arrays / objects in a JSON or TOML input (every trumans file nests < 10)
 
 
 def check_fps(fps: float, what: str = "fps") -> float:

@@ -157,9 +157,11 @@ def read_shard(folder: str | Path) -> dict:
         hint = (" (it holds a whole dataset, not a shard)" if (folder / "index.json").is_file()
                 else " (an unfinished shard: re-run its command, it resumes)")
         raise ValueError(f"{folder} has no {SHARD_FILE}{hint}; give the folders of finished `--shard K/N` runs")
+    from trumans.input_files import parse_json
+
     try:
-        m = json.loads(path.read_text())
-    except (ValueError, RecursionError) as e:
+        m = parse_json(path.read_text(), f"shard manifest {path}", "re-run that shard with --overwrite")
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{path} is not valid JSON ({e}); re-run that shard with --overwrite") from e
     ok = (isinstance(m, dict) and m.get("format") == SHARD_FORMAT and isinstance(m.get("command"), str)
           and isinstance(m.get("settings"), dict) and isinstance(m.get("inputs"), dict)

@@ -43,7 +43,9 @@ def load_clips(spec: str, split: str = "all", max_clips: int | None = None, sour
         if not (root / "index.json").is_file():
             raise FileNotFoundError(f"{root} is not a dataset folder (no index.json); pass a dataset built by "
                                     "`trumans data synth` / `trumans data import`, a corpus .npz or corpus:test")
-        index = json.loads((root / "index.json").read_text())
+        from trumans.dataset import load_index
+
+        index = load_index(root)
         rels = [r for s, rs in index["splits"].items() if split in ("all", s) for r in rs]
         if source != "all":
             real = set(index.get("real", {}))

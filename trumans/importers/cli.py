@@ -10,7 +10,7 @@ import numpy as np
 
 from trumans.argtypes import positive_float
 from trumans.dataset import DatasetWriter
-from trumans.input_files import check_input_file
+from trumans.input_files import check_input_file, parse_json
 from trumans.sequence import Sequence, save_sequence
 from trumans.summary import print_summary
 from trumans import argtypes
@@ -58,8 +58,8 @@ def _read_names(path: str | None) -> list[str] | None:
     p = check_input_file(path, "--action-names file", "give a JSON list or a text file with one action name per line")
     text = p.read_text()
     try:
-        names = json.loads(text)
-    except (json.JSONDecodeError, RecursionError):
+        names = parse_json(text, f"--action-names file {p}", "give a flat JSON list of names or one name per line")
+    except json.JSONDecodeError:
         names = [ln.strip() for ln in text.splitlines() if ln.strip()]
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         raise ValueError(f"--action-names {path} must hold a JSON list of strings or one name per line")
@@ -79,8 +79,8 @@ def _read_joint_map(arg: str | None) -> dict[str, str] | None:
                                     f"'{{\"pelvis\": \"Hips\"}}' or a .json file")
         text, where = p.read_text(), f"--joint-map file {p}"
     try:
-        jm = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as e:  # RecursionError: nested too deep
+        jm = parse_json(text, where, "give a flat object like {\"pelvis\": \"Hips\"}")
+    except json.JSONDecodeError as e:
         raise ValueError(f"{where} is not valid JSON ({e}); give an object like {{\"pelvis\": \"Hips\"}}") from e
     if not isinstance(jm, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in jm.items()):
         raise ValueError(f"{where} must be a JSON object of joint names {{our_joint: bvh_joint}}, got "

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trumans.input_files import file_kind
+from trumans.input_files import file_kind, parse_json
 from trumans.limits import check_npy_size
 from trumans.scenes.io import Y_UP_TO_Z_UP  # the one y-up -> z-up turn, shared with mesh import
 from trumans.scenes.occupancy import OccupancyGrid
@@ -74,8 +74,8 @@ def _load(folder: Path, name: str, required: bool = True) -> np.ndarray | None:
 
 def _read_names(path: Path, n: int) -> list[str]:
     try:
-        names = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:  # RecursionError: nested too deep
+        names = parse_json(path.read_text(), f"object-name file {path}", f"it must be a flat list of the {n} object names")
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{path} is not valid JSON ({e}); it must list the {n} object names") from e
     if not isinstance(names, list) or len(names) != n or not all(isinstance(x, str) and x and "/" not in x
                                                                    for x in names):

@@ -30,6 +30,7 @@ from typing import Literal
 
 import numpy as np
 
+from trumans.input_files import parse_json, parse_toml
 from trumans.sample.carry_plan import validate_carry
 
 __all__ = ["Step", "Plan", "STEP_KINDS", "load_plan", "plan_from_dict", "validate_plan", "far_point", "GOAL_MARGIN_M"]
@@ -150,13 +151,14 @@ def load_plan(path: str | Path) -> Plan:
                                 f"give the steps as flags (--goto X,Y --sit-on NAME ...)")
     text = path.read_text()
     try:
+        fix = "a plan is a flat list of steps (see docs/generate.md)"
         if path.suffix.lower() == ".toml":
-            d = tomllib.loads(text)
+            d = parse_toml(text, f"plan file {path}", fix)
         elif path.suffix.lower() == ".json":
-            d = json.loads(text)
+            d = parse_json(text, f"plan file {path}", fix)
         else:
             raise ValueError(f"plan file {path} must end in .json or .toml")
-    except (json.JSONDecodeError, tomllib.TOMLDecodeError, RecursionError) as e:  # RecursionError: nested too deep
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as e:
         raise ValueError(f"plan file {path} is not valid {path.suffix[1:].upper()}: {e}") from None
     return plan_from_dict(d, name=path.stem)
 

@@ -32,6 +32,7 @@ import trimesh
 from trumans.scenes.occupancy import OCCUPANCY_FILE
 from trumans.scenes.scene import DOFS, Scene, SceneObject
 from trumans.scenes.atomic import umask_mode
+from trumans.input_files import parse_json
 
 __all__ = ["save_scene", "load_scene", "import_mesh", "scene_files", "SCENE_FILE", "Y_UP_TO_Z_UP"]
 
@@ -264,8 +265,8 @@ def load_scene(folder: str | Path) -> Scene:
     if not path.is_file():
         raise FileNotFoundError(f"{path} is missing; a scene folder needs a {SCENE_FILE}")
     try:
-        doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:  # RecursionError: nested too deep
+        doc = parse_json(path.read_text(), f"scene file {path}", "repair it or re-save the scene")
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{path} is not valid JSON ({e}); repair it or re-save the scene") from e
     if not isinstance(doc, dict) or doc.get("format", FORMAT) != FORMAT:
         raise ValueError(f"{path} is not a {FORMAT} file")

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from trumans.config_data import config_from_dict
-from trumans.input_files import file_kind
+from trumans.input_files import file_kind, parse_toml
 from trumans.limits import check_batch, check_grid, transformer_activation_bytes
 from trumans.model.diffusion import DiffusionConfig
 from trumans.model.episodes import FeatureLayout
@@ -248,11 +248,9 @@ def load_toml(name_or_path: str | Path, config_dir: Path = CONFIG_DIR) -> tuple[
         raise FileNotFoundError(f"config {name_or_path!r} is neither a built-in config "
                                 f"{sorted(q.stem for q in config_dir.glob('*.toml'))} nor an existing TOML file")
     try:
-        d = tomllib.loads(p.read_text())
+        d = parse_toml(p.read_text(), f"config {p}", "a config's tables nest two or three levels (see the built-in ones)")
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"{p} is not valid TOML: {e}") from e
-    except RecursionError:
-        raise ValueError(f"{p} is not a config: its tables or arrays nest deeper than Python's parser recurses") from None
     d.setdefault("name", p.stem)
     return d, p
 

@@ -10,7 +10,8 @@ fine-tunes one model per category; that variant is not measured here). EMA of th
 loop's.
 
 Data: clean windows (``trumans.refine.data``) corrupted on the fly by ``trumans.refine.corrupt`` with a
-generator seeded by (seed, step, rank), so a run is a pure function of its seed. Validation: the
+generator seeded by (seed, step, rank), so a run is a pure function of its seed; with a bone scale
+range in ``[corruption]`` the clean windows get other proportions first (``vary_skeleton``). Validation: the
 MPJPE (m) of the EMA model sampled from noise on fixed corrupted val windows, beside the MPJPE of
 the tracked input with its gaps interpolated (the identity filter) as the baseline.
 """
@@ -26,7 +27,7 @@ from torch import nn
 
 from trumans.version import __version__
 from trumans.dataset import Dataset
-from trumans.refine.corrupt import CorruptionConfig, corrupt
+from trumans.refine.corrupt import CorruptionConfig, corrupt, vary_skeleton
 from trumans.refine.data import FilterWindows, load_filter_windows
 from trumans.refine.filter import (FilterModel, FilterNetConfig, build_filter_model, filter_denoiser_config, fit_normalizer,
                                 prepare_windows, sample_x0)
@@ -150,8 +151,10 @@ class FilterBatch:
 
 def make_batch(data: FilterWindows, idx: np.ndarray, normalizer: Normalizer, cfg: CorruptionConfig,
                rng: np.random.Generator, progress: float = 1.0) -> FilterBatch:
-    """Assemble, corrupt and canonicalise windows ``idx`` of ``data``."""
+    """Assemble, corrupt and canonicalise windows ``idx`` of ``data`` (with ``cfg``'s skeleton
+    variation, if any, on the clean windows and their rest offsets first)."""
     clean, offsets, cat = data.batch(idx)
+    clean, offsets = vary_skeleton(clean, offsets, rng, cfg)
     tracked = corrupt(clean, data.fps, rng, cfg)
     inp = prepare_windows(tracked, normalizer)
     clean_c = to_frame(clean, inp.origin, inp.yaw)
@@ -251,6 +254,7 @@ class FilterTask:
             real = real_motion_windows(net.window, net.fps)
             pick = rng.choice(len(real), size=min(fc.wiener_real_windows, len(real)), replace=False)
             clean = np.concatenate([clean, real[pick]])
+        clean, _ = vary_skeleton(clean, np.zeros((len(clean), 24, 3), np.float32), rng, self.config.corruption)
         tracked = corrupt(clean, net.fps, rng, self.config.corruption)
         origin, yaw = window_frame(tracked)
         return fit_joint_wiener(fill_missing(to_frame(tracked, origin, yaw))[..., JOINTS],

@@ -15,7 +15,7 @@ from trumans.train.tasks.motion_encoder import MotionEncoderTask, MotionEncoderT
 from helpers import DATASET_VOCAB, make_tiny_dataset
 
 TINY = {"model": {"window": 8, "channels": [8, 8, 8], "feature_dim": 6},
-        "train": {"batch_size": 8, "val_every": 2, "checkpoint_every": 2, "warmup_steps": 1}}
+        "train": {"batch_size": 8, "val_every": 100, "checkpoint_every": 100, "warmup_steps": 1}}  # one save per run
 
 
 def _with_test_split(root: Path) -> Path:
@@ -74,6 +74,11 @@ def test_a_few_steps_through_the_loop_and_the_checkpoint_loads(tmp_path):
     assert fig["test_acc"] == pytest.approx(float((probs.argmax(-1)[keep] == labels[keep]).mean()))
     with pytest.raises(ValueError, match="exists"):
         train(task, data, tmp_path / "run", steps=3, progress=False)
+    # exact resume: 2 steps, then resumed to 3 = the 3 steps above (batches: seeded epoch permutations)
+    train(MotionEncoderTask.from_config(None, overrides=TINY), data, tmp_path / "two", steps=2, progress=False)
+    again = train(MotionEncoderTask.from_config(None, overrides=TINY), data, tmp_path / "two", steps=3, resume=True,
+                  progress=False)
+    assert again.weights_sha256 == res.weights_sha256
 
 
 def test_bad_data_is_refused_before_training(tmp_path):

@@ -343,23 +343,68 @@ def test_augment_source_listed_twice_is_refused(data, tmp_path, capsys):
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
-def test_augment_keeps_the_contacts_of_a_one_triangle_seat(data, tmp_path, capsys):
-    """A seat mesh without an inside (one triangle at seat height, no volume) still has its sitting
-    contacts found and preserved: its variations are written, none is dropped."""
+def _seat_mesh(kind, bounds, h=0.45):
+    """A degenerate seat inside ``bounds`` (2, 3): an open box (no bottom, one side missing: not
+    watertight), one flat quad at seat height, or one triangle at seat height."""
+    import trimesh
+
+    (x0, y0, z0), (x1, y1, _) = bounds
+    if kind == "open box":
+        box = trimesh.creation.box(bounds=[[x0, y0, z0], [x1, y1, h]])
+        keep = (box.face_normals[:, 2] > -0.9) & (box.face_normals[:, 0] < 0.9)
+        m = trimesh.Trimesh(box.vertices, box.faces[keep], process=False)
+        assert not m.is_watertight
+        return m
+    if kind == "flat quad":
+        return trimesh.Trimesh([[x0, y0, h], [x1, y0, h], [x1, y1, h], [x0, y1, h]], [[0, 1, 2], [0, 2, 3]],
+                               process=False)
+    return trimesh.Trimesh([[x0, y0, h], [x1, y0, h], [x0, y1, h]], [[0, 1, 2]], process=False)
+
+
+@pytest.mark.parametrize("kind", ["open box", "flat quad", "one triangle"])
+def test_augment_keeps_the_contacts_of_a_degenerate_seat(kind, data, tmp_path, capsys):
+    """A seat mesh without an inside (open and not watertight, one flat quad, one triangle at seat
+    height) still has its sitting contacts found and preserved: every variation asked for is written
+    (none dropped, no warning), and the seat's outputs change the seat's contact intervals."""
     import trimesh
 
     d = _copy(data, tmp_path)
     scene_dir = next((d / "scenes").iterdir())
     seat = next(o for o in json.loads((scene_dir / "scene.json").read_text())["objects"] if o["name"] == "sofa_0")
-    mesh = trimesh.load(scene_dir / seat["mesh"], process=False)
-    (x0, y0, _), (x1, y1, _) = mesh.bounds
-    trimesh.Trimesh([[x0, y0, 0.45], [x1, y0, 0.45], [x0, y1, 0.45]], [[0, 1, 2]], process=False).export(
-        scene_dir / seat["mesh"])
+    _seat_mesh(kind, trimesh.load(scene_dir / seat["mesh"], process=False).bounds).export(scene_dir / seat["mesh"])
     out = tmp_path / "a"
-    assert console_main(["augment", "--data", str(d), "--out", str(out), "--workers", "1", "--variations", "1",
+    assert console_main(["augment", "--data", str(d), "--out", str(out), "--workers", "1", "--variations", "2",
                          "--json"]) == 0
-    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
     outputs = json.loads((out / "manifest.json").read_text())["outputs"]
     sofa = [o for o in outputs if o["object"] == "sofa_0"]
-    assert summary["skipped"] == 0 and len(sofa) == 1
-    assert any(iv["object"] == "sofa_0" for iv in sofa[0]["changed_intervals"])
+    touched = {o["object"] for o in outputs}
+    assert summary["skipped"] == 0 and "warning" not in captured.err
+    assert len(outputs) == 2 * len(touched) and len(sofa) == 2
+    for o in sofa:
+        assert o["contact_frames"] > 0 and any(iv["object"] == "sofa_0" for iv in o["changed_intervals"])
+
+
+def test_augment_warns_naming_the_objects_whose_variations_it_skips(data, tmp_path, capsys, monkeypatch):
+    """Rule: a run that writes fewer variations than asked (every draw of an object put a joint inside
+    it or left its contacts unreachable; injected here for sofa_0) says so on stderr, naming each
+    object and source, and lists them in the summary; it never shrinks silently."""
+    import trumans.augment.pipeline as pipeline
+
+    real = pipeline.vary_sequence
+
+    def every_sofa_draw_fails(*a, **k):
+        return [(name, i, None if name == "sofa_0" else res) for name, i, res in real(*a, **k)]
+
+    monkeypatch.setattr(pipeline, "vary_sequence", every_sofa_draw_fails)
+    out = tmp_path / "a"
+    assert console_main(["augment", "--data", str(data), "--out", str(out), "--workers", "1", "--variations", "2",
+                         "--json"]) == 0
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["skipped"] == 2 and {s["object"] for s in summary["skipped_outputs"]} == {"sofa_0"}
+    warning = [ln for ln in captured.err.splitlines() if ln.startswith("trumans: warning:")]
+    assert len(warning) == 1 and f"{summary['skipped']} variation(s) not written" in warning[0]
+    for s in summary["skipped_outputs"]:
+        assert s["object"] in warning[0] and s["source"] in warning[0]

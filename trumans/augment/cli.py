@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from trumans.argtypes import float_in, fraction, int_in, nonneg_int, positive_float
 from trumans.contacts.rule import HOLD_THRESHOLD
@@ -56,8 +57,25 @@ def run(args: argparse.Namespace) -> int:
     except SourcesFailed as e:  # print what was done, then fail with the one error line
         _print(e.summary, args.json)
         raise
+    warn_skipped(summary)
     _print(summary, args.json)
     return 0
+
+
+def warn_skipped(summary: dict) -> None:
+    """One ``trumans: warning:`` line on stderr when variations were not written (``skipped_outputs``),
+    naming the objects and the sources, so a run that writes fewer outputs than asked never does so silently."""
+    skipped = summary.get("skipped_outputs") or []
+    if not skipped:
+        return
+    by_obj: dict[tuple[str, str], list[int]] = {}
+    for s in skipped:
+        by_obj.setdefault((s["object"], s["source"]), []).append(int(s["k"]))
+    shown = "; ".join(f"{obj} v{','.join(map(str, ks))} of {src}" for (obj, src), ks in list(by_obj.items())[:5])
+    more = f" and {len(by_obj) - 5} more" if len(by_obj) > 5 else ""
+    print(f"trumans: warning: {len(skipped)} variation(s) not written: {shown}{more} ({skipped[0]['why']}); "
+          f"raise --max-unreachable or check those objects' meshes (all in manifest.json, summary.skipped_outputs)",
+          file=sys.stderr)
 
 
 def _print(summary: dict, as_json: bool) -> None:

@@ -380,6 +380,9 @@ def _finish(cfg: PipelineConfig, ds: Dataset, writer: DatasetWriter, recs: list[
         "sources": len(recs), "outputs": len(outputs),
         "nothing_to_augment": sum(1 for r in recs if r.get("nothing_to_augment")),
         "skipped": sum(1 for r in recs for o in r["outputs"] if "skipped" in o),
+        # which variations were not written and why (the command warns naming each object: never a silent drop)
+        "skipped_outputs": [{"source": r["source"], "object": o["object"], "k": o["k"], "why": o["skipped"]}
+                            for r in recs for o in r["outputs"] if "skipped" in o],
         "errors": failed,
         "frames_out": frames_out,
         "contact_frames": int(cframes.sum()),

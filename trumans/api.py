@@ -42,52 +42,65 @@ def generate(plan=None, scene: str | Path = "default", *, seed: int = 0, checkpo
 
 
 @lru_cache(maxsize=4)
-def _filter(path: str | None):
+def _filter(path: str | None, device: str = "cpu"):
     from trumans.refine.pipeline import HOIFilter
 
-    return HOIFilter.load(path)
+    return HOIFilter.load(path, device=device)
+
+
+def _device(device: str) -> str:
+    """``device`` checked as ``--device`` is (cpu, cuda, cuda:N that this machine has): ValueError otherwise."""
+    import argparse
+
+    from trumans import argtypes
+
+    try:
+        return argtypes.device(str(device))
+    except argparse.ArgumentTypeError as e:
+        raise ValueError(f"device {e}") from None
 
 
 def refine_tracked(seq: Sequence | str | Path, *, category: str | None = None, object_name: str | None = None,
-                   checkpoint: str | Path | None = None, options=None) -> Sequence:
+                   checkpoint: str | Path | None = None, options=None, device: str = "cpu") -> Sequence:
     """Refine a tracked human-object sequence with the HOI filter (I'm-HOI §3.2), as ``trumans refine`` does.
 
     seq: a ``Sequence`` or an .npz path (joints (T, 24, 3) m, optional rotations, one object's pose, NaN =
     missing; format in docs/refine.md); category / object_name: the object's, when the sequence does not
     say; checkpoint: the filter (default the shipped models/refine.pt, loaded once per process);
-    options: ``trumans.refine.pipeline.RefineOptions``. Returns the refined sequence (same frames and fps)."""
+    options: ``trumans.refine.pipeline.RefineOptions``; device: where the filter network runs (cpu, cuda,
+    cuda:N). Returns the refined sequence (same frames and fps)."""
     from trumans.refine.pipeline import RefineOptions
 
+    device = _device(device)
     if not isinstance(seq, Sequence):
         seq = load_sequence(seq, allow_missing=True)
-    out, _ = _filter(None if checkpoint is None else str(checkpoint)).refine_sequence(
+    out, _ = _filter(None if checkpoint is None else str(checkpoint), device).refine_sequence(
         seq, category=category, object_name=object_name, options=options or RefineOptions())
     return out
 
 
 def track_interactions(seq: Sequence | str | Path, scene, *, contact_checkpoints: list[str] | None = None,
-                       config=None, anchors: tuple[np.ndarray, np.ndarray] | None = None) -> Sequence:
+                       config=None, anchors: tuple[np.ndarray, np.ndarray] | None = None,
+                       device: str = "cpu") -> Sequence:
     """Track a body's interactions with a scene's objects (iReplica §4.1-4.3), as ``trumans track``
     does: contacts predicted from the pose, the root path corrected by them, objects driven by the
     hands within their degrees of freedom.
 
     seq: a ``Sequence`` or .npz path with ``rotations`` (T, 24, 6) and joints in the scene's frame; scene:
-    a scene folder or a ``trumans.scenes.Scene``; contact_checkpoints: as ``--contact-checkpoint``
-    (default the shipped models/contacts.pt); config: ``trumans.track.interactions.TrackerConfig``;
-    anchors: (frames (K,), root xy (K, 2) m) known positions. Returns the corrected body with the
-    objects' trajectories (``trumans.track.interactions.track`` gives the contacts too)."""
-    from trumans.scenes.io import load_scene
+    a ``trumans.scenes.Scene`` or a spec as ``trumans track --scene`` takes (a scene folder, 'default',
+    room:SEED); contact_checkpoints: as ``--contact-checkpoint`` (default the shipped models/contacts.pt);
+    config: ``trumans.track.interactions.TrackerConfig``; anchors: (frames (K,), root xy (K, 2) m) known
+    positions; device: where the contact predictor (the tracker's only network) runs. Returns the corrected
+    body with the objects' trajectories (``trumans.track.interactions.track`` gives the contacts too)."""
     from trumans.scenes.scene import Scene
+    from trumans.track.cli import tracker_scene
     from trumans.track.interactions import TrackerConfig, track
     from trumans.track.model_io import load_contact_models
 
+    device = _device(device)
     if not isinstance(seq, Sequence):
         seq = load_sequence(seq)
     if not isinstance(scene, Scene):
-        folder = Path(scene)
-        if not (folder / "scene.json").is_file():
-            raise FileNotFoundError(f"scene {folder} is not a scene folder with scene.json; give a folder written by "
-                                    f"trumans (e.g. DATASET/scenes/<id>) or a trumans.scenes.Scene")
-        scene = load_scene(folder)
-    model = load_contact_models(contact_checkpoints)
+        scene = tracker_scene(str(scene), "", Path("."))
+    model = load_contact_models(contact_checkpoints, device=device)
     return track(seq, scene, model, config or TrackerConfig(), anchors=anchors).sequence

@@ -16,13 +16,16 @@ import argparse
 __all__ = ["add_device_argument", "add_no_progress_argument", "out_help", "add_hidden_alias"]
 
 
-def add_device_argument(p: argparse.ArgumentParser, default: str | None = "cpu") -> None:
-    """``--device`` (``cpu``, ``cuda``, ``cuda:N``); ``default`` None = cuda if this machine has it, else cpu."""
+def add_device_argument(p: argparse.ArgumentParser, default: str | None = "cpu", runs: str | None = None) -> None:
+    """``--device`` (``cpu``, ``cuda``, ``cuda:N``); ``default`` None = cuda if this machine has it, else cpu.
+    ``runs``: what runs on the device when it is not the whole job (said in the help, e.g. "the contact
+    predictor; the rest of the tracker is numpy on the CPU")."""
     from trumans import argtypes
 
     shown = "cuda if available, else cpu" if default is None else default
+    where = f"; runs there: {runs}" if runs else ""
     p.add_argument("--device", type=argtypes.device, default=default, metavar="DEV",
-                   help=f"torch device: cpu, cuda or cuda:N (default {shown})")
+                   help=f"torch device: cpu, cuda or cuda:N (default {shown}){where}")
 
 
 def add_no_progress_argument(p: argparse.ArgumentParser) -> None:

@@ -18,7 +18,7 @@ __all__ = ["add_arguments", "run", "main"]
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from trumans.common_args import out_help
+    from trumans.common_args import add_device_argument, out_help
 
     p.add_argument("input", metavar="tracked.npz",
                    help="tracked sequence .npz: joints (T, 24, 3) m z-up, optional rotations (T, 24, 6), one object's "
@@ -36,6 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="start from noise conditioned on the input (the paper) or from the noised input (SDEdit)")
     p.add_argument("--strength", type=float, default=0.5, help="SDEdit noise level in (0, 1] (default 0.5)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="sampling seed")
+    add_device_argument(p, runs="the filter network; windowing, blending and the post-steps are numpy on the CPU")
     add_threads_argument(p)
     add_post_step_arguments(p)
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object on the last line")
@@ -59,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, strength=args.strength, seed=args.seed,
                          post=post_steps_config(args))
     seq = load_sequence(args.input, allow_missing=True)
-    filt = HOIFilter.load(args.checkpoint)
+    filt = HOIFilter.load(args.checkpoint, device=args.device)
     t0 = time.perf_counter()
     out, name = filt.refine_sequence(seq, category=args.category, object_name=args.object, options=opts)
     seconds = time.perf_counter() - t0
@@ -70,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
                "category": out.objects[name].category,
                "missing_frames_in": int(np.isnan(seq.joints).any(axis=(1, 2)).sum()),
                "seconds": round(seconds, 3), "frames_per_s": round(seq.num_frames / max(seconds, 1e-9), 1),
-               "post_steps": opts.post_steps(out.objects[name].category)}
+               "post_steps": opts.post_steps(out.objects[name].category), "device": str(args.device)}
     print(f"refined {summary['frames']} frames ({summary['missing_frames_in']} with a missing joint) with object "
           f"{name!r} ({summary['category']}) in {seconds:.2f} s -> {args.out}; after the filter: "
           f"{', '.join(summary['post_steps']) or 'nothing'}")

@@ -43,6 +43,7 @@ dataset's test split). It needs no dataset.
 from __future__ import annotations
 
 from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
+from trumans.common_args import add_device_argument
 import argparse
 import time
 from dataclasses import replace
@@ -73,6 +74,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ablation", default=None, metavar="CHECKPOINT", help="a second checkpoint to report as 'ablation'")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="corruption and sampling seed")
     add_post_step_arguments(p)
+    add_device_argument(p, runs="the filter network(s); corruption, smoothers and figures are numpy on the CPU")
     p.add_argument("--category", action="append", default=[], metavar="NAME",
                    help="only test clips of this object category (repeatable; default: every category)")
     p.add_argument("--real", action="store_true", help="also evaluate on held-out real motion (the mocap corpus's "
@@ -340,7 +342,7 @@ def run(args: argparse.Namespace) -> int:
 
     from trumans.refine.pipeline import HOIFilter, RefineOptions
 
-    filt = HOIFilter.load(args.checkpoint)
+    filt = HOIFilter.load(args.checkpoint, device=args.device)
     opts = RefineOptions(num_steps=args.steps, mode=args.mode, seed=args.seed, post=post_steps_config(args))
     if args.families:
         return run_families(args, filt, opts)
@@ -364,7 +366,7 @@ def run(args: argparse.Namespace) -> int:
         test_clean, cats = test_clean[keep][:args.max_clips], [c for c, k in zip(cats, keep) if k][:args.max_clips]
     res = {"checkpoint": str(args.checkpoint or "models/refine.pt"), "data": str(Path(args.data)), "seed": args.seed,
            "categories": sorted(set(cats)),
-           "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg}
+           "sampling_steps": args.steps, "mode": args.mode, "savgol_window": sg, "device": str(args.device)}
     post = opts.post
     res["rest_pooling"], res["hand_link"], res["body_drift"] = post.rest_pooling.enabled, post.rest_pooling.hand_link, post.body_drift.enabled
     res["hinge"], res["foot_lock"] = post.hinge.enabled, post.foot_lock.enabled
@@ -376,7 +378,7 @@ def run(args: argparse.Namespace) -> int:
     if args.real:
         res["real"] = evaluate_real(filt, args.clip, args.max_clips, sg, args.seed, opts)
     if args.ablation:
-        abl = HOIFilter.load(args.ablation)
+        abl = HOIFilter.load(args.ablation, device=args.device)
         res["ablation"] = {"checkpoint": args.ablation,
                            **evaluate(abl, test_clean, cats, CorruptionConfig(), sg, args.seed, opts)}
     keys = ("mpjpe_in_mm", "mpjpe_out_mm", "mpjpe_out_no_drift_mm", "mpjpe_out_drift_oracle_mm", "mpjpe_savgol_mm", "mpjpe_in_ra_mm", "mpjpe_out_ra_mm", "mpjpe_savgol_ra_mm", "accel_err_in", "accel_err_out", "accel_gt",

@@ -139,7 +139,8 @@ def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: t
     T-1 (``GaussianDiffusion.step``). SDEdit-style (Meng et al. 2022): ``start`` (B, L, 235), the
     normalised tracked windows (missing = 0), is noised to step ``round(strength * (T-1))`` and
     denoised from there. cond: (B, L, 261); category: (B,) int64; noise: the starting noise
-    (B, L, 235) (default: drawn from ``generator``).
+    (B, L, 235) (default: drawn from ``generator``, a CPU generator). The work runs on ``cond``'s device
+    (the model and ``category`` must be there too); x̂0 comes back on that device.
     """
     from trumans.model.diffusion import respaced_timesteps
 
@@ -147,10 +148,12 @@ def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: t
         raise ValueError(f"strength must be in (0, 1], got {strength}")
     B, L = cond.shape[:2]
     shape = (B, L, FRAME_DIM)
+    dev = cond.device  # the model's device (the caller moves cond, category and the model there)
     if noise is None:
-        noise = torch.randn(shape, generator=generator)
+        noise = torch.randn(shape, generator=generator)  # drawn on the CPU: the same noise on every device
     elif tuple(noise.shape) != shape:
         raise ValueError(f"noise must be {shape}, got {tuple(noise.shape)}")
+    noise = noise.to(dev)
     T = diffusion.steps
     if start is None:
         t0 = T - 1
@@ -159,10 +162,10 @@ def sample_x0(model: torch.nn.Module, diffusion, cond: torch.Tensor, category: t
         if tuple(start.shape) != shape:
             raise ValueError(f"start must be {shape}, got {tuple(start.shape)}")
         t0 = int(round(strength * (T - 1)))
-        x = diffusion.q_sample(start, torch.full((B,), t0, dtype=torch.long), noise)
+        x = diffusion.q_sample(start.to(dev), torch.full((B,), t0, dtype=torch.long, device=dev), noise)
     ts = [int(t) for t in respaced_timesteps(t0 + 1, min(num_steps, t0 + 1))]
     for i, t in enumerate(ts):
-        out = model(x, torch.full((B,), t, dtype=torch.long), frame_cond=cond, category=category)
+        out = model(x, torch.full((B,), t, dtype=torch.long, device=dev), frame_cond=cond, category=category)
         x, x0 = diffusion.step(out, t, x, t_prev=ts[i + 1] if i + 1 < len(ts) else -1, eta=eta, generator=generator)
     return x0
 

@@ -76,18 +76,20 @@ class RefineOptions:
 class HOIFilter:
     """A loaded filter checkpoint: ``refine_frames`` on frame vectors, ``refine_sequence`` on a Sequence."""
 
-    def __init__(self, ckpt: Checkpoint) -> None:
+    def __init__(self, ckpt: Checkpoint, device: str | torch.device = "cpu") -> None:
         self.ckpt = ckpt
-        self.model: FilterModel = configure_skip(ckpt.build_model(), ckpt)
-        self.diffusion = ckpt.build_diffusion()
+        self.device = torch.device(device)
+        self.model: FilterModel = configure_skip(ckpt.build_model(), ckpt).to(self.device)
+        self.diffusion = ckpt.build_diffusion().to(self.device)
         self.normalizer = ckpt.normalizer
         self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]
         (self.window, self.overlap), self.fps = filter_window(ckpt), float(ckpt.fps)
 
     @classmethod
-    def load(cls, path: str | Path | None = None) -> "HOIFilter":
-        """Load ``path`` (default: the shipped ``models/refine.pt``)."""
-        return cls(load_checkpoint(DEFAULT_CHECKPOINT if path is None else path, kind="filter"))
+    def load(cls, path: str | Path | None = None, device: str | torch.device = "cpu") -> "HOIFilter":
+        """Load ``path`` (default: the shipped ``models/refine.pt``); the network runs on ``device`` (the
+        windows' preparation, blending and post-steps are numpy on the CPU)."""
+        return cls(load_checkpoint(DEFAULT_CHECKPOINT if path is None else path, kind="filter"), device=device)
 
     def refine_frames(self, frames: np.ndarray, fps: float, category: str,
                       options: RefineOptions = RefineOptions()) -> np.ndarray:
@@ -112,14 +114,15 @@ class HOIFilter:
         category = torch.from_numpy(np.concatenate([np.full(len(p["starts"]), c) for p, c in zip(parts, cats)]))
         noise = torch.cat([torch.randn((len(p["starts"]), L, FRAME_DIM), generator=torch.Generator().manual_seed(int(options.seed)))
                            for p in parts])
-        gen = torch.Generator().manual_seed(int(options.seed))
+        gen = torch.Generator().manual_seed(int(options.seed))  # CPU noise: the same draws on every device
         x0 = torch.empty_like(noise)
+        dev = self.device
         for s in range(0, len(cond), options.batch):
             sl = slice(s, s + options.batch)
             start = cond[sl, :, :FRAME_DIM].clone() if options.mode == "sdedit" else None  # tracked, gaps interpolated
-            x0[sl] = sample_x0(self.model, self.diffusion, cond[sl], category[sl], num_steps=options.num_steps,
-                               eta=options.eta, generator=gen, start=start, noise=noise[sl],
-                               strength=options.strength if options.mode == "sdedit" else 1.0)
+            x0[sl] = sample_x0(self.model, self.diffusion, cond[sl].to(dev), category[sl].to(dev),
+                               num_steps=options.num_steps, eta=options.eta, generator=gen, start=start,
+                               noise=noise[sl], strength=options.strength if options.mode == "sdedit" else 1.0).cpu()
         out = self.normalizer.denormalize(x0.numpy())
         results, i = [], 0
         for p, r, c in zip(parts, fps, categories):

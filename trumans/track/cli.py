@@ -13,15 +13,18 @@ from pathlib import Path
 import numpy as np
 from trumans.summary import print_summary
 from trumans import argtypes
+from trumans.common_args import add_device_argument
 
-__all__ = ["add_interaction_arguments", "add_arguments", "run", "main"]
+__all__ = ["add_interaction_arguments", "add_arguments", "run", "main", "tracker_scene", "TRACKER_SCENE_FORMS"]
 
 
 def add_interaction_arguments(p: argparse.ArgumentParser) -> None:
     """The tracker's options (no input / --out / --seed / --json)."""
     p.add_argument("--scene", default=None,
-                   help="scene folder (scene.json + meshes) with the interactable objects; default: the sequence's "
-                        "'scene' entry when it is a folder")
+                   help="the scene with the movable objects the hands drive: a scene folder (scene.json + meshes), "
+                        "'default' (the default room) or room:SEED (a procedural room), as for `trumans sample`; "
+                        "a mesh file is refused (the seats, beds and tables found in a mesh are static: nothing to "
+                        "drive). Default: the scene the sequence records (a folder or room spec)")
     p.add_argument("--contact-checkpoint", action="append", default=[], metavar="[DOF=]PATH",
                    help="contact predictor (default: the shipped models/contacts.pt, one model with a class head); "
                         "repeat as DOF=PATH (DOF: slide, hinge, free) for one model per dof class")
@@ -30,6 +33,8 @@ def add_interaction_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rigidity", type=float, default=None, help="trajectory rigidity lambda (default 1.0)")
     p.add_argument("--threshold", type=float, default=None, help="contact probability threshold (default 0.5)")
     p.add_argument("--no-correction", action="store_true", help="skip the contact-based trajectory correction")
+    add_device_argument(p, runs="the contact predictor, the tracker's only network; the trajectory correction and "
+                                "the objects' motion are numpy on the CPU")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -43,35 +48,55 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_interaction_arguments(p)
 
 
-def _scene_folder(arg: str | None, seq_scene: str, input_path: Path) -> Path:
-    if arg is not None:
-        folder = Path(arg)
-    elif seq_scene and (Path(seq_scene).is_dir() or (input_path.parent / seq_scene).is_dir()):
-        folder = Path(seq_scene) if Path(seq_scene).is_dir() else input_path.parent / seq_scene
+TRACKER_SCENE_FORMS = "a scene folder (scene.json with movable objects), 'default' or room:SEED"
+
+
+def tracker_scene(arg: str | None, seq_scene: str, input_path: Path):
+    """The tracker's scene (a ``trumans.scenes.Scene``) from ``--scene`` or, without it, the sequence's own
+    ``scene`` entry (``trumans.scenes.spec``): a scene folder, 'default' or 'room:SEED'; a relative folder is
+    tried from the current folder, then beside the input. A mesh file, or a scene with no movable
+    object (dof other than static), is refused naming the forms that work, before anything heavy is read."""
+    from trumans.scenes.io import load_scene
+    from trumans.scenes.spec import procedural_seed
+
+    spec, given = (arg, True) if arg is not None else (seq_scene or "", False)
+    if not spec:
+        raise ValueError(f"no scene: the sequence records none; pass --scene ({TRACKER_SCENE_FORMS})")
+    seed = procedural_seed(spec)
+    if seed is not None:
+        from trumans.scenes.procedural import make_room
+
+        scene = make_room(seed)
     else:
-        raise ValueError(f"no scene: pass --scene FOLDER (the sequence names scene {seq_scene!r}, which is not a folder)")
-    if not (folder / "scene.json").is_file():
-        raise FileNotFoundError(f"scene folder {folder} has no scene.json; pass a scene folder written by trumans "
-                                f"(e.g. DATASET/scenes/<id>)")
-    return folder
+        candidates = [Path(spec)] + ([] if Path(spec).is_absolute() else [input_path.parent / spec])
+        path = next((c for c in candidates if c.exists()), None)
+        where = f"--scene {spec}" if given else f"the sequence's scene {spec!r}"
+        if path is None:
+            raise FileNotFoundError(f"{where} does not exist here; pass --scene ({TRACKER_SCENE_FORMS})")
+        if path.is_file():
+            raise ValueError(f"{where} is a mesh file: the seats, beds and tables found in a mesh are static, "
+                             f"so the tracker has no object to drive; give {TRACKER_SCENE_FORMS}")
+        if not (path / "scene.json").is_file():
+            raise FileNotFoundError(f"scene folder {path} has no scene.json; give {TRACKER_SCENE_FORMS} "
+                                    f"(e.g. DATASET/scenes/<id>)")
+        scene = load_scene(path)
+    if not any(o.dof != "static" for o in scene.objects.values()):
+        raise ValueError(f"scene {spec} has no movable object (every object is static), so the tracker has "
+                         f"nothing to drive; give {TRACKER_SCENE_FORMS}")
+    return scene
 
 
 def _anchors(path: str | None) -> tuple[np.ndarray, np.ndarray] | None:
     if path is None:
         return None
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"anchors file {p} does not exist")
-    with np.load(p, allow_pickle=False) as z:
-        if "frames" not in z.files or "xy" not in z.files:
-            raise ValueError(f"{p} must hold 'frames' (K,) and 'xy' (K, 2); it has {z.files}")
-        return np.asarray(z["frames"]), np.asarray(z["xy"], np.float64)
+    from trumans.track.anchors import read_anchors
+
+    return read_anchors(path)
 
 
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from trumans.scenes.io import load_scene
     from trumans.track.model_io import load_contact_models
     from trumans.sequence import load_sequence, save_sequence
 
@@ -81,8 +106,8 @@ def run(args: argparse.Namespace) -> int:
     check_out(args.out, "file")
     refuse_dataset_file(args.out)
     seq = load_sequence(args.input)
-    scene = load_scene(_scene_folder(args.scene, seq.scene, Path(args.input)))
-    model = load_contact_models(args.contact_checkpoint)
+    scene = tracker_scene(args.scene, seq.scene, Path(args.input))
+    model = load_contact_models(args.contact_checkpoint, device=args.device)
     cfg = TrackerConfig(correct=not args.no_correction)
     if args.rigidity is not None:
         cfg = replace(cfg, trajectory=replace(cfg.trajectory, rigidity=args.rigidity))
@@ -97,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         "interactions": [{"object": it.name, "dof": it.dof, "start": it.start, "end": it.end} for it in res.interactions],
         "correction_mean_cm": float(corr.mean() * 100) if len(corr) else 0.0,
         "correction_max_cm": float(corr.max() * 100) if len(corr) else 0.0, "out": str(args.out),
+        "device": str(args.device),
     }
     print(f"{len(res.interactions)} interactions ({', '.join(f'{i.name} {i.start}-{i.end}' for i in res.interactions) or 'none'}); "
           f"root corrected by {summary['correction_mean_cm']:.1f} cm on average; wrote {args.out}")

@@ -31,6 +31,7 @@ import numpy as np
 from trumans.summary import print_summary
 from trumans import argtypes
 from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
+from trumans.common_args import add_device_argument
 
 __all__ = ["add_arguments", "run", "simulate_drift", "evaluate"]
 
@@ -45,6 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-seqs", type=int, default=12, help="at most this many sequences (default 12)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (held-out set, drift)")
     p.add_argument("--stride", type=int, default=3, help="prediction stride (default 3; 1 = the centre frame of every window, as the paper)")
+    add_device_argument(p, runs="the contact predictor(s); the tracker's correction and objects are numpy on the CPU")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
 
 
@@ -182,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-seqs and --rooms must be >= 1, got {args.max_seqs}, {args.rooms}")
     if args.stride < 1 or args.stride % 2 == 0:
         raise ValueError(f"--stride must be an odd number >= 1, got {args.stride}")
-    model = load_contact_models(resolve_checkpoint(args))
+    model = load_contact_models(resolve_checkpoint(args), device=args.device)
     with tempfile.TemporaryDirectory(prefix="trumans_eval_contacts_") as tmp:
         if args.data is None:
             from trumans.synth.build import SynthConfig, build_dataset
@@ -201,6 +203,7 @@ def run(args: argparse.Namespace) -> int:
         scenes = {sid: ds.scene(sid) for sid in sorted({s.scene for s in seqs})}
         fig = evaluate(model, seqs, scenes, args.seed, args.stride)
     fig["checkpoint"] = " ".join(args.checkpoint) or "models/contacts.pt (shipped)"
+    fig["device"] = str(args.device)
     keys = ["ap", "precision", "recall", "accuracy", "ap_interaction", "precision_interaction", "recall_interaction",
             "obj_center_err_cm", "obj_angle_err_deg", "hand_obj_dist_cm",
             "obj_center_err_cm_nocorr", "obj_angle_err_deg_nocorr", "hand_obj_dist_cm_nocorr", "hand_obj_dist_cm_gt",

@@ -66,10 +66,10 @@ def save_predictor(model: nn.Module, path: str | Path, data: dict | None = None,
     save_checkpoint(path, predictor_checkpoint(model.config, state, data=data, meta=meta, dof=dof))
 
 
-def load_predictor(path: str | Path | None = None) -> tuple[ContactPredictor, dict]:
+def load_predictor(path: str | Path | None = None, device: str = "cpu") -> tuple[ContactPredictor, dict]:
     """Read a contact checkpoint (default: the shipped ``models/contacts.pt``) without executing
-    code. Returns the model (EMA weights when present) in eval mode and a dict describing it
-    (kind, model_config, fps, extra, data, meta)."""
+    code. Returns the model (EMA weights when present) in eval mode on ``device`` and a dict describing
+    it (kind, model_config, fps, extra, data, meta)."""
     path = Path(path) if path is not None else DEFAULT_CHECKPOINT
     if not path.is_file():
         raise FileNotFoundError(f"contact checkpoint {path} does not exist; train one with "
@@ -77,18 +77,19 @@ def load_predictor(path: str | Path | None = None) -> tuple[ContactPredictor, di
     ck = load_checkpoint(path, kind=KIND)
     info = {"kind": ck.kind, "model_config": ck.model_config.to_dict(), "fps": ck.fps, "extra": ck.extra,
             "data": ck.data, "meta": ck.meta, "dof": ck.extra.get("dof", "all")}
-    return ck.build_model(), info
+    return ck.build_model().to(device), info
 
 
-def load_contact_models(specs: list[str] | tuple[str, ...] | None = None) -> ContactModels:
+def load_contact_models(specs: list[str] | tuple[str, ...] | None = None, device: str = "cpu") -> ContactModels:
     """The contact model(s) of command-line ``specs``: none = the shipped model; one ``PATH`` = a
     model with a class head; ``DOF=PATH`` entries (DOF in slide | hinge | free, each at most once)
-    = one per-dof model each (``per_dof``), the checkpoint's recorded dof checked against DOF."""
+    = one per-dof model each (``per_dof``), the checkpoint's recorded dof checked against DOF. Every
+    model is moved to ``device`` (``predict_contacts`` runs its windows there)."""
     specs = list(specs or [])
     if not specs:
         specs = [str(DEFAULT_CHECKPOINT)]
     if len(specs) == 1 and ("=" not in specs[0] or Path(specs[0]).is_file()):
-        model, info = load_predictor(specs[0])
+        model, info = load_predictor(specs[0], device)
         if info["dof"] != "all":
             raise ValueError(f"contact checkpoint {specs[0]} is a per-dof model (dof {info['dof']!r}); pass it as "
                              f"{info['dof']}={specs[0]} (with the other dofs' models), not alone")
@@ -102,7 +103,7 @@ def load_contact_models(specs: list[str] | tuple[str, ...] | None = None) -> Con
         check_dof(dof, allow_all=False)
         if dof in models:
             raise ValueError(f"contact checkpoint for dof {dof!r} given twice ({spec!r}); give one per dof")
-        model, info = load_predictor(path)
+        model, info = load_predictor(path, device)
         if info["dof"] != dof:
             what = "a model with a class head (all dofs)" if info["dof"] == "all" else f"the per-dof model of {info['dof']!r}"
             raise ValueError(f"contact checkpoint {path} is {what}, not a {dof!r} model; train one with "

@@ -163,7 +163,10 @@ def pose_windows(rot6: torch.Tensor, index: np.ndarray | torch.Tensor) -> torch.
     rot6: (F, 24, 6) local 6D rotations (one sequence, or several concatenated); index: (N, W)
     frame indices (``window_indices``). Returns (N, W, 24, 6) float32 with the root's yaw
     rotated by minus the centre frame's yaw."""
-    index = torch.as_tensor(np.asarray(index), dtype=torch.long)
+    if isinstance(index, torch.Tensor):
+        index = index.to(device=rot6.device, dtype=torch.long)
+    else:
+        index = torch.as_tensor(np.asarray(index), dtype=torch.long, device=rot6.device)
     win = rot6[index].clone()  # (N, W, 24, 6)
     yaw = _yaw_of_root(win[:, index.shape[1] // 2, 0])  # (N,)
     c, s = torch.cos(-yaw)[:, None], torch.sin(-yaw)[:, None]
@@ -183,7 +186,8 @@ def predict_contacts(model: ContactPredictor, rotations: np.ndarray, batch_size:
     (left, right) and class probabilities (T, len(CLASSES)), float32. With ``stride`` 1 (the
     paper) each frame takes the centre prediction of its own window; with stride s (odd) one
     window every s frames predicts the s frames around its centre (s times cheaper). The result for
-    a frame does not depend on ``batch_size`` or on the other windows in its batch."""
+    a frame does not depend on ``batch_size`` or on the other windows in its batch. The windows go
+    to the model's device (``load_contact_models(..., device=)``); the results come back as numpy."""
     rot = np.asarray(rotations, dtype=np.float32)
     if rot.ndim != 3 or rot.shape[1:] != (NUM_JOINTS, 6):
         raise ValueError(f"rotations must be (T, 24, 6) local 6D, got {rot.shape}")
@@ -197,7 +201,7 @@ def predict_contacts(model: ContactPredictor, rotations: np.ndarray, batch_size:
         return np.zeros((0, len(HANDS)), np.float32), np.zeros((0, len(CLASSES)), np.float32)
     was_training = model.training
     model.eval()
-    rt = torch.from_numpy(rot)
+    rt = torch.from_numpy(rot).to(next(model.parameters()).device)
     half = stride // 2
     centers_all = np.arange(half, T + half, stride).clip(max=T - 1)  # window k predicts frames k*s .. k*s+s-1
     probs, cls = [], []
@@ -214,4 +218,4 @@ def predict_contacts(model: ContactPredictor, rotations: np.ndarray, batch_size:
     # windows whose centre was clipped at the end: shift the position so it still points at frame f
     pos = win * stride + off - centers_all[win] + half
     flat = win * stride + pos
-    return torch.cat(probs).numpy()[flat], torch.cat(cls).numpy()[flat]
+    return torch.cat(probs).cpu().numpy()[flat], torch.cat(cls).cpu().numpy()[flat]

@@ -87,7 +87,8 @@ def test_task_registry_and_cli_errors(tmp_path: Path, capsys) -> None:
         register_task("bad name", lambda *a, **k: None)
     base = ["train", "--data", str(tmp_path), "--out", str(tmp_path / "run")]
     for extra, msg in ((["--task", "dance"], "unknown task 'dance'"), (["--device", "gpu0"], "is not a device; give cpu, cuda or cuda:N"),
-                       (["--time-limit", "-5"], "--time-limit must be >= 0"), (["--steps", "-1"], "--steps must be >= 0"),
+                       (["--time-limit", "-5"], "--time-limit must be >= 0"), (["--max-steps", "-1"], "--max-steps must be >= 0"),
+                       (["--steps", "-1"], "--max-steps must be >= 0"),
                        (["--ablate", "legs"], "unknown ablation")):
         assert console_main(base + extra) == 2
         err = capsys.readouterr().err

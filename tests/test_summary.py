@@ -19,3 +19,19 @@ def test_non_finite_figures_are_null_and_numpy_is_plain(capsys):
 def test_json_safe_keeps_finite_values_exactly():
     x = {"pi": math.pi, "n": [0.1, -2.0]}
     assert json_safe(x) == x
+
+
+def test_every_command_prints_its_json_line_through_print_summary():
+    """A command printing ``json.dumps(...)`` itself could print NaN (not JSON) for a figure nothing
+    measured; every --json line goes through ``print_summary`` (sample, eval synthesis / safety,
+    scene inspect and the local-query benchmark did not)."""
+    import re
+    from pathlib import Path
+
+    import trumans
+
+    pkg = Path(trumans.__file__).parent
+    offenders = [f"{p.relative_to(pkg)}:{i}" for p in sorted(pkg.rglob("*.py"))
+                 for i, line in enumerate(p.read_text().splitlines(), 1)
+                 if re.search(r"print\(\s*json\.dumps\(", line) and p.name != "summary.py"]
+    assert offenders == []

@@ -3,7 +3,6 @@ dataset against real motion (default reference: the held-out clips of the shippe
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 

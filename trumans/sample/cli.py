@@ -11,7 +11,6 @@ runs: walk, sit on a seat, get up, walk, a hand action (>= 30 s).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -184,7 +183,9 @@ def run(args: argparse.Namespace) -> int:
         written += [str(p) for p in export(seq, stem, formats, scene=scene).values()]
     summary = {**gen.figures, "written": written}
     if args.json:
-        print(json.dumps(summary))
+        from trumans.summary import print_summary
+
+        print_summary(summary)
     else:
         for k, v in summary.items():
             print(f"{k}: {v}", file=sys.stdout)

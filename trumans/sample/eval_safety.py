@@ -334,7 +334,9 @@ def run(args: argparse.Namespace) -> int:
                     sampler_config(args), args.mesh_dir, args.max_seconds,
                     log=lambda line: print(line, file=sys.stderr, flush=True), demo=args.demo, device=args.device)
     if args.json:
-        print(json.dumps(figs))
+        from trumans.summary import print_summary
+
+        print_summary(figs)
     else:
         for r in figs["runs"]:
             print(r)

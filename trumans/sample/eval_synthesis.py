@@ -23,7 +23,6 @@ from trumans.checkpoint_args import add_checkpoint_arguments, resolve_checkpoint
 from trumans.common_args import add_device_argument
 from trumans.threads import add_threads_argument, set_threads
 import argparse
-import json
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -332,5 +331,10 @@ def run(args: argparse.Namespace) -> int:
     for name, path in ablations:
         figs[f"ablation_{name}"] = evaluate(path, args.rooms, args.seed, 0, config, args.data, args.motion_encoder,
                                                device=args.device)
-    print(json.dumps(figs) if args.json else "\n".join(f"{k}: {v}" for k, v in figs.items()))
+    if args.json:
+        from trumans.summary import print_summary
+
+        print_summary(figs)
+    else:
+        print("\n".join(f"{k}: {v}" for k, v in figs.items()))
     return 0

@@ -8,7 +8,6 @@ warm-up). Reports the flat-floor case (all z_floor = 0, the usual one) and a mix
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
@@ -80,11 +79,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"{name}: {t * 1e3:.2f} ms per batch of {args.batch} ({args.n}^3 cells), "
               f"{args.batch / t:.0f} queries/s")
     if args.json:
-        print(json.dumps({
+        from trumans.summary import print_summary
+
+        print_summary({
             "batch": args.batch, "n": args.n, "voxel": args.voxel, "grid": list(occ.shape),
             "ms_per_batch": round(t_flat * 1e3, 3), "queries_per_s": round(args.batch / t_flat, 1),
             "ms_per_batch_mixed_heights": round(t_mixed * 1e3, 3), "build_s": round(t_build, 3),
-        }))
+        })
     return 0
 
 

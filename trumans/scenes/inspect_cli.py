@@ -12,7 +12,6 @@ bed; the side a table is used from), how it was found. ``--json`` prints them as
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -65,5 +64,7 @@ def run(args: argparse.Namespace) -> int:
     for n in notes:
         print(f"note: {n}")
     if args.json:
-        print(json.dumps({"scene": str(args.scene), "objects": rows, "notes": notes, "seconds": round(seconds, 3)}))
+        from trumans.summary import print_summary
+
+        print_summary({"scene": str(args.scene), "objects": rows, "notes": notes, "seconds": round(seconds, 3)})
     return 0

@@ -1,9 +1,10 @@
 """``trumans sample``: a long motion in a scene from a plan (TRUMANS §4; the sampling issue).
 
     trumans sample --out out/walk_sit                              # the default plan in the default room
-    trumans sample --plan plan.toml --scene data/synth/scenes/room_000 --out out/x --formats npz,gif,glb
-    trumans sample --goto 2.0,1.5 --sit-on chair_0 --act drink:3 --stand-up --goto 1,1 --out out/y
-    trumans sample --scene scan.ply --up y --goto 1,2 --out out/z  # any mesh trimesh reads
+    trumans sample --plan examples/plan_sit_drink.toml --out out/x --formats npz,gif,glb   # a plan file
+    trumans sample --goto 2.0,1.5 --sit-on chair_0:6 --stand-up --act drink:3 --goto 0.8,0.8 --out out/y
+    trumans sample --scene room:7 --goto 1.5,2.5 --out out/r7       # another procedural room
+    trumans sample --scene examples/room_mesh.obj --sit-on seat_0 --out out/z   # any mesh (--up y: a y-up file)
 
 Step flags keep their order on the command line. Without a plan or step flags the default plan
 runs: walk, sit on a seat, get up, walk, a hand action (>= 30 s).

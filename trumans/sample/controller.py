@@ -67,7 +67,7 @@ class Phase:
     step: int = -1
     info: dict = field(default_factory=dict)
     guide: bool = True  # steer the body onto the goal (False: the goal is only inpainted, e.g. standing up)
-    heading: float | None = None  # world heading (rad) at the goal: the seat's sitting direction
+    heading: float | None = None  # world heading (rad) at the goal: the seat's sitting direction; lying: lie_heading
     span: tuple[float, float] = (0.0, 1.0)  # progress indicator range of this phase (a part of one action)
     start: np.ndarray | None = None  # (2,) pelvis xy where the phase begins: mid-phase subgoals (sit_down_subgoal)
 
@@ -131,6 +131,16 @@ def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray
     d = point[:2] - pos
     stand = point[:2] - 0.45 * d / max(np.linalg.norm(d), 1e-6)
     return nearest_walkable(wm, stand) if not wm.query(stand[None])[0] else stand
+
+
+def lie_heading(obj) -> float | None:
+    """The body heading (rad, world; ``trumans.skeleton.heading``: perpendicular to the hip line) of a person
+    lying on their back on ``obj`` with the head along its ``lie_yaw`` (meta, local frame: the feet -> head
+    direction; a bed's headboard end, ``trumans.scenes.furniture`` / ``affordances``): the hip line's forward
+    points to the feet, so heading = object yaw + lie_yaw + pi. None when the object gives no ``lie_yaw``."""
+    if "lie_yaw" not in obj.meta:
+        return None
+    return _wrap(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])) + float(obj.meta["lie_yaw"]) + np.pi)
 
 
 def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
@@ -229,9 +239,11 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
                 edge_seat = None
             else:
                 phases.append(Phase("lie_down", ("lie_down",), frames("lie_down"), goal=lie[:2], step=i,
-                                    info={"surface_height": float(lie[2]), "object": obj.name}))
+                                    info={"surface_height": float(lie[2]), "object": obj.name},
+                                    heading=lie_heading(obj)))
                 phases.append(Phase("lie", ("lie",), frames("lie", s.seconds), goal=lie[:2], step=i,
-                                    info={"surface_height": float(lie[2]), "object": obj.name}))
+                                    info={"surface_height": float(lie[2]), "object": obj.name},
+                                    heading=lie_heading(obj)))
                 posture = "lie"
                 edge_seat = seat[:2].copy() if via_edge else None
             posture_exit = pos.copy()

@@ -18,6 +18,8 @@ __all__ = ["Dof", "SceneObject", "Scene"]
 
 Dof = Literal["static", "slide", "hinge", "free"]
 DOFS: tuple[str, ...] = ("static", "slide", "hinge", "free")
+# meta['found_by'] of objects found in a mesh's static geometry (trumans.scenes.affordances): SceneObject.part_of_static
+FOUND_IN_STATIC: tuple[str, ...] = ("geometry", "name")
 
 
 @dataclass
@@ -54,6 +56,13 @@ class SceneObject:
             self.axis = a / np.linalg.norm(a)
         if len(self.mesh.faces) == 0:
             raise ValueError(f"object {self.name!r}: mesh is empty; give it at least one face")
+
+    @property
+    def part_of_static(self) -> bool:
+        """True for an object found in the scene's static mesh (``meta['found_by']`` 'geometry' or 'name':
+        ``trumans.scenes.affordances``): its faces are the static mesh's own, so renderers and exports draw
+        them once, with the static mesh, not again as the object."""
+        return not self.dynamic and self.dof == "static" and self.meta.get("found_by") in FOUND_IN_STATIC
 
     def world_mesh(self, pose: np.ndarray | None = None) -> trimesh.Trimesh:
         """The mesh placed at ``pose`` (default: its own pose), as a new Trimesh in world frame."""

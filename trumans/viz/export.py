@@ -104,11 +104,13 @@ def _resolve_scene(scene: Scene | str | Path | None) -> tuple[Scene | None, Scen
 
 def _glb_scene(seq: Sequence, sc: Scene | None) -> tuple[dict, dict]:
     """(static meshes, objects) for write_glb: static meshes in world frame; every object in its own
-    frame, at its per-frame pose where the sequence tracks it, else at its scene pose."""
+    frame, at its per-frame pose where the sequence tracks it, else at its scene pose. Objects found in
+    the static mesh (``SceneObject.part_of_static``: a raw mesh's seats, beds, tables) are not written
+    again: their triangles are the static mesh's, each drawn once."""
     if sc is None:
         return {}, {}
     objects = {name: (o.mesh, seq.objects[name].pose if name in seq.objects else o.pose)
-               for name, o in sc.objects.items()}
+               for name, o in sc.objects.items() if not o.part_of_static}
     return dict(sc.static), objects
 
 

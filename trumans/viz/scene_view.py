@@ -37,8 +37,10 @@ def find_scene_dir(seq_path: Path, scene_field: str, explicit: str | None) -> Pa
 
 def scene_view(sc: Scene) -> SceneView:
     """What the renderer draws of a ``trumans.scenes.Scene``: static meshes and non-dynamic objects in world
-    frame, dynamic objects' meshes in their own frame (posed by the sequence) with their scene poses; no grid."""
-    static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values() if not o.dynamic]
+    frame (an object found in the static mesh is drawn once, as part of it: ``SceneObject.part_of_static``),
+    dynamic objects' meshes in their own frame (posed by the sequence) with their scene poses; no grid."""
+    static = list(sc.static.values()) + [o.world_mesh() for o in sc.objects.values()
+                                         if not o.dynamic and not o.part_of_static]
     dynamic = {name: o.mesh for name, o in sc.objects.items() if o.dynamic}
     return SceneView(static=static, dynamic=dynamic, dynamic_pose={n: sc.objects[n].pose for n in dynamic})
 

@@ -65,7 +65,7 @@ def test_track_refuses_scenes_it_cannot_drive(tmp_path, capsys):
     mesh = ROOT / "examples" / "room_mesh.obj"
     _refusal(capsys, ["track", seq, "--out", tmp_path / "o.npz", "--scene", mesh], "mesh file", "room:SEED", "default")
     _refusal(capsys, ["track", seq, "--out", tmp_path / "o.npz"], "records none", "--scene")
-    _refusal(capsys, ["track", seq, "--out", tmp_path / "o.npz", "--scene", tmp_path / "nope"], "does not exist")
+    _refusal(capsys, ["track", seq, "--out", tmp_path / "o.npz", "--scene", tmp_path / "nope"], "is not a folder")
     _refusal(capsys, ["track", seq, "--out", tmp_path / "o.npz", "--scene", "room:x"], "room:SEED")
     from trumans.scenes.io import save_scene
     from trumans.scenes.procedural import make_room

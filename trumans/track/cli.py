@@ -72,7 +72,8 @@ def tracker_scene(arg: str | None, seq_scene: str, input_path: Path):
         path = next((c for c in candidates if c.exists()), None)
         where = f"--scene {spec}" if given else f"the sequence's scene {spec!r}"
         if path is None:
-            raise FileNotFoundError(f"{where} does not exist here; pass --scene ({TRACKER_SCENE_FORMS})")
+            error = FileNotFoundError if given else ValueError  # a recorded id (a dataset's) is no folder here
+            raise error(f"{where} is not a folder here; pass --scene ({TRACKER_SCENE_FORMS})")
         if path.is_file():
             raise ValueError(f"{where} is a mesh file: the seats, beds and tables found in a mesh are static, "
                              f"so the tracker has no object to drive; give {TRACKER_SCENE_FORMS}")

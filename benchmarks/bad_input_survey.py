@@ -158,7 +158,8 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
         def thunk():
             argv = [str(a) for a in argv_fn()]
             out = Path(argv[argv.index("--out") + 1]) if "--out" in argv[:-1] else None
-            watch = [] if out is None else [p for p in (out, out.parent, out.with_suffix(".npz")) if not p.exists()]
+            watch = [] if out is None or not out.name else [p for p in (out, out.parent, out.with_suffix(".npz"))
+                                                            if not p.exists()]  # `--out ""` / `.`: nothing to watch
             rc, _, e = call(argv, timeout)
             note = e.strip().splitlines()[-1:] if e.strip() else [f"rc={rc}"]
             outcome = classify_error(rc, e, must)
@@ -625,24 +626,74 @@ def build_cases(w: Path, base: Path, aug_base: Path) -> list[tuple[str, object]]
         "--workers", "1"], "listed twice")
     err("augment --splits train train", lambda: aug("a_dup2")() + ["--splits", "train", "train"], "split twice")
 
-    def seat_triangle():
-        import trimesh
+    def degenerate_seat(kind):
+        def thunk():
+            import trimesh
 
-        d = D("a_seat")
-        sd = next((d / "scenes").iterdir())
-        seats = [o for o in json.loads((sd / "scene.json").read_text())["objects"]
-                 if o.get("category") in ("sofa", "chair", "stool")]
-        for o in seats:
-            (x0, y0, _), (x1, y1, _) = trimesh.load(sd / o["mesh"], process=False).bounds
-            trimesh.Trimesh([[x0, y0, 0.45], [x1, y0, 0.45], [x0, y1, 0.45]], [[0, 1, 2]], process=False).export(
-                sd / o["mesh"])
-        rc, out, e = call(["augment", "--data", d, "--out", w / "a_seat_out", "--workers", "1", "--variations", "1",
-                           "--json"], 300)
+            d = D(f"a_seat_{kind}")
+            sd = next((d / "scenes").iterdir())
+            seats = [o for o in json.loads((sd / "scene.json").read_text())["objects"]
+                     if o.get("category") in ("sofa", "chair", "stool")]
+            for o in seats:
+                (x0, y0, z0), (x1, y1, _) = trimesh.load(sd / o["mesh"], process=False).bounds
+                if kind == "open box":  # no bottom, one side missing: not watertight
+                    box = trimesh.creation.box(bounds=[[x0, y0, z0], [x1, y1, 0.45]])
+                    keep = (box.face_normals[:, 2] > -0.9) & (box.face_normals[:, 0] < 0.9)
+                    m = trimesh.Trimesh(box.vertices, box.faces[keep], process=False)
+                elif kind == "flat quad":
+                    m = trimesh.Trimesh([[x0, y0, 0.45], [x1, y0, 0.45], [x1, y1, 0.45], [x0, y1, 0.45]],
+                                        [[0, 1, 2], [0, 2, 3]], process=False)
+                else:
+                    m = trimesh.Trimesh([[x0, y0, 0.45], [x1, y0, 0.45], [x0, y1, 0.45]], [[0, 1, 2]], process=False)
+                m.export(sd / o["mesh"])
+            rc, out, e = call(["augment", "--data", d, "--out", w / f"a_seat_{kind}_out", "--workers", "1",
+                               "--variations", "2", "--json"], 300)
+            if rc != 0:
+                return classify_error(rc, e, ()), e.strip().splitlines()[-1:]
+            s = json.loads(out.strip().splitlines()[-1])
+            warned = "trumans: warning:" in e
+            return ("silent" if s["skipped"] and not warned else "ok"), [f"outputs {s['outputs']}, skipped {s['skipped']}"]
+        return thunk
+    for kind in ("one triangle", "flat quad", "open box"):
+        custom(f"augment {kind} seat meshes keep their contacts", degenerate_seat(kind))
+
+    # ---- outputs: --out empty / the current folder / a dataset's own file; --overwrite keeps the user's files
+    err("sample --out empty", lambda: ["sample", "--out", "", "--goto", "1,1"], "--out is empty")
+    err("train --out .", lambda: ["train", "--data", base, "--out", "."], "current folder")
+    err("sample --out a dataset sequence's stem", lambda: ["sample", "--out", seq0.with_suffix(""), "--goto", "1,1"],
+        "a file of the trumans dataset")
+    err("refine --out a dataset sequence", lambda: ["refine", seq0, "--out", seq0], "a file of the trumans dataset")
+
+    def overwrite_keeps_user_files():
+        out = w / "ow_aug"
+        argv = ["augment", "--data", base, "--out", out, "--workers", "1", "--variations", "1"]
+        rc, _, e = call(argv, 300)
         if rc != 0:
             return classify_error(rc, e, ()), e.strip().splitlines()[-1:]
-        s = json.loads(out.strip().splitlines()[-1])
-        return ("silent" if s["skipped"] else "ok"), [f"outputs {s['outputs']}, skipped {s['skipped']}"]
-    custom("augment one-triangle seat meshes keep their contacts", seat_triangle)
+        (out / "sequences" / "my_notes.txt").write_text("keep")
+        (w / "ow_theirs").mkdir()
+        (w / "ow_theirs" / "scene.json").write_text("theirs")
+        os.symlink(w / "ow_theirs", out / "scenes" / "their_room")
+        rc, _, e = call(argv + ["--seed", "1", "--overwrite"], 300)
+        if rc != 0:
+            return classify_error(rc, e, ()), e.strip().splitlines()[-1:]
+        kept = ((out / "sequences" / "my_notes.txt").is_file() and (out / "scenes" / "their_room").is_symlink()
+                and (w / "ow_theirs" / "scene.json").read_text() == "theirs")
+        return ("ok" if kept else "silent"), ["user files kept" if kept else "--overwrite deleted a user file"]
+    custom("augment --overwrite keeps the user's files in sequences/ and scenes/", overwrite_keeps_user_files)
+
+    # ---- track --anchors: a wrong file is one clear line
+    def anchors(tag, write):
+        def fn():
+            p = w / tag
+            write(p)
+            return ["track", seq0, "--scene", next((base / "scenes").iterdir()), "--out", w / f"{tag}_out.npz",
+                    "--anchors", p]
+        return fn
+    err("track --anchors is a .npy", anchors("anc.npy", lambda p: np.save(p, np.zeros(3))), "not an .npz")
+    err("track --anchors is text", anchors("anc.txt", lambda p: p.write_text("1 2 3")), "not a readable .npz")
+    err("track --anchors NaN xy", anchors("anc_nan.npz", lambda p: np.savez(p, frames=np.array([0, 3]),
+                                                                           xy=np.full((2, 2), np.nan))), "not finite")
     return cases
 
 

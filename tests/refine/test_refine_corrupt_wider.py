@@ -66,6 +66,12 @@ def test_extremity_jitter_and_bursts(W):
     e = np.linalg.norm(_J(ext) - _J(W), axis=-1).mean(axis=(0, 1))
     wrists = [JOINT_INDEX["left_wrist"], JOINT_INDEX["right_ankle"]]
     assert e[wrists].mean() > 1.6 * e[[JOINT_INDEX["spine2"], JOINT_INDEX["left_knee"]]].mean()
+    # the extremities' extra share follows the window's severity (one factor per window for both)
+    var = corrupt(W, 30.0, np.random.default_rng(0), replace(base, extremity_jitter=2.0, position_scale=(0.1, 2.0)))
+    ev = np.linalg.norm(_J(var) - _J(W), axis=-1).mean(axis=1)  # (B, 24)
+    core = [JOINT_INDEX[n] for n in ("spine1", "spine2", "spine3", "neck", "left_knee", "right_knee")]
+    ratio = ev[:, wrists].mean(-1) / ev[:, core].mean(-1)
+    assert ev[:, core].mean(-1).std() > 0.002 and np.all(np.abs(ratio - 2.0) < 0.5)
     burst = corrupt(W, 30.0, np.random.default_rng(0), replace(QUIET, p_burst=0.05, burst_m=0.04))
     eb = np.linalg.norm(_J(burst) - _J(W), axis=-1).mean(-1)  # (B, L)
     hit = eb > 1e-6

@@ -285,9 +285,11 @@ def _part_src(held: np.ndarray) -> np.ndarray:
     return np.maximum.accumulate(np.where(held, 0, np.arange(L)), axis=-1)
 
 
-def _wider_body(J: np.ndarray, fps: float, rng: np.random.Generator, c: CorruptionConfig) -> None:
+def _wider_body(J: np.ndarray, fps: float, rng: np.random.Generator, c: CorruptionConfig,
+                scale: float | np.ndarray = 1.0) -> None:
     """The wider family's kinds that act on the tracked body itself, on J (B, L, 24, 3) in place: the
-    random-walk drift, the height offset, the extremities' extra jitter and bursts."""
+    random-walk drift, the height offset, the extremities' extra jitter (times ``scale``, the window's
+    severity factor (B, 1, 1, 1) or 1, the one the jitter got) and bursts."""
     B, L = J.shape[:2]
     if c.walk_m_per_sqrt_s > 0:
         steps = rng.normal(0.0, c.walk_m_per_sqrt_s / np.sqrt(fps), (B, L, 3)) * np.array([1.0, 1.0, c.walk_vertical])
@@ -297,7 +299,6 @@ def _wider_body(J: np.ndarray, fps: float, rng: np.random.Generator, c: Corrupti
         J[..., 2] += (rng.uniform(*c.height_m, B) * rng.choice([-1.0, 1.0], B))[:, None, None]
     if c.extremity_jitter != 1.0:  # the extremities' total jitter: extremity_jitter x jitter_m (x the severity)
         extra = np.sqrt(max(c.extremity_jitter ** 2 - 1.0, 0.0)) * c.jitter_m
-        scale = 1.0 if c.position_scale == (1.0, 1.0) else rng.uniform(*c.position_scale, (B, 1, 1, 1))
         J[:, :, _EXTREMITIES] += scale * rng.normal(0.0, extra, (B, L, len(_EXTREMITIES), 3))
     if c.p_burst > 0:
         burst = _runs(rng, (B, L), c.p_burst, c.burst_frames)
@@ -364,7 +365,7 @@ def corrupt(frames: np.ndarray, fps: float, rng: np.random.Generator,
     Jt = J + scale * (noise + spikes + drift)
     wide = np.random.default_rng(rng.integers(0, 2 ** 63)) if c.wider else None  # drawn only when on
     if wide is not None:
-        _wider_body(Jt, fps, wide, c)
+        _wider_body(Jt, fps, wide, c, scale)
     out[..., JOINTS] = Jt.reshape(B, L, -1)
     # rotations: axis-angle noise on every local rotation
     R6 = x[..., ROTATIONS].reshape(B, L, NUM_JOINTS, 6)

@@ -145,7 +145,7 @@ def plan_check(argv: list[str]) -> int:
     from trumans.sample.controller import compile_plan
     from trumans.sample.generate import DEFAULT_CHECKPOINT, check_points_inside, resolve_plan
     from trumans.sample.plan import plan_from_dict, validate_plan
-    from trumans.sample.rollout import _seconds
+    from trumans.sample.rollout import action_seconds
 
     args = build_parser(argv).parse_args(argv)
     flags = list(getattr(args, "plan_steps", None) or [])
@@ -160,7 +160,7 @@ def plan_check(argv: list[str]) -> int:
     if not sc.walkmap.query(xy[None])[0]:
         raise ValueError(f"start {xy.tolist()} is not on walkable floor")
     heading = args.heading if args.heading is not None else (the_plan.heading or 0.0)
-    return len(compile_plan(the_plan, sc.scene, sc.walkmap, xy, _seconds(ckpt), ckpt.fps,
+    return len(compile_plan(the_plan, sc.scene, sc.walkmap, xy, action_seconds(ckpt), ckpt.fps,
                             vocabulary=ckpt.vocabulary, heading=float(heading)))
 
 

@@ -8,7 +8,7 @@ import trimesh
 
 from helpers import REPO_ROOT
 from trumans.sequence import Sequence
-from trumans.skeleton import _rest_joints
+from trumans.skeleton import REST_JOINTS
 
 MESH = REPO_ROOT / "examples" / "room_mesh.obj"
 
@@ -29,7 +29,7 @@ def test_glb_of_a_mesh_scene_has_each_triangle_once(tmp_path):
     sc = load_sample_scene(str(MESH))
     found = [o for o in sc.scene.objects.values() if o.meta.get("found_by")]
     assert len(found) >= 4 and all(o.part_of_static for o in found)  # seats, bed and tables of the room mesh
-    j = _rest_joints().astype(np.float32)
+    j = REST_JOINTS.astype(np.float32)
     j[:, :2] += np.array([2.4, 2.44], np.float32) - j[0, :2]
     seq = Sequence(joints=np.repeat(j[None], 8, 0), fps=30.0, scene=str(MESH))
     glb = export(seq, tmp_path / "s", {"glb"}, scene=sc.scene)["glb"]

@@ -122,7 +122,8 @@ def _speed(ckpt: Checkpoint) -> float:
     return float(ckpt.meta.get("walk_speed", 1.0))
 
 
-def _seconds(ckpt: Checkpoint) -> dict[str, float]:
+def action_seconds(ckpt: Checkpoint) -> dict[str, float]:
+    """The shipped generator's typical action durations (s) by action name (meta["action_seconds"]), for plans."""
     return {str(k): float(v) for k, v in dict(ckpt.meta.get("action_seconds", {})).items()}
 
 
@@ -181,7 +182,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         raise ValueError(f"num_samples must be >= 1, got {num_samples}")
     xy = np.asarray(plan.start if plan.start is not None else start_xy, dtype=np.float64)
     heading = float(plan.heading) if plan.heading is not None else 0.0
-    phases = compile_plan(plan, scene, walkmap, xy, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
+    phases = compile_plan(plan, scene, walkmap, xy, action_seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
                           heading=heading)
     controllers = [Controller(phases, ckpt.vocabulary, ckpt.L_epi, ckpt.k, ckpt.fps, _speed(ckpt),
                               reach=sampler.config.cleanup.reach, walkmap=walkmap) for _ in range(num_samples)]
@@ -244,7 +245,7 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
     seat = sit_offset(pose)
 
     def controller_for(p: Plan, at: np.ndarray, facing: float) -> Controller:
-        return Controller(compile_plan(p, scene, walkmap, at, _seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
+        return Controller(compile_plan(p, scene, walkmap, at, action_seconds(ckpt), ckpt.fps, vocabulary=ckpt.vocabulary,
                                        heading=facing), ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt),
                           reach=sampler.config.cleanup.reach, walkmap=walkmap)
 

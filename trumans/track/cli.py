@@ -48,14 +48,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_interaction_arguments(p)
 
 
-TRACKER_SCENE_FORMS = "a scene folder (scene.json with movable objects), 'default' or room:SEED"
+TRACKER_SCENE_FORMS = "a scene folder (scene.json + meshes), 'default' or room:SEED"
 
 
 def tracker_scene(arg: str | None, seq_scene: str, input_path: Path):
     """The tracker's scene (a ``trumans.scenes.Scene``) from ``--scene`` or, without it, the sequence's own
     ``scene`` entry (``trumans.scenes.spec``): a scene folder, 'default' or 'room:SEED'; a relative folder is
-    tried from the current folder, then beside the input. A mesh file, or a scene with no movable
-    object (dof other than static), is refused naming the forms that work, before anything heavy is read."""
+    tried from the current folder, then beside the input. A mesh file is refused naming the forms that
+    work, before anything heavy is read."""
     from trumans.scenes.io import load_scene
     from trumans.scenes.spec import procedural_seed
 
@@ -81,10 +81,7 @@ def tracker_scene(arg: str | None, seq_scene: str, input_path: Path):
             raise FileNotFoundError(f"scene folder {path} has no scene.json; give {TRACKER_SCENE_FORMS} "
                                     f"(e.g. DATASET/scenes/<id>)")
         scene = load_scene(path)
-    if not any(o.dof != "static" for o in scene.objects.values()):
-        raise ValueError(f"scene {spec} has no movable object (every object is static), so the tracker has "
-                         f"nothing to drive; give {TRACKER_SCENE_FORMS}")
-    return scene
+    return scene  # static objects alone are fine: their contacts still correct the body's path (iReplica §4.2)
 
 
 def _anchors(path: str | None) -> tuple[np.ndarray, np.ndarray] | None:

@@ -17,12 +17,22 @@ __all__ = ["add_arguments", "run", "main"]
 DEVICES = ("cpu", "cuda")
 
 
+def _builtin_configs() -> str:
+    """'generator: cpu-small, paper, ...; contact: free, hinge, slide; ...' from the config folders."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent / "configs"
+    tasks = {"generator": sorted(p.stem for p in root.glob("*.toml"))}
+    tasks.update({d.name: sorted(p.stem for p in d.glob("*.toml")) for d in sorted(root.iterdir()) if d.is_dir()})
+    return "; ".join(f"{task}: {', '.join(names)}" for task, names in tasks.items() if names)
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--task", default="generator",
                    help="what to train: a registered task (generator, filter, contact, motion_encoder)")
     p.add_argument("--config", default=None,
-                   help="built-in config of the task (generator: cpu-small (default), paper; contact: slide, hinge, free = one "
-                        "model per dof class; filter: cpu; motion_encoder: default) or a TOML file")
+                   help=f"built-in config of the task ({_builtin_configs()}; contact: one model per dof class) or a "
+                        f"TOML file")
     p.add_argument("--data", required=True, help="dataset folder (with index.json)")
     p.add_argument("--out", required=True, help=out_help("folder", "the run (checkpoint.pt, loss.png, cache/); "
                    "--resume continues it"))

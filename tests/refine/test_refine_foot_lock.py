@@ -6,7 +6,7 @@ from trumans.refine.body_drift import DriftConfig, stance_mask
 from trumans.refine.foot_lock import LockConfig, lock_feet
 from trumans.refine.frame import FRAME_DIM, JOINTS, OBJ_T, ROTATIONS
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
-from trumans.skeleton import JOINT_INDEX, forward_kinematics, rest_offsets
+from trumans.skeleton import JOINT_INDEX, LEG_CHAINS, forward_kinematics, rest_offsets
 
 FPS = 30.0
 LA, LF, RA = JOINT_INDEX["left_ankle"], JOINT_INDEX["left_foot"], JOINT_INDEX["right_ankle"]
@@ -53,6 +53,9 @@ def test_a_wandering_planted_foot_is_pinned_and_the_leg_follows_consistently():
     # the rotations drive the same skeleton onto the new joints
     P, _ = forward_kinematics(sixd_to_matrix(out[:, ROTATIONS].reshape(-1, 24, 6)), root, off)
     np.testing.assert_allclose(P, J, atol=1e-6)
+    legs = [j for chain in LEG_CHAINS for j in chain[:3]]  # hips, knees, ankles turn; every other rotation as it came
+    rest = [j for j in range(24) if j not in legs]
+    np.testing.assert_array_equal(out[:, ROTATIONS].reshape(-1, 24, 6)[:, rest], f[:, ROTATIONS].reshape(-1, 24, 6)[:, rest])
 
 
 def test_a_swinging_foot_is_left_alone_and_corrections_fade_in():

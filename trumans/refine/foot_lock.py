@@ -30,6 +30,8 @@ from trumans.refine.frame import FRAME_DIM, JOINTS, ROTATIONS
 
 __all__ = ["LockConfig", "lock_feet"]
 
+assert all(PARENTS[hip] == 0 for hip, *_ in LEG_CHAINS), "the legs' hips hang from the root (_turn_leg_rotations)"
+
 
 
 @dataclass(frozen=True)
@@ -112,20 +114,21 @@ def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig())
 def _turn_leg_rotations(rot6: np.ndarray, old: np.ndarray, new: np.ndarray) -> np.ndarray:
     """Local rotations (T, 24, 6) whose hip, knee and ankle turn so that each one's bone (to its
     child: knee, ankle, toe), which the turns above it have already carried along, lands on the new
-    joints' direction by the minimal world rotation; every other local rotation is kept."""
-    L = sixd_to_matrix(rot6)  # (T, 24, 3, 3) local
-    G = np.empty_like(L)  # global orientations down the kinematic tree (parents come first)
-    G[:, 0] = L[:, 0]
-    for j in range(1, NUM_JOINTS):
-        G[:, j] = G[:, PARENTS[j]] @ L[:, j]
-    out = L.copy()
+    joints' direction by the minimal world rotation; every other local rotation is kept as it came.
+    Only the root and the legs are converted to matrices (the hips hang from the root)."""
+    out = np.array(rot6, dtype=np.float64, copy=True)
+    root = sixd_to_matrix(out[:, 0])  # (T, 3, 3): the root's local rotation is its global one
     for hip, knee, ankle, toe in LEG_CHAINS:
-        acc = np.broadcast_to(np.eye(3), L[:, 0].shape)  # world turn the joints above have applied
-        parent_new = G[:, PARENTS[hip]]
+        L = sixd_to_matrix(out[:, [hip, knee, ankle]])  # (T, 3, 3, 3) local
+        G = {hip: root @ L[:, 0]}  # global orientations down the chain
+        G[knee] = G[hip] @ L[:, 1]
+        G[ankle] = G[knee] @ L[:, 2]
+        acc = np.broadcast_to(np.eye(3), root.shape)  # world turn the joints above have applied
+        parent_new = root
         for j, child in ((hip, knee), (knee, ankle), (ankle, toe)):
             cur = np.einsum("tij,tj->ti", acc, old[:, child] - old[:, j])
             acc = least_rotation(cur, new[:, child] - new[:, j]) @ acc
-            G_new = acc @ G[:, j]
-            out[:, j] = np.swapaxes(parent_new, -1, -2) @ G_new
+            G_new = acc @ G[j]
+            out[:, j] = matrix_to_6d(np.swapaxes(parent_new, -1, -2) @ G_new)
             parent_new = G_new
-    return matrix_to_6d(out)
+    return out

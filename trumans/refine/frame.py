@@ -50,7 +50,7 @@ IMU_FLAG = 234
 FRAME_DIM = 235
 # condition = frame vector with NaN -> 0, then observed flags: 24 joints, rotations, object
 COND_DIM = FRAME_DIM + NUM_JOINTS + 2
-_ROT6_SLICES = [slice(72 + 6 * j, 78 + 6 * j) for j in range(NUM_JOINTS)] + [OBJ_R, IMU_R]
+assert OBJ_R.stop == IMU_R.start and ROTATIONS.stop - ROTATIONS.start == 6 * NUM_JOINTS  # orthonormalize_6d's runs of 6D blocks
 
 
 @dataclass
@@ -166,16 +166,22 @@ def fill_missing(frames: np.ndarray) -> np.ndarray:
     ends; a column with no observed frame becomes 0."""
     f = np.asarray(frames, dtype=np.float64)
     L = f.shape[-2]
-    ok = np.isfinite(f)
-    t = np.arange(L).reshape(L, 1)
-    prev = np.maximum.accumulate(np.where(ok, t, -1), axis=-2)
-    nxt = np.flip(np.minimum.accumulate(np.flip(np.where(ok, t, L), -2), axis=-2), -2)
-    has_p, has_n = prev >= 0, nxt < L
-    vp = np.take_along_axis(f, np.clip(prev, 0, L - 1), -2)
-    vn = np.take_along_axis(f, np.clip(nxt, 0, L - 1), -2)
-    w = np.where(has_p & has_n, (t - prev) / np.maximum(nxt - prev, 1), 0.0)
-    out = np.where(has_p & has_n, (1 - w) * vp + w * vn, np.where(has_p, vp, np.where(has_n, vn, 0.0)))
-    return np.where(ok, f, out).astype(np.float32)
+    cols = np.moveaxis(f, -2, 0).reshape(L, -1)  # (L, n): every column of every leading index
+    ok = np.isfinite(cols)
+    out = np.where(ok, cols, 0.0)  # complete columns as they are, unobserved ones 0
+    gap = np.flatnonzero(ok.any(0) & ~ok.all(0))  # only the columns with a gap are interpolated
+    if len(gap):
+        g, okg = cols[:, gap], ok[:, gap]
+        t = np.arange(L).reshape(L, 1)
+        prev = np.maximum.accumulate(np.where(okg, t, -1), axis=0)
+        nxt = np.flip(np.minimum.accumulate(np.flip(np.where(okg, t, L), 0), axis=0), 0)
+        has_p, has_n = prev >= 0, nxt < L
+        vp = np.take_along_axis(g, np.clip(prev, 0, L - 1), 0)
+        vn = np.take_along_axis(g, np.clip(nxt, 0, L - 1), 0)
+        w = np.where(has_p & has_n, (t - prev) / np.maximum(nxt - prev, 1), 0.0)
+        filled = np.where(has_p & has_n, (1 - w) * vp + w * vn, np.where(has_p, vp, vn))
+        out[:, gap] = np.where(okg, g, filled)
+    return np.moveaxis(out.reshape((L,) + f.shape[:-2] + f.shape[-1:]), 0, -2).astype(np.float32)
 
 
 def fill_missing_joints(joints: np.ndarray) -> np.ndarray:
@@ -225,19 +231,24 @@ def window_frame(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return origin, yaw
 
 
+# the 3-vectors a rigid transform turns: 24 joints, the root rotation's two 6D columns, the object
+# translation, the object and IMU rotations' columns, the IMU acceleration (column starts)
+_TURNED = np.concatenate([np.arange(JOINTS.start, JOINTS.stop, 3), [72, 75, OBJ_T.start, OBJ_R.start, OBJ_R.start + 3,
+                                                                   IMU_R.start, IMU_R.start + 3, IMU_A.start]])
+_TURNED_COLS = (_TURNED[:, None] + np.arange(3)).ravel()  # (96,)
+_SHIFTED = np.r_[np.arange(NUM_JOINTS), 26]  # of those, the positions (joints, object translation)
+
+
 def _apply(frames: np.ndarray, R: np.ndarray, shift: np.ndarray) -> np.ndarray:
     """p -> R p + shift on positions, R X on root/object/IMU rotations, R a on accelerations.
-    frames (..., L, 235); R (..., 3, 3); shift (..., 3)."""
+    frames (..., L, 235); R (..., 3, 3); shift (..., 3). All 32 turned 3-vectors of all frames in
+    one matrix product."""
     f = np.asarray(frames, dtype=np.float64).copy()
     lead, L = f.shape[:-2], f.shape[-2]
-    Rl = R[..., None, :, :]  # (..., 1, 3, 3)
-    J = f[..., JOINTS].reshape(*lead, L, NUM_JOINTS, 3)
-    f[..., JOINTS] = (np.einsum("...ij,...kj->...ki", Rl, J) + shift[..., None, None, :]).reshape(*lead, L, -1)
-    f[..., OBJ_T] = np.einsum("...ij,...j->...i", Rl, f[..., OBJ_T]) + shift[..., None, :]
-    for sl in (slice(72, 78), OBJ_R, IMU_R):  # root rotation, object rotation, IMU rotation (world-frame ones)
-        m = np.stack([f[..., sl][..., :3], f[..., sl][..., 3:]], -1)  # (..., L, 3, 2) the two columns
-        f[..., sl] = np.swapaxes(Rl @ m, -1, -2).reshape(*lead, L, 6)
-    f[..., IMU_A] = np.einsum("...ij,...j->...i", Rl, f[..., IMU_A])
+    v = f[..., _TURNED_COLS].reshape(*lead, L * len(_TURNED), 3) @ np.swapaxes(R, -1, -2)
+    v = v.reshape(*lead, L, len(_TURNED), 3)
+    v[..., _SHIFTED, :] += shift[..., None, None, :]
+    f[..., _TURNED_COLS] = v.reshape(*lead, L, -1)
     # a missing IMU is 0 and stays 0 (rotating zeros); the flag is untouched
     return f.astype(np.float32)
 
@@ -257,8 +268,9 @@ def orthonormalize_6d(frames: np.ndarray) -> np.ndarray:
     """Frame vectors with every 6D block (joint, object, IMU rotations) made a proper rotation
     (Gram-Schmidt); a missing IMU (flag 0) keeps its zeros."""
     f = np.asarray(frames, dtype=np.float64).copy()
-    for sl in _ROT6_SLICES:
-        f[..., sl] = matrix_to_6d(sixd_to_matrix(f[..., sl]))
+    for sl in (ROTATIONS, slice(OBJ_R.start, IMU_R.stop)):  # every 6D block of a run at once: (..., n, 6)
+        r6 = f[..., sl].reshape(*f.shape[:-1], -1, 6)
+        f[..., sl] = matrix_to_6d(sixd_to_matrix(r6)).reshape(*f.shape[:-1], -1)
     f[..., IMU_R] *= f[..., IMU_FLAG:IMU_FLAG + 1] > 0.5
     return f.astype(np.float32)
 

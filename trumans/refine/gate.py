@@ -91,7 +91,9 @@ def _noise_residual(J: np.ndarray, fps: float, config: GateConfig) -> tuple[np.n
     # the running median over observed frames: missing ones count as the joint's own median residual
     med = np.nanmedian(np.where(seen, r, np.nan), axis=0) if seen.any() else np.zeros(NUM_JOINTS)
     rm = np.where(seen, r, np.nan_to_num(med)[None])
-    return median_filter(rm, size=(win, 1), mode="mirror") / (_NORM_MEDIAN * _RES_STD), r, seen
+    # one joint at a time: scipy's 1-D median filter is several times faster than its n-D one, same values
+    running = np.stack([median_filter(rm[:, j], size=win, mode="mirror") for j in range(rm.shape[1])], axis=1)
+    return running / (_NORM_MEDIAN * _RES_STD), r, seen
 
 
 def input_noise(tracked: np.ndarray, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:

@@ -71,18 +71,20 @@ def leg_swap_states(joints: np.ndarray, config: SwapConfig = SwapConfig()) -> np
             step[:, a, b] = (((A[b][1:] - A[a][:-1]) ** 2).sum(-1) * both).sum(-1)
     linked = both.any(-1)  # a frame pair without a joint seen in both cuts the chain: no travel, no switch cost
     sw, pr = config.switch_m ** 2, config.prior_m ** 2
-    unary = np.array([0.0, pr])
-    cost = unary.copy()
-    back = np.zeros((T, 2), np.int8)
-    for t in range(1, T):  # two states: a short python loop over the frames
-        trans = np.array([[0.0, sw], [sw, 0.0]]) if linked[t - 1] else np.zeros((2, 2))
-        tot = cost[:, None] + step[t - 1] + trans  # (from, to)
-        back[t] = tot.argmin(0)
-        cost = tot.min(0) + unary
+    # two states: a loop over the frames on Python floats (numpy's per-call overhead on 2 x 2 arrays
+    # was most of the cost); c0, c1: the best cost of a path ending as labelled / swapped
+    c0, c1 = 0.0, pr
+    back0, back1 = bytearray(T), bytearray(T)  # per frame, the best predecessor of each state (ties: as labelled)
+    steps = zip(step[:, 0, 0].tolist(), step[:, 0, 1].tolist(), step[:, 1, 0].tolist(), step[:, 1, 1].tolist(),
+                (sw * linked).tolist())
+    for t, (s00, s01, s10, s11, k) in enumerate(steps, start=1):
+        t00, t10, t01, t11 = c0 + s00, c1 + s10 + k, c0 + s01 + k, c1 + s11  # from -> to
+        back0[t], back1[t] = t00 > t10, t01 > t11
+        c0, c1 = min(t00, t10), min(t01, t11) + pr
     path = np.empty(T, np.int8)
-    path[-1] = int(cost.argmin())
+    p = path[-1] = 0 if c0 <= c1 else 1
     for t in range(T - 1, 0, -1):
-        path[t - 1] = back[t, path[t]]
+        p = path[t - 1] = (back1 if p else back0)[t]
     states = path.astype(bool) & ok.any(-1)  # a frame without an observed leg joint keeps its labels
     return states
 

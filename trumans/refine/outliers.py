@@ -152,15 +152,14 @@ def frozen_joint_mask(frames: np.ndarray, min_repeats: int = 2) -> np.ndarray:
         raise ValueError(f"min_repeats must be >= 1, got {min_repeats}")
     J = f[:, JOINTS].reshape(len(f), -1, 3)
     same = np.r_[np.zeros((1, J.shape[1]), bool), np.isfinite(J[1:]).all(-1) & (J[1:] == J[:-1]).all(-1)]
-    run = np.zeros(same.shape, np.int64)  # length of the run of repeats ending at each frame
-    for t in range(1, len(same)):  # a loop over frames, vectorised over joints
-        run[t] = np.where(same[t], run[t - 1] + 1, 0)
-    # every frame of a run that reaches min_repeats: walk back from its end
-    hit = run >= min_repeats
-    out = hit.copy()
-    for t in range(len(same) - 2, -1, -1):
-        out[t] |= same[t] & out[t + 1] & same[t + 1]
-    return out & same
+    # the runs of repeats, joint by joint: starts and ends (exclusive) in time order per joint
+    edge = np.diff(np.pad(same.T.astype(np.int8), ((0, 0), (1, 1))), axis=1)  # (24, T + 1)
+    (jo, start), (_, end) = np.nonzero(edge == 1), np.nonzero(edge == -1)
+    long = end - start >= min_repeats  # every frame of a run that reaches min_repeats
+    mark = np.zeros((len(same) + 1, same.shape[1]), np.int64)
+    np.add.at(mark, (start[long], jo[long]), 1)
+    np.add.at(mark, (end[long], jo[long]), -1)
+    return np.cumsum(mark[:-1], axis=0) > 0
 
 
 def drop_frozen_joints(frames: np.ndarray, min_repeats: int = 2) -> np.ndarray:

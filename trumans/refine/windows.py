@@ -63,6 +63,8 @@ def blend_windows(pieces: np.ndarray, starts: np.ndarray, num_frames: int) -> np
     acc = np.zeros((num_frames,) + pieces.shape[2:])
     tot = np.zeros(num_frames)
     wb = w.reshape(N, L, *([1] * (pieces.ndim - 2)))
-    np.add.at(acc, idx[keep], (pieces * wb)[keep])
-    np.add.at(tot, idx[keep], w[keep])
+    for i, s in enumerate(starts):  # window by window, in order (a frame's sum adds its windows in order)
+        n = max(0, min(L, num_frames - s))
+        acc[s:s + n] += pieces[i, :n] * wb[i, :n]
+        tot[s:s + n] += w[i, :n]
     return acc / tot.reshape(-1, *([1] * (pieces.ndim - 2)))

@@ -284,8 +284,6 @@ def solve_ik(
         raise ValueError(f"targets must be {P0.shape} and active ({T}, 24), got {tgt.shape}, {wt.shape}")
     if not np.isfinite(tgt[act]).all():
         raise ValueError("targets contain NaN/inf at active joints")
-    R0 = global_to_local(G0) if rest_local is None else np.asarray(rest_local, dtype=np.float64)
-    off = bone_offsets(P0, G0)  # per-frame bone offsets in the parent's frame (exact for this input)
     limits = cfg.limits()
     leg_len = [np.linalg.norm(P0[:, k] - P0[:, h], axis=-1).mean() + np.linalg.norm(P0[:, a] - P0[:, k], axis=-1).mean()
                for h, k, a in _LEGS]
@@ -300,20 +298,31 @@ def solve_ik(
     todo = np.flatnonzero(err0 > cfg.tol)  # frames already at their targets need no work
     prev = err0.copy()
     # the working set: frames still to solve, kept compact; frames leave it when done
-    Pt, Gt, tt, at, wtt, R0t, offt = P[todo], G[todo], tgt[todo], act[todo], wt[todo], R0[todo], off[todo]
+    Pt, Gt, tt, at, wtt = P[todo], G[todo], tgt[todo], act[todo], wt[todo]
     prevt = prev[todo]
+    # the pose regularised toward, only for the working set and only while some iteration regularises
+    n_reg = sum(1 for it in range(1, cfg.iterations) if cfg.reg * max(0.0, 1.0 - it / max(cfg.reg_iters, 1)) > 0)
+    R0t = offt = None
+    if n_reg:
+        R0t = global_to_local(G0[todo]) if rest_local is None else np.asarray(rest_local, dtype=np.float64)[todo]
+        offt = bone_offsets(P0[todo], G0[todo])  # per-frame bone offsets in the parent's frame (exact for this input)
     for it in range(cfg.iterations):
         if len(todo) == 0:
             break
         reg = cfg.reg * max(0.0, 1.0 - it / max(cfg.reg_iters, 1))
         if reg > 0 and it > 0:
             _regularise(Pt, Gt, R0t, offt, reg)
+            n_reg -= 1
+            if n_reg == 0:
+                R0t = offt = None
         _root_step(Pt, Gt, tt, wtt, leg_len, cfg.leg_reach, limits[0])
         for e in np.flatnonzero(at.any(0)):
             chain = CHAINS[int(e)]
             if not chain:
                 continue
-            need = at[:, e] & (_norm(Pt[:, e] - tt[:, e]) > cfg.tol)
+            need = at[:, e].copy()
+            on = np.flatnonzero(need)
+            need[on] = _norm(Pt[on, e] - tt[on, e]) > cfg.tol
             if not need.any():
                 continue
             # an ancestor that is itself an effector on all these frames pins the chain there
@@ -339,7 +348,9 @@ def solve_ik(
             done = ~keep
             P[todo[done]], G[todo[done]] = Pt[done], Gt[done]
             todo = todo[keep]
-            Pt, Gt, tt, at, wtt, R0t, offt, prevt = (a[keep] for a in (Pt, Gt, tt, at, wtt, R0t, offt, prevt))
+            Pt, Gt, tt, at, wtt, prevt = (a[keep] for a in (Pt, Gt, tt, at, wtt, prevt))
+            if R0t is not None:
+                R0t, offt = R0t[keep], offt[keep]
     P[todo], G[todo] = Pt, Gt
     for j in _LEAVES:  # leaves were skipped while solving; their local rotations are unchanged
         p = PARENTS[j]

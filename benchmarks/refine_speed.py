@@ -1,15 +1,17 @@
 """Frames per second of the HOI filter on one clip, beside Savitzky-Golay, in one run (issue 36 point 7).
 
-    python benchmarks/refine_speed.py                       # 2 threads, the longest held-out corpus clip
-    python benchmarks/refine_speed.py --threads 1 --steps 1 --repeats 5 --profile
+    python benchmarks/refine_speed.py                       # 1 thread (trumans refine's), the longest held-out corpus clip
+    python benchmarks/refine_speed.py --threads 2 --steps 1 --repeats 5 --profile
 
 One real clip (the mocap corpus's longest test clip, 1894 frames at 30 fps) under the training
 corruption is refined end to end by ``HOIFilter.refine_frames`` (one clip per call: resampling,
 windows, network, every post-step) and smoothed by ``scipy.signal.savgol_filter`` (window 15,
 order 2, gaps filled first), each ``--repeats`` times after one warm-up; the best and median rates
-are printed, with ``--profile`` the filter's ten most expensive functions. ``--threads`` caps torch,
-OpenMP and BLAS threads (set before numpy loads: on a shared machine more BLAS threads than free
-cores slow every small solve tenfold).
+are printed, with the machine's load (1-minute average) when the run ended and, with
+``--profile``, the filter's ten most expensive functions. ``--threads`` sets torch's and the BLAS
+threads as ``trumans refine --threads`` does (``trumans.threads.set_threads``; default 1, its
+default: on a shared machine more threads than free cores slow every small solve and network call
+tenfold).
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ import sys
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--threads", type=int, default=2, help="torch / OpenMP / BLAS threads (default 2)")
+    p.add_argument("--threads", type=int, default=1, help="torch and BLAS threads (default 1, trumans refine's)")
     p.add_argument("--steps", type=int, default=2, help="DDIM steps (default 2, trumans refine's)")
     p.add_argument("--repeats", type=int, default=5, help="timed runs of each method (default 5)")
     p.add_argument("--checkpoint", default=None, help="filter checkpoint (default models/refine.pt)")
@@ -29,18 +31,16 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.threads < 1 or args.repeats < 1 or args.steps < 1:
         p.error(f"--threads, --repeats and --steps must be >= 1, got {args.threads}, {args.repeats}, {args.steps}")
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = str(args.threads)
     import time
 
     import numpy as np
-    import torch
 
     from trumans.refine.benchmark import corrupt_family, real_body_clips, savgol_smooth
     from trumans.refine.frame import JOINTS, pack_frames
     from trumans.refine.pipeline import HOIFilter, RefineOptions
+    from trumans.threads import set_threads
 
-    torch.set_num_threads(args.threads)
+    set_threads(args.threads)
     clip = max(real_body_clips("test"), key=lambda c: len(c.joints))
     tracked = corrupt_family("default", [clip], 0)[0]
     frames = pack_frames(np.nan_to_num(tracked), None, np.broadcast_to(np.eye(4), (len(tracked), 4, 4)))
@@ -60,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         res[f"{name}_frames_per_s_best"] = len(tracked) / min(times)
         res[f"{name}_frames_per_s_median"] = len(tracked) / float(np.median(times))
     res["savgol_over_filter"] = res["savgol_frames_per_s_median"] / res["filter_frames_per_s_median"]
+    res["load_1min"] = os.getloadavg()[0]
     for k, v in res.items():
         print(f"{k:28s} {v:.1f}" if isinstance(v, float) else f"{k:28s} {v}")
     if args.profile:

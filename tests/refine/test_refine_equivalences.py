@@ -7,10 +7,11 @@ import torch
 from scipy.ndimage import median_filter
 
 from trumans.refine.filter import FilterModel, configure_skip, filter_denoiser_config, FilterNetConfig, sample_x0, smooth_time
-from trumans.refine.frame import FRAME_DIM, JOINTS, ROTATIONS, fill_missing, from_frame, orthonormalize_6d, to_frame
+from trumans.refine.frame import FRAME_DIM, JOINTS, fill_missing, from_frame, orthonormalize_6d, to_frame
 from trumans.refine.gate import GateConfig, input_noise
 from trumans.refine.leg_swap import LEFT_LEG, RIGHT_LEG, SwapConfig, leg_swap_states
 from trumans.refine.outliers import frozen_joint_mask
+from trumans.refine.tracked import TrackedBody
 from trumans.refine.wiener import fit_joint_wiener, neighbourhoods
 from trumans.refine.windows import blend_windows, window_starts, window_weights
 from trumans.model.checkpoint import Checkpoint
@@ -179,8 +180,8 @@ def test_gate_running_median_joint_by_joint_is_the_2d_median():
         cfg = GateConfig()
         got = input_noise(J, 30.0, cfg)
         # the same running median as one 2-D median filter over (frames, joints) with a (win, 1) footprint
-        from trumans.refine import gate
-        _, r, seen = gate._noise_residual(J, 30.0, cfg)
+        body = TrackedBody.read(J)
+        r, seen = body.residual, body.seen
         med = np.nanmedian(np.where(seen, r, np.nan), axis=0)
         rm = np.where(seen, r, np.nan_to_num(med)[None])
         win = max(3, int(round(cfg.noise_window_s * 30.0)) | 1)
@@ -244,3 +245,29 @@ def test_sampling_computes_the_skip_once_with_the_same_result():
     a = sample_x0(model, diff, cond, cat, num_steps=3, noise=noise)
     b = sample_x0(Recomputing(model), diff, cond, cat, num_steps=3, noise=noise)
     torch.testing.assert_close(a, b, atol=0, rtol=0)
+
+
+def test_the_post_steps_read_the_tracked_body_once_with_the_pipelines_fill():
+    """The fill the pipeline made for the network's condition is the fill the guards would make, and a
+    clip hands its tracked body on from step to step."""
+    from dataclasses import replace
+
+    from trumans.refine.frame import fill_missing_joints
+    from trumans.refine.post_steps import RefinedClip
+
+    rng = np.random.default_rng(9)
+    T = 50
+    tracked = rng.normal(size=(T, FRAME_DIM)).astype(np.float32)
+    tracked[rng.random((T, FRAME_DIM)) < 0.1] = np.nan
+    tracked[:3] = np.nan  # a leading dropout
+    padded = np.concatenate([tracked, np.full((14, FRAME_DIM), np.nan, np.float32)])  # a short clip's padding
+    handed = fill_missing(padded)[:T, JOINTS].reshape(T, -1, 3)
+    J = tracked[:, JOINTS].reshape(T, -1, 3)
+    np.testing.assert_array_equal(handed, fill_missing_joints(J))
+    clip = RefinedClip(np.zeros((T, FRAME_DIM), np.float32), tracked, 30.0, "box")
+    np.testing.assert_array_equal(clip.tracked_body.filled, fill_missing_joints(J))
+    assert replace(clip, frames=clip.frames + 1).tracked_body is clip.tracked_body
+    with pytest.raises(ValueError, match="tracked_body has"):
+        RefinedClip(clip.frames[:10], tracked[:10], 30.0, "box", tracked_body=clip.tracked_body)
+    with pytest.raises(ValueError, match="filled joints must be"):
+        TrackedBody.read(J, filled=handed[:5])

@@ -32,7 +32,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from trumans.importers.joint_maps import floor_height
 from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS
 
-from trumans.refine.frame import fill_missing_joints
+from trumans.refine.tracked import TrackedBody, as_tracked_body
 
 __all__ = ["FloorConfig", "floor_offset", "keep_above_floor"]
 
@@ -63,16 +63,14 @@ def _check(joints: np.ndarray) -> np.ndarray:
     return J
 
 
-def floor_offset(tracked: np.ndarray, config: FloorConfig = FloorConfig()) -> float:
+def floor_offset(tracked: np.ndarray | TrackedBody, config: FloorConfig = FloorConfig()) -> float:
     """How far (m) the tracked body stands above (> 0) or under (< 0) the floor z = 0, read from its
-    feet: tracked joints (T, 24, 3) m (NaN = missing; gaps filled linearly, then low-passed). 0 inside
-    the dead band and beyond ``max_offset_m``."""
-    X = np.asarray(tracked, np.float64)
-    if X.ndim != 3 or X.shape[1:] != (NUM_JOINTS, 3):
-        raise ValueError(f"tracked joints must be (T, {NUM_JOINTS}, 3), got {X.shape}")
-    if not np.isfinite(X).all(-1).any():
+    feet: tracked joints (T, 24, 3) m (NaN = missing; or their ``TrackedBody``; gaps filled linearly,
+    then low-passed). 0 inside the dead band and beyond ``max_offset_m``."""
+    body = as_tracked_body(tracked)
+    if not body.seen.any():
         return 0.0
-    X = fill_missing_joints(X)
+    X = body.filled
     if config.smooth_frames > 0:
         X = gaussian_filter1d(X, config.smooth_frames, axis=0, mode="nearest")
     h = floor_height(X)

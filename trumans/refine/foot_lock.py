@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import label
 
 from trumans.ik.limb import two_bone_positions
 from trumans.rotations import least_rotation, matrix_to_6d, sixd_to_matrix
@@ -61,17 +60,17 @@ def _corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
     T = len(J)
     out = np.zeros((T, len(FOOT_JOINTS), 3))
     weight = np.zeros((T, len(FOOT_JOINTS)))
-    t = np.arange(T)
+    reach = int(np.ceil(fade)) if fade > 0 else 0  # frames beyond a stance with a weight above 0
     for k, j in enumerate(FOOT_JOINTS):
-        ids, n = label(planted[:, k])
-        for s in range(1, n + 1):
-            idx = np.flatnonzero(ids == s)
-            a, b = idx[0], idx[-1]
+        edge = np.diff(np.r_[0, planted[:, k].astype(np.int8), 0])
+        for a, b in zip(np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1):  # each stance [a, b]
             target = J[a:b + 1, j].mean(0)
+            lo, hi = max(0, a - reach), min(T, b + reach + 1)  # outside it the weight is 0
+            t = np.arange(lo, hi)
             w = np.clip(1.0 - np.maximum(a - t, t - b) / max(fade, 1e-9), 0.0, 1.0) if fade > 0 else ((t >= a) & (t <= b)) * 1.0
-            take = w > weight[:, k]
-            out[take, k] = w[take, None] * (target - J[take, j])
-            weight[take, k] = w[take]
+            take = w > weight[lo:hi, k]
+            out[lo:hi][take, k] = w[take, None] * (target - J[lo:hi][take, j])
+            weight[lo:hi][take, k] = w[take]
     return out
 
 

@@ -243,14 +243,15 @@ def _apply(frames: np.ndarray, R: np.ndarray, shift: np.ndarray) -> np.ndarray:
     """p -> R p + shift on positions, R X on root/object/IMU rotations, R a on accelerations.
     frames (..., L, 235); R (..., 3, 3); shift (..., 3). All 32 turned 3-vectors of all frames in
     one matrix product."""
-    f = np.asarray(frames, dtype=np.float64).copy()
+    f = np.asarray(frames)
     lead, L = f.shape[:-2], f.shape[-2]
-    v = f[..., _TURNED_COLS].reshape(*lead, L * len(_TURNED), 3) @ np.swapaxes(R, -1, -2)
+    out = f.astype(np.float32)  # a copy: the columns not turned as they are
+    v = np.take(f, _TURNED_COLS, axis=-1).astype(np.float64).reshape(*lead, L * len(_TURNED), 3) @ np.swapaxes(R, -1, -2)
     v = v.reshape(*lead, L, len(_TURNED), 3)
     v[..., _SHIFTED, :] += shift[..., None, None, :]
-    f[..., _TURNED_COLS] = v.reshape(*lead, L, -1)
+    out[..., _TURNED_COLS] = v.reshape(*lead, L, -1)  # computed in float64, stored in float32
     # a missing IMU is 0 and stays 0 (rotating zeros); the flag is untouched
-    return f.astype(np.float32)
+    return out
 
 
 def to_frame(frames: np.ndarray, origin: np.ndarray, yaw: np.ndarray) -> np.ndarray:

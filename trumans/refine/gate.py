@@ -9,7 +9,8 @@ itself how much to trust it, per frame and per joint:
   (clean corpus clips: 0.1-0.6 mm), tracker jitter is not. The residual of a local cubic fit
   (Savitzky-Golay, 7 frames, order 3: residual std = sqrt(1 - 7/21) = 0.816 of white noise's) has,
   for white noise of std s per axis, a 3D norm whose median is 1.538 * 0.816 s; the running median
-  of that norm over ``noise_window_s`` gives the local jitter s(t, j);
+  of that norm over ``noise_window_s`` gives the local jitter s(t, j) (the fill and the residual are
+  read once per clip, ``tracked.TrackedBody``);
 - **failures**: missing or frozen entries (NaN in the tracked input after
   ``trumans.refine.outliers``) and spikes (a residual above ``spike_sigmas`` s + ``spike_m``) are
   the filter's alone, widened by ``fail_pad`` frames.
@@ -27,12 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import binary_dilation, median_filter
-from scipy.signal import savgol_filter
 
 from trumans.easing import smoothstep
 from trumans.skeleton import NUM_JOINTS
 
-from trumans.refine.frame import fill_missing_joints
+from trumans.refine.tracked import TrackedBody, as_tracked_body
 
 __all__ = ["GateConfig", "input_noise", "noise_level", "gate_weights", "gate_joints"]
 
@@ -76,17 +76,9 @@ def _check(joints: np.ndarray) -> np.ndarray:
     return J
 
 
-def _residual(J: np.ndarray) -> np.ndarray:
-    """|x - SG(7, 3)(x)| per frame and joint (T, 24) m of gap-filled joints (T >= 7; shorter: 0)."""
-    if len(J) < 7:
-        return np.zeros(J.shape[:2])
-    return np.linalg.norm(J - savgol_filter(J, 7, 3, axis=0, mode="interp"), axis=-1)
-
-
-def _noise_residual(J: np.ndarray, fps: float, config: GateConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(local jitter (T, 24) m, cubic-fit residual (T, 24) m, observed (T, 24) bool) of joints with NaN gaps."""
-    seen = np.isfinite(J).all(-1)
-    r = _residual(fill_missing_joints(J))
+def _noise_residual(body: TrackedBody, fps: float, config: GateConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(local jitter (T, 24) m, cubic-fit residual (T, 24) m, observed (T, 24) bool) of a tracked body."""
+    seen, r = body.seen, body.residual
     win = max(3, int(round(config.noise_window_s * fps)) | 1)
     # the running median over observed frames: missing ones count as the joint's own median residual
     med = np.nanmedian(np.where(seen, r, np.nan), axis=0) if seen.any() else np.zeros(NUM_JOINTS)
@@ -96,29 +88,29 @@ def _noise_residual(J: np.ndarray, fps: float, config: GateConfig) -> tuple[np.n
     return running / (_NORM_MEDIAN * _RES_STD), r, seen
 
 
-def input_noise(tracked: np.ndarray, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
-    """Local jitter of tracked joints (T, 24, 3) m (NaN = missing) at ``fps``: (T, 24) m, the std
-    per axis of white noise that would give the running median of the cubic-fit residual."""
-    return _noise_residual(_check(tracked), fps, config)[0]
+def input_noise(tracked: np.ndarray | TrackedBody, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
+    """Local jitter of tracked joints (T, 24, 3) m (NaN = missing; or their ``TrackedBody``) at ``fps``:
+    (T, 24) m, the std per axis of white noise that would give the running median of the cubic-fit residual."""
+    return _noise_residual(as_tracked_body(tracked), fps, config)[0]
 
 
-def noise_level(tracked: np.ndarray) -> np.ndarray:
-    """Each joint's jitter over the whole clip: tracked joints (T, 24, 3) m (NaN = missing) -> (24,) m,
-    the std per axis of white noise that would give the median cubic-fit residual over the observed
-    frames (0 for a joint never observed)."""
-    J = _check(tracked)
-    seen = np.isfinite(J).all(-1)
-    r = np.where(seen, _residual(fill_missing_joints(J)), np.nan)
+def noise_level(tracked: np.ndarray | TrackedBody) -> np.ndarray:
+    """Each joint's jitter over the whole clip: tracked joints (T, 24, 3) m (NaN = missing; or their
+    ``TrackedBody``) -> (24,) m, the std per axis of white noise that would give the median cubic-fit
+    residual over the observed frames (0 for a joint never observed)."""
+    body = as_tracked_body(tracked)
+    seen = body.seen
+    r = np.where(seen, body.residual, np.nan)
     with np.errstate(all="ignore"):
         med = np.nanmedian(r, axis=0) if seen.any() else np.zeros(NUM_JOINTS)
     return np.nan_to_num(med) / (_NORM_MEDIAN * _RES_STD)
 
 
-def gate_weights(tracked: np.ndarray, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
+def gate_weights(tracked: np.ndarray | TrackedBody, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
     """The filter's weight per frame and joint (T, 24) in [0, 1] for tracked joints (T, 24, 3) m
-    (NaN = missing) at ``fps``: 1 on failures (missing, spikes; widened by ``fail_pad``, ramped down
-    over ``feather`` frames), else by the local jitter (``input_noise``)."""
-    noise, r, seen = _noise_residual(_check(tracked), fps, config)
+    (NaN = missing; or their ``TrackedBody``) at ``fps``: 1 on failures (missing, spikes; widened by
+    ``fail_pad``, ramped down over ``feather`` frames), else by the local jitter (``input_noise``)."""
+    noise, r, seen = _noise_residual(as_tracked_body(tracked), fps, config)
     w = smoothstep((noise - config.keep_below_m) / (config.filter_above_m - config.keep_below_m))
     fail = ~seen | (r > config.spike_sigmas * _RES_STD * noise + config.spike_m)
     if config.fail_pad > 0:
@@ -135,12 +127,14 @@ def gate_weights(tracked: np.ndarray, fps: float, config: GateConfig = GateConfi
     return np.maximum(w, f)
 
 
-def gate_joints(filtered: np.ndarray, tracked: np.ndarray, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
-    """filtered + tracked joints (T, 24, 3) m (tracked NaN = missing) -> tracked (gaps filled) +
-    w (filtered - tracked), w = ``gate_weights``: (T, 24, 3) m."""
-    F, J = _check(filtered), _check(tracked)
+def gate_joints(filtered: np.ndarray, tracked: np.ndarray | TrackedBody, fps: float,
+                config: GateConfig = GateConfig()) -> np.ndarray:
+    """filtered + tracked joints (T, 24, 3) m (tracked NaN = missing; or its ``TrackedBody``) -> tracked
+    (gaps filled) + w (filtered - tracked), w = ``gate_weights``: (T, 24, 3) m."""
+    body = as_tracked_body(tracked)
+    F, J = _check(filtered), body.joints
     if F.shape != J.shape:
         raise ValueError(f"filtered and tracked joints must have one shape, got {F.shape} and {J.shape}")
-    w = gate_weights(J, fps, config)[..., None]
+    w = gate_weights(body, fps, config)[..., None]
     X = np.where(np.isfinite(J), J, F)  # missing entries: the filter's (their weight is 1 anyway)
     return X + w * (F - X)

@@ -24,6 +24,7 @@ from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ
 from trumans.refine.leg_swap import unswap_leg_frames
 from trumans.refine.outliers import drop_frozen_frames, drop_frozen_joints, drop_object_flips, unflip_object
 from trumans.refine.post_steps import PostStepsConfig, RefinedClip, run_post_steps
+from trumans.refine.tracked import TrackedBody
 from trumans.refine.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
 from trumans.sequence import Sequence
@@ -131,13 +132,15 @@ class HOIFilter:
             i += n
             blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
-            blended = run_post_steps(RefinedClip(blended, p["tracked"], self.fps, c), options.post)
+            body = TrackedBody.read(p["tracked"][:, JOINTS].reshape(p["Tm"], -1, 3), filled=p["filled_joints"])
+            blended = run_post_steps(RefinedClip(blended, p["tracked"], self.fps, c, tracked_body=body), options.post)
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 
     def _windows(self, frames: np.ndarray, fps: float, options: RefineOptions) -> dict:
         """One sequence's windows at the filter's rate: starts, model-rate length Tm, input length T,
-        the network inputs (``prepare_windows``) and the tracked frames at that rate (``tracked``);
+        the network inputs (``prepare_windows``), the tracked frames at that rate (``tracked``) and
+        their joints with the gaps filled (``filled_joints`` (Tm, 24, 3), for the post-steps);
         the failures the options name are read first (frozen frames and held joints -> missing, legs
         swapped back, flipped object rotations turned back or missing)."""
         f = np.asarray(frames, dtype=np.float32)
@@ -170,8 +173,10 @@ class HOIFilter:
         padded = np.concatenate([g, np.full((max(0, L - Tm), FRAME_DIM), np.nan, np.float32)])
         padded[Tm:, IMU_R] = padded[Tm:, IMU_A] = padded[Tm:, IMU_FLAG] = 0.0  # padding: no IMU either
         idx = starts[:, None] + np.arange(L)[None]
-        inp = prepare_windows(padded[idx], self.normalizer, filled_world=fill_missing(padded)[idx])
-        return {"starts": starts, "Tm": Tm, "T": T, "inp": inp, "tracked": g}
+        filled = fill_missing(padded)  # once: the windows' condition and the post-steps' tracked body
+        inp = prepare_windows(padded[idx], self.normalizer, filled_world=filled[idx])
+        return {"starts": starts, "Tm": Tm, "T": T, "inp": inp, "tracked": g,
+                "filled_joints": filled[:Tm, JOINTS].reshape(Tm, -1, 3)}
 
     def refine_sequence(self, seq: Sequence, category: str | None = None, object_name: str | None = None,
                         options: RefineOptions = RefineOptions()) -> tuple[Sequence, str]:

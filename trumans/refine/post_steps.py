@@ -49,6 +49,8 @@ from trumans.refine.frame import FRAME_DIM, JOINTS
 from trumans.refine.gate import GateConfig, gate_joints, noise_level
 from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
+from trumans.refine.tracked import TrackedBody
+from trumans.skeleton import NUM_JOINTS
 
 __all__ = ["RefinedClip", "SubSwitch", "PostStep", "STEPS", "PostStepsConfig", "run_post_steps"]
 
@@ -59,12 +61,15 @@ class RefinedClip:
 
     frames: (T, 235) world frame vectors, the blended filter output (then each step's output);
     tracked: (T, 235) the tracked input resampled to the same frames (NaN = missing); fps: the
-    filter's frames per second; category: the object's category."""
+    filter's frames per second; category: the object's category; tracked_body: the tracked joints
+    as the input guards read them (gaps filled, cubic-fit residual; ``tracked.TrackedBody``), read
+    once per clip: default read from ``tracked``, and ``dataclasses.replace`` hands it on."""
 
     frames: np.ndarray
     tracked: np.ndarray
     fps: float
     category: str
+    tracked_body: TrackedBody | None = None
 
     def __post_init__(self) -> None:
         F, R = np.shape(self.frames), np.shape(self.tracked)
@@ -72,6 +77,10 @@ class RefinedClip:
             raise ValueError(f"frames and tracked must both be (T, {FRAME_DIM}), got {F} and {R}")
         if not (np.isfinite(self.fps) and self.fps > 0):
             raise ValueError(f"fps must be a positive number, got {self.fps}")
+        if self.tracked_body is None:
+            object.__setattr__(self, "tracked_body", TrackedBody.read(_body(self.tracked)))
+        elif self.tracked_body.joints.shape != (F[0], NUM_JOINTS, 3):
+            raise ValueError(f"tracked_body has {self.tracked_body.joints.shape[0]} frames, the clip {F[0]}")
 
 
 @dataclass(frozen=True)
@@ -135,17 +144,17 @@ def _with_body(frames: np.ndarray, joints: np.ndarray) -> np.ndarray:
 
 
 def _gate(clip: RefinedClip, config: GateConfig) -> np.ndarray:
-    return _with_body(clip.frames, gate_joints(_body(clip.frames), _body(clip.tracked), clip.fps, config))
+    return _with_body(clip.frames, gate_joints(_body(clip.frames), clip.tracked_body, clip.fps, config))
 
 
 def _bones(clip: RefinedClip, config: BonesConfig) -> np.ndarray:
-    tracked = _body(clip.tracked)
-    lengths = input_bone_lengths(tracked, noise_level(tracked), config)
+    body = clip.tracked_body
+    lengths = input_bone_lengths(body.joints, noise_level(body), config)
     return _with_body(clip.frames, project_bone_lengths(_body(clip.frames), lengths))
 
 
 def _floor(clip: RefinedClip, config: FloorConfig) -> np.ndarray:
-    offset = floor_offset(_body(clip.tracked), config)
+    offset = floor_offset(clip.tracked_body, config)
     return _with_body(clip.frames, keep_above_floor(_body(clip.frames), clip.fps, offset, config))
 
 

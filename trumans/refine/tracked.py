@@ -1,0 +1,60 @@
+"""The tracked input's body as the input guards read it, computed once per clip.
+
+The gate (``gate.py``), the bone lengths (``bones.py``, through ``gate.noise_level``) and the floor
+(``floor.py``) all read the tracked joints with their gaps filled, and the first two the residual
+of a local cubic fit; ``TrackedBody`` holds them so that one clip's post-steps fill and fit once
+(``post_steps.RefinedClip.tracked_body``; the pipeline hands over the gaps it already filled for the
+network's condition). Units: metres; joints (T, 24, 3) z-up world.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from trumans.skeleton import NUM_JOINTS
+
+from trumans.refine.frame import fill_missing_joints
+
+__all__ = ["TrackedBody", "cubic_residual", "as_tracked_body"]
+
+
+def cubic_residual(filled: np.ndarray) -> np.ndarray:
+    """|x - SG(7, 3)(x)| per frame and joint (T, 24) m of gap-filled joints (T, 24, 3) (the residual
+    of a 7-frame cubic Savitzky-Golay fit, ``gate``'s jitter measure; T < 7: 0)."""
+    if len(filled) < 7:
+        return np.zeros(filled.shape[:2])
+    return np.linalg.norm(filled - savgol_filter(filled, 7, 3, axis=0, mode="interp"), axis=-1)
+
+
+@dataclass(frozen=True)
+class TrackedBody:
+    """joints: (T, 24, 3) float64 m, NaN = missing; filled: the same with each coordinate's gaps
+    filled linearly in time, ends held (``frame.fill_missing_joints``); seen: (T, 24) bool, the
+    joint observed; residual: (T, 24) m, ``cubic_residual`` of ``filled``."""
+
+    joints: np.ndarray
+    filled: np.ndarray
+    seen: np.ndarray
+    residual: np.ndarray
+
+    @classmethod
+    def read(cls, tracked: np.ndarray, filled: np.ndarray | None = None) -> TrackedBody:
+        """From tracked joints (T, 24, 3) m (NaN = missing); ``filled``: the same joints with their gaps
+        already filled by ``fill_missing`` (default: filled here)."""
+        J = np.asarray(tracked, dtype=np.float64)
+        if J.ndim != 3 or J.shape[1:] != (NUM_JOINTS, 3):
+            raise ValueError(f"joints must be (T, {NUM_JOINTS}, 3), got {J.shape}")
+        if filled is None:
+            F = fill_missing_joints(J)
+        else:
+            F = np.asarray(filled, dtype=np.float64)
+            if F.shape != J.shape or not np.isfinite(F).all():
+                raise ValueError(f"filled joints must be finite and shaped like the tracked {J.shape}, got {F.shape}")
+        return cls(J, F, np.isfinite(J).all(-1), cubic_residual(F))
+
+
+def as_tracked_body(tracked: np.ndarray | TrackedBody) -> TrackedBody:
+    """``tracked`` itself if it is a ``TrackedBody``, else ``TrackedBody.read(tracked)``."""
+    return tracked if isinstance(tracked, TrackedBody) else TrackedBody.read(tracked)

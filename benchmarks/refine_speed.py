@@ -7,7 +7,8 @@ One real clip (the mocap corpus's longest test clip, 1894 frames at 30 fps) unde
 corruption is refined end to end by ``HOIFilter.refine_frames`` (one clip per call: resampling,
 windows, network, every post-step) and smoothed by ``scipy.signal.savgol_filter`` (window 15,
 order 2, gaps filled first), each ``--repeats`` times after one warm-up; the best and median rates
-are printed, with the machine's load (1-minute average) when the run ended and, with
+are printed (wall clock; and frames per CPU-second of the process, all its threads, which a busy
+machine changes less), with the machine's load (1-minute average) when the run ended and, with
 ``--profile``, the filter's ten most expensive functions. ``--threads`` sets torch's and the BLAS
 threads as ``trumans refine --threads`` does (``trumans.threads.set_threads``; default 1, its
 default: on a shared machine more threads than free cores slow every small solve and network call
@@ -52,13 +53,15 @@ def main(argv: list[str] | None = None) -> int:
     res: dict = {"clip": clip.name, "frames": len(tracked), "threads": args.threads, "steps": args.steps}
     for name, fn in methods.items():
         fn()  # warm-up
-        times = []
+        times, cpu = [], []
         for _ in range(args.repeats):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             fn()
             times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
         res[f"{name}_frames_per_s_best"] = len(tracked) / min(times)
         res[f"{name}_frames_per_s_median"] = len(tracked) / float(np.median(times))
+        res[f"{name}_frames_per_cpu_s_median"] = len(tracked) / float(np.median(cpu))
     res["savgol_over_filter"] = res["savgol_frames_per_s_median"] / res["filter_frames_per_s_median"]
     res["load_1min"] = os.getloadavg()[0]
     for k, v in res.items():

@@ -113,21 +113,26 @@ def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig())
 def _turn_leg_rotations(rot6: np.ndarray, old: np.ndarray, new: np.ndarray) -> np.ndarray:
     """Local rotations (T, 24, 6) whose hip, knee and ankle turn so that each one's bone (to its
     child: knee, ankle, toe), which the turns above it have already carried along, lands on the new
-    joints' direction by the minimal world rotation; every other local rotation is kept as it came.
-    Only the root and the legs are converted to matrices (the hips hang from the root)."""
+    joints' direction by the minimal world rotation; every other local rotation, and the legs' on
+    frames where no joint of the leg moved, is kept as it came. Only the root and the legs of those
+    frames are converted to matrices (the hips hang from the root)."""
     out = np.array(rot6, dtype=np.float64, copy=True)
-    root = sixd_to_matrix(out[:, 0])  # (T, 3, 3): the root's local rotation is its global one
     for hip, knee, ankle, toe in LEG_CHAINS:
-        L = sixd_to_matrix(out[:, [hip, knee, ankle]])  # (T, 3, 3, 3) local
+        chain = [hip, knee, ankle, toe]
+        t = np.flatnonzero((new[:, chain] != old[:, chain]).any(axis=(1, 2)))  # the frames this leg moved in
+        if not len(t):
+            continue
+        root = sixd_to_matrix(out[t, 0])  # (n, 3, 3): the root's local rotation is its global one
+        L = sixd_to_matrix(out[t][:, [hip, knee, ankle]])  # (n, 3, 3, 3) local
         G = {hip: root @ L[:, 0]}  # global orientations down the chain
         G[knee] = G[hip] @ L[:, 1]
         G[ankle] = G[knee] @ L[:, 2]
         acc = np.broadcast_to(np.eye(3), root.shape)  # world turn the joints above have applied
         parent_new = root
         for j, child in ((hip, knee), (knee, ankle), (ankle, toe)):
-            cur = np.einsum("tij,tj->ti", acc, old[:, child] - old[:, j])
-            acc = least_rotation(cur, new[:, child] - new[:, j]) @ acc
+            cur = np.einsum("tij,tj->ti", acc, old[t, child] - old[t, j])
+            acc = least_rotation(cur, new[t, child] - new[t, j]) @ acc
             G_new = acc @ G[j]
-            out[:, j] = matrix_to_6d(np.swapaxes(parent_new, -1, -2) @ G_new)
+            out[t, j] = matrix_to_6d(np.swapaxes(parent_new, -1, -2) @ G_new)
             parent_new = G_new
     return out

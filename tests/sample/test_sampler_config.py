@@ -25,7 +25,7 @@ from trumans.sample.guidance.goal import GoalTerm, GoalTermConfig
 from trumans.sample.guidance.penetration import PenetrationTerm, PenetrationTermConfig
 from trumans.sample.guidance.seat import SeatTerm, SeatTermConfig
 from trumans.sample.rollout import start_context
-from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
+from trumans.sample.sampler import QUALITY_SCHEDULE, EpisodeSampler, Goal, SamplerConfig
 from trumans.sample.sampling_args import add_postprocess_arguments, postprocess_kwargs, sampler_config
 from trumans.scenes.sdf import SceneSDF
 from trumans.sequence import load_sequence
@@ -45,7 +45,11 @@ def _switches() -> argparse.ArgumentParser:
 
 def test_the_default_config_is_what_the_commands_do():
     c = SamplerConfig()
-    assert (c.goal_guidance, c.goal_iters, c.scene_scale, c.action_scale, c.steps, c.eta) == (20.0, 3, 1.0, 2.0, 20, 0.0)
+    assert (c.goal_guidance, c.goal_iters, c.guided_steps, c.scene_scale, c.action_scale, c.steps, c.eta) == \
+        (45.0, 2, 3, 1.0, 2.0, 10, 0.0)
+    assert c.guidance.goal.heading_weight == 6.0
+    q = SamplerConfig(**QUALITY_SCHEDULE)  # the earlier default, kept for comparison (benchmarks/sampling_speed.py)
+    assert (q.steps, q.goal_guidance, q.goal_iters, q.guided_steps, q.guidance.goal.heading_weight) == (20, 20.0, 3, 0, 3.0)
     assert sampler_config(_parser(add_sample_arguments).parse_args(["--out", "x"])) == c
     assert sampler_config(_parser(add_eval_arguments).parse_args([])) == c
     assert c.guidance == GuidanceConfig() and c.cleanup == CleanupConfig()

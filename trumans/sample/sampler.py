@@ -33,10 +33,11 @@ from trumans.sample.cleanup.pipeline import CleanupConfig
 from trumans.sample.config_data import config_from_dict
 from trumans.sample.guidance import GuidanceConfig, GuidanceInputs, GuidanceTerm, Prediction, build_terms
 from trumans.sample.guidance.base import canonical_to_world
+from trumans.sample.guidance.goal import GoalTermConfig
 from trumans.sample.episode_goal import Goal
 from trumans.scenes.sdf import SceneSDF
 
-__all__ = ["SamplerConfig", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
+__all__ = ["SamplerConfig", "QUALITY_SCHEDULE", "Goal", "EpisodeSampler", "project_bones", "bone_lengths_of"]
 
 
 @dataclass(frozen=True)
@@ -56,22 +57,23 @@ class SamplerConfig:
     pass per update) or 'x0' (the costs' gradient w.r.t. the predicted x0 itself, no backward pass
     through the network: one forward per step, ``goal_iters`` cheap updates of size
     ``goal_guidance * x0_guidance`` on x0 before the DDIM step).
-    Three updates of size 20: one of size 80 is ~3x faster and met every target on the 6
-    evaluation rooms, but left the default room's body 9.4 cm into the chair at a sit-down
-    (docs/sampling_log.md, sampling speed);
+    The default schedule (10 steps, the last 3 guided, 2 updates of size 45 each: 13 network passes,
+    6 of them backward; goal heading weight 6) is ~5x cheaper than the earlier 20 steps x 3 updates
+    of size 20 every step (``QUALITY_SCHEDULE``), a little farther from the goals (``trumans eval
+    synthesis``, seeds 0 / 1: goal 6.3 / 6.0 -> 8.5 / 7.7 cm; docs/results.md, "Sampling speed");
     guidance: the guidance terms (goal, seat, penetration; ``trumans.sample.guidance.terms``);
     cleanup: the steps after the network, in their order (``trumans.sample.cleanup.pipeline``).
     ``to_dict`` / ``from_dict`` give and take the whole config as plain data (unknown keys are
     errors); ``trumans sample`` saves it with every sequence (``extra/sampler_config``)."""
 
-    steps: int = 20
+    steps: int = 10
     eta: float = 0.0
     scene_scale: float = 1.0
     action_scale: float = 2.0
     naive: bool = False
-    goal_guidance: float = 20.0
-    goal_iters: int = 3
-    guided_steps: int = 0
+    goal_guidance: float = 45.0
+    goal_iters: int = 2
+    guided_steps: int = 3
     guidance_space: Literal["xt", "x0"] = "xt"
     x0_guidance: float = 1.0
     guidance: GuidanceConfig = field(default_factory=GuidanceConfig)
@@ -106,6 +108,12 @@ class SamplerConfig:
         return config_from_dict(cls, d, where)
 
 
+# ``SamplerConfig(**QUALITY_SCHEDULE)``: the default until the speed issue (38), 20 steps, every one guided by
+# 3 updates of size 20, heading weight 3 (~6x slower; a little closer to the goals: docs/results.md, "Sampling speed")
+QUALITY_SCHEDULE: dict = {"steps": 20, "goal_guidance": 20.0, "goal_iters": 3, "guided_steps": 0,
+                          "guidance": GuidanceConfig(goal=GoalTermConfig(heading_weight=3.0))}
+
+
 class EpisodeSampler:
     """One episode at a time for a batch of B variations; see the module doc.
 
@@ -134,6 +142,9 @@ class EpisodeSampler:
         # while the plan has moved none of them (``trumans.sample.rollout``)
         full = getattr(grids, "occ", None) if grids is not None and getattr(grids, "points", None) else None
         self.scene_sdf_all = SceneSDF(full) if cleanup_sdf and full is not None else self.scene_sdf
+        if cleanup_sdf:  # the cleanup reads the enclosed fields and their gradients: built with the scene, not in
+            for field_ in {id(f): f for f in (self.scene_sdf, self.scene_sdf_all) if f is not None}.values():
+                field_.enclosed().gradient_volume()  # an episode's time (``seconds_per_episode``)
 
     # ------------------------------------------------------------------ one episode
     def condition(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal]) -> EpisodeCondition:

@@ -105,16 +105,21 @@ class SceneSDF:
                             align_corners=True)
         return out.reshape(points.shape[:-1])
 
-    def value_and_gradient(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """points (..., 3) world m -> the signed distance (...,) m and its spatial gradient (..., 3)
-        (central differences of the field at the voxel centres, interpolated trilinearly: smooth
-        across cells, unlike the derivative of the trilinear field itself)."""
+    def gradient_volume(self) -> torch.Tensor:
+        """(1, 4, Nz, Ny, Nx) float32: the field and its x, y, z gradient (central differences, m/m) at
+        the voxel centres, what ``value_and_gradient`` samples; built on first use, cached."""
         if self._with_gradient is None:
             vol = self.volume[0, 0]  # (z, y, x)
             gz, gy, gx = torch.gradient(vol, spacing=self.voxel)
             self._with_gradient = torch.stack([vol, gx, gy, gz])[None]
+        return self._with_gradient
+
+    def value_and_gradient(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """points (..., 3) world m -> the signed distance (...,) m and its spatial gradient (..., 3)
+        (central differences of the field at the voxel centres, interpolated trilinearly: smooth
+        across cells, unlike the derivative of the trilinear field itself)."""
         u = 2.0 * (points - self.lo) / (self.hi - self.lo) - 1.0
-        out = F.grid_sample(self._with_gradient.to(points.device), u.reshape(1, 1, 1, -1, 3), mode="bilinear",
+        out = F.grid_sample(self.gradient_volume().to(points.device), u.reshape(1, 1, 1, -1, 3), mode="bilinear",
                             padding_mode="border", align_corners=True)[0, :, 0, 0]  # (4, N)
         return out[0].reshape(points.shape[:-1]), out[1:].T.reshape(points.shape)
 

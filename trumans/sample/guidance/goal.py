@@ -24,10 +24,11 @@ __all__ = ["GoalTermConfig", "GoalTerm"]
 @dataclass(frozen=True)
 class GoalTermConfig:
     """enabled: pull the body onto its episode goal; heading_weight: the hip-line (heading) term
-    against the position term."""
+    against the position term (6: with the default schedule's 6 guided updates, 3 left a body lying
+    90-150 deg off its bed's lie direction; docs/results.md, "Sampling speed")."""
 
     enabled: bool = True
-    heading_weight: float = 3.0
+    heading_weight: float = 6.0
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.heading_weight) and self.heading_weight >= 0):

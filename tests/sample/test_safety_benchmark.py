@@ -31,3 +31,15 @@ def test_room_models_are_closed_rooms(tmp_path):
 def test_bad_command_lines_are_refused_before_sampling(argv, message, capsys):
     assert console_main(["eval", "safety", *argv]) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("rooms", [1, 2, 3, 6, 9])
+def test_every_room_gets_every_plan_kind(rooms):
+    """Plans dealt to rooms in turn: with enough plans each room sees each kind (9 rooms once gave every plan
+    of room 3 the 'lie' kind, and no room both sat and lay down)."""
+    from trumans.sample.eval_safety import PLAN_KINDS, plan_kind
+
+    plans = 3 * rooms
+    kinds = {r: {plan_kind(i, rooms) for i in range(plans) if i % rooms == r} for r in range(rooms)}
+    assert all(k == set(PLAN_KINDS) for k in kinds.values()), kinds
+    assert [plan_kind(i, rooms) for i in range(min(rooms, 3))] == list(PLAN_KINDS)[:min(rooms, 3)]  # round 1 as before

@@ -3,7 +3,8 @@
 Plans over the synthesis benchmark's test rooms (``trumans.sample.eval_synthesis.EVAL_ROOM_SEEDS``,
 unseen in training) and over room models written as OBJ meshes (``write_room_models``: an L-shaped
 room with a pillar, a narrow corridor, a room split by a 5 cm partition; loaded like any mesh scan,
-no objects). Plan ``i`` goes to room ``i mod rooms`` and cycles through three kinds:
+no objects). Plan ``i`` goes to room ``i mod rooms``; its kind (``plan_kind``) cycles through three,
+shifted by one each round so that every room gets every kind:
 
 - ``default``: the default plan (sit on the farthest seat, stand up, walk to a far point, drink,
   walk back) from a seeded start and heading (as ``trumans eval synthesis``);
@@ -38,7 +39,7 @@ from trumans import argtypes
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 
 __all__ = ["add_arguments", "run", "evaluate", "PERTURBATIONS", "PLAN_KINDS", "TARGETS", "write_room_models",
-           "run_figures"]
+           "run_figures", "plan_kind"]
 
 PERTURBATIONS: tuple[str, ...] = ("base", "threads2", "seed", "start1mm")
 PLAN_KINDS: tuple[str, ...] = ("default", "wall", "lie")
@@ -133,6 +134,14 @@ def _edge_point(wm, start: np.ndarray, rng: np.random.Generator, within: float =
     d = np.linalg.norm(wm.centers(idx) - start, axis=1)
     pick = idx[(d > 1.0) & (d < within)] if ((d > 1.0) & (d < within)).any() else idx
     return wm.centers(pick[rng.integers(len(pick))])
+
+
+def plan_kind(i: int, rooms: int) -> str:
+    """The kind of plan ``i`` when plans are dealt to ``rooms`` rooms in turn (plan i to room i mod rooms): the
+    kinds cycle, shifted by one on every round, so each room gets every kind (a plain ``i mod 3`` would give a
+    room the same kind every round whenever ``rooms`` is a multiple of 3)."""
+    rooms = max(rooms, 1)
+    return PLAN_KINDS[(i % rooms + i // rooms) % len(PLAN_KINDS)]
 
 
 def _plan(sc, kind: str, seed: int, name: str):
@@ -283,7 +292,7 @@ def evaluate(ckpt_path, plans: int, rooms: int, mesh_rooms: int, perturbations: 
                 from trumans.sample.generate import resolve_plan
                 plan, kind, base_seed = resolve_plan(None, sc), "demo", 0
             else:
-                plan, kind = _plan(sc, PLAN_KINDS[i % len(PLAN_KINDS)], seed * 1000 + i, f"safety_{i}")
+                plan, kind = _plan(sc, plan_kind(i, len(specs)), seed * 1000 + i, f"safety_{i}")
                 base_seed = seed + i
             for pert in perturbations:
                 s, start = base_seed, np.asarray(plan.start, np.float64)

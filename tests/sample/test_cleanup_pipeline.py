@@ -63,7 +63,7 @@ def test_steps_run_in_the_documented_order(sdf):
     names = [s.name for s in STEPS]
     assert documented == names == [f.name for f in fields(CleanupConfig)]
     assert names == ["attach_pelvis", "seam", "bone_projection", "support_lift", "scene_pushout", "containment",
-                     "arm_pushout", "foot", "reach", "swept_guard"]
+                     "seat_settle", "arm_pushout", "foot", "reach", "swept_guard"]
     _, seen = _trace(_episode(sdf), CleanupConfig())
     assert [name for name, _ in seen] == names
 

@@ -144,17 +144,22 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
     config = sampler.config
     moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
-    seat = [seated_heights(c.phases, ctl.phases, seat_offset, sampler.k, config.guidance.seat.seated_kinds)
-            if config.guidance.seat.enabled else () for c, ctl in zip(ctrls, controllers)]
+    seated = [seated_heights(c.phases, ctl.phases, seat_offset, sampler.k, config.guidance.seat.seated_kinds)
+              for c, ctl in zip(ctrls, controllers)]
+    seat = seated if config.guidance.seat.enabled else [()] * len(seated)
     goals = [Goal(tuple(c.goal), guide=c.guide, heading=c.heading, pelvis_z=z) if c.hand_goal is None else
              Goal(tuple(c.hand_goal), c.hand, c.hand_frame, c.guide, pelvis_z=z) for c, z in zip(ctrls, seat)]
+    seat_z = np.full((len(ctrls), sampler.L), np.nan)  # the seated frames' pelvis heights, for the seat settle
+    for b, frames in enumerate(seated):
+        for f, z in frames:
+            seat_z[b, f] = z
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
     # dynamic objects count where they stand until the plan moves one (then the static scene only)
     sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
     bodies = EpisodeBodies(world, context, lengths, labels, tuple(sampler.ckpt.vocabulary), sampler.ckpt.fps,
                            np.array([g.joint == "pelvis" for g in goals]), np.stack([c.reach_weight for c in ctrls]),
-                           np.stack([c.reach_target for c in ctrls]), sdf)
+                           np.stack([c.reach_target for c in ctrls]), sdf, seat_z)
     raw: list[float] = []
 
     def network_bones(step: str, joints: np.ndarray) -> None:  # the network's bones, its pinned pelvis attached

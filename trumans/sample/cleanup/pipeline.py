@@ -17,14 +17,17 @@ After each episode the network's joints go through ``STEPS`` in this order (``ru
    anything and stays inside the room, whatever the network and the soft push-out left. Right
    after the push-out (which trades depth against change and may leave some) and before the arms
    and the feet, which re-solve on the moved body (``containment.py``).
-7. ``arm_pushout`` - a hand still in the scene is moved out by arm IK, except on frames where the
+7. ``seat_settle`` - the hard constraint on sitting: every seated frame's pelvis within 2 cm of its
+   seat's height, the move faded into the frames around (``seat_settle.py``). After the push-outs,
+   before the arms and the feet, whose IK re-solves on the moved body (the feet re-planted).
+8. ``arm_pushout`` - a hand still in the scene is moved out by arm IK, except on frames where the
    plan reaches (the reach cleanup's). After the body push-out: only what the trunk could not take
    out (``arm_pushout.py``).
-8. ``foot`` - planted feet locked on the floor, swings on smooth paths, the legs re-solved. After
+9. ``foot`` - planted feet locked on the floor, swings on smooth paths, the legs re-solved. After
    the push-outs: the feet re-lock where the moved body stands (``foot.py``).
-9. ``reach`` - the acting arm onto the plan's hand target. Nothing after it but the guard moves
+10. ``reach`` - the acting arm onto the plan's hand target. Nothing after it but the guard moves
    the arm off its target (``reach.py``).
-10. ``swept_guard`` - no joint passes through a solid between two frames: a frame that would is
+11. ``swept_guard`` - no joint passes through a solid between two frames: a frame that would is
    blended back toward the frame before. Last, so that it holds whatever every step before did
    (``swept.py``).
 
@@ -55,6 +58,7 @@ from trumans.sample.cleanup.foot import FootCleanupConfig, clean_feet
 from trumans.sample.cleanup.reach import ReachCleanupConfig, clean_reach
 from trumans.sample.cleanup.scene_pushout import PushOutConfig, push_out
 from trumans.sample.cleanup.seam import SeamConfig, blend_seam
+from trumans.sample.cleanup.seat_settle import SeatSettleConfig, settle_on_seat
 from trumans.sample.cleanup.support_lift import SupportLiftConfig, lift_onto_feet, support_weights
 from trumans.sample.cleanup.swept import SweptGuardConfig, guard_crossings
 from trumans.scenes.sdf import SceneSDF
@@ -74,7 +78,8 @@ class EpisodeBodies:
     pinned at the last frame; reach_weight: (B, L, 2) in [0, 1] and reach_target: (B, L, 2, 3)
     world m, the (left, right) wrist's reach weight and target (``Controller.next``); sdf: the
     scene's signed distance field (floor excluded), or None without a scene (``run_cleanup`` gives
-    the steps its ``enclosed`` form)."""
+    the steps its ``enclosed`` form); seat_z: (B, L) the seated pelvis height of each frame of a
+    sit phase, m, NaN elsewhere (``trumans.sample.guidance.seat.seated_heights``), or None."""
 
     joints: np.ndarray
     context: np.ndarray
@@ -86,6 +91,7 @@ class EpisodeBodies:
     reach_weight: np.ndarray
     reach_target: np.ndarray
     sdf: SceneSDF | None = None
+    seat_z: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         J, C = np.shape(self.joints), np.shape(self.context)
@@ -93,7 +99,8 @@ class EpisodeBodies:
             raise ValueError(f"need joints (B, L, 24, 3) and context (B, 2 <= k < L, 24, 3), got {J} and {C}")
         B, L = J[:2]
         for name, want in (("lengths", (24,)), ("labels", (B, L, len(self.vocabulary))), ("pinned", (B,)),
-                           ("reach_weight", (B, L, 2)), ("reach_target", (B, L, 2, 3))):
+                           ("reach_weight", (B, L, 2)), ("reach_target", (B, L, 2, 3))) + \
+                (() if self.seat_z is None else (("seat_z", (B, L)),)):
             if np.shape(getattr(self, name)) != want:
                 raise ValueError(f"{name} must be {want} for joints {J}, got {np.shape(getattr(self, name))}")
 
@@ -150,6 +157,10 @@ def _containment(ep: EpisodeBodies, config: ContainmentConfig) -> np.ndarray:
     return contain(ep.joints, ep.sdf, weight, ep.k, config)
 
 
+def _seat_settle(ep: EpisodeBodies, config: SeatSettleConfig) -> np.ndarray:
+    return ep.joints if ep.seat_z is None else settle_on_seat(ep.joints, ep.seat_z, ep.k, config)
+
+
 def _arm_pushout(ep: EpisodeBodies, config: ArmPushConfig) -> np.ndarray:
     if ep.sdf is None:
         return ep.joints
@@ -190,6 +201,9 @@ STEPS: tuple[CleanupStep, ...] = (
     CleanupStep("containment", "containment", ContainmentConfig, _containment,
                 "keep an upright pelvis the torso's clearance from anything and inside the room: a hard "
                 "projection (cleanup/containment.py)"),
+    CleanupStep("seat_settle", "seat-settle", SeatSettleConfig, _seat_settle,
+                "put a seated pelvis within a tolerance of its seat's height: a hard projection "
+                "(cleanup/seat_settle.py)"),
     CleanupStep("arm_pushout", "arm-pushout", ArmPushConfig, _arm_pushout,
                 "move a hand still in the scene out by arm IK (cleanup/arm_pushout.py)"),
     CleanupStep("foot", "foot-cleanup", FootCleanupConfig, _foot,
@@ -211,6 +225,7 @@ class CleanupConfig:
     support_lift: SupportLiftConfig = field(default_factory=SupportLiftConfig)
     scene_pushout: PushOutConfig = field(default_factory=PushOutConfig)
     containment: ContainmentConfig = field(default_factory=ContainmentConfig)
+    seat_settle: SeatSettleConfig = field(default_factory=SeatSettleConfig)
     arm_pushout: ArmPushConfig = field(default_factory=ArmPushConfig)
     foot: FootCleanupConfig = field(default_factory=FootCleanupConfig)
     reach: ReachCleanupConfig = field(default_factory=ReachCleanupConfig)

@@ -43,3 +43,33 @@ def test_every_room_gets_every_plan_kind(rooms):
     kinds = {r: {plan_kind(i, rooms) for i in range(plans) if i % rooms == r} for r in range(rooms)}
     assert all(k == set(PLAN_KINDS) for k in kinds.values()), kinds
     assert [plan_kind(i, rooms) for i in range(min(rooms, 3))] == list(PLAN_KINDS)[:min(rooms, 3)]  # round 1 as before
+
+
+def test_a_stool_facing_a_wall_is_sat_on_from_its_open_side():
+    """room 9004's stool stands 0.7 m from the wall its meta side faces: standing up from it put the head 6 cm
+    into the wall (the safety benchmark); the plan now sits facing the side with room (a stool has no back),
+    while a seat with a back keeps its meta side."""
+    from trumans.sample import controller as C
+    from trumans.sample.scene_input import load_sample_scene
+
+    sc = load_sample_scene("room:9004")
+    margin = C.free_margin(sc.walkmap)
+
+    def free_at(p):
+        i = np.clip(sc.walkmap.index(p), 0, np.asarray(margin.shape) - 1)
+        return float(margin[i[0], i[1]])
+
+    stool = sc.scene.objects["stool_0"]
+    seat, _ = C.seat_target(stool)
+    meta_yaw = float(np.arctan2(stool.pose[1, 0], stool.pose[0, 0]) + stool.meta["sit_yaw"])
+    stand, yaw = C._sitting_side(stool, sc.walkmap, seat, free_at)
+    assert np.cos(meta_yaw) < -0.9  # the meta side faces -x, the wall at x = 0
+    assert np.cos(yaw - meta_yaw) < 0.1  # turned away from it
+    assert sc.walkmap.query(stand[None])[0]
+    ahead = seat[:2] + 0.65 * np.array([np.cos(yaw), np.sin(yaw)])
+    assert free_at(ahead) > 0.1
+    chairs = [o for o in sc.scene.objects.values() if o.category == "chair"]
+    for chair in chairs:
+        s, _ = C.seat_target(chair)
+        _, y = C._sitting_side(chair, sc.walkmap, s, free_at)
+        assert np.isclose(y, np.arctan2(chair.pose[1, 0], chair.pose[0, 0]) + chair.meta.get("sit_yaw", 0.0))

@@ -126,6 +126,39 @@ def _approach(obj, wm: WalkMap, seat: np.ndarray | None = None) -> np.ndarray:
     return nearest_walkable(wm, p) if not wm.query(p[None])[0] else p
 
 
+ANY_SIDE_SEATS = ("stool",)  # seats without a back: one can sit on them facing any side
+
+
+def _sitting_side(obj, wm: WalkMap, seat: np.ndarray, free_at) -> tuple[np.ndarray, float]:
+    """(where to stand before sitting (2,) world m, the sitting direction rad) for a seat: its meta
+    'approach' and 'sit_yaw'; on a seat without a back (``ANY_SIDE_SEATS``) the side among the four
+    (the approach turned about the seat by k x 90 deg) with the most room 0.65 m ahead of the seat
+    (the walkable floor's free margin there, ``free_at``: m), so that standing up, which leans the
+    trunk forward, does not put the head into a wall (the safety benchmark's stools faced walls
+    0.7 m away); the meta side unless another has more than 10 cm more room."""
+    yaw = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]) + obj.meta.get("sit_yaw", 0.0))
+    stand = _approach(obj, wm, seat=seat)
+    if obj.category not in ANY_SIDE_SEATS:
+        return stand, yaw
+    meta = obj.meta
+    raw = _world(obj, np.asarray(meta.get("approach", [0.0, 0.0]), dtype=np.float64))
+    raw = raw + (seat - _world(obj, np.asarray(meta["seat_center"], dtype=np.float64)))[:2]
+    ahead = raw - seat[:2]
+    ahead = ahead / max(float(np.linalg.norm(ahead)), 1e-9)
+
+    def room_ahead(k: int) -> float:  # the free margin where the head goes when standing up (0.65 m ahead)
+        c, s = np.cos(k * np.pi / 2), np.sin(k * np.pi / 2)
+        p = seat[:2] + 0.65 * (np.array([[c, -s], [s, c]]) @ ahead)
+        return free_at(p) if wm.query(p[None])[0] else -1.0
+
+    k = max((1, 2, 3), key=room_ahead)
+    if room_ahead(k) <= room_ahead(0) + 0.1:
+        return stand, yaw
+    c, s = np.cos(k * np.pi / 2), np.sin(k * np.pi / 2)
+    p = seat[:2] + np.array([[c, -s], [s, c]]) @ (raw - seat[:2])
+    return (nearest_walkable(wm, p) if not wm.query(p[None])[0] else p), _wrap(yaw + k * np.pi / 2)
+
+
 def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray:
     """(2,) walkable floor point 0.45 m short of ``point`` (3,) on the way from ``pos`` (2,)."""
     d = point[:2] - pos
@@ -221,8 +254,8 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             via_edge = lie is not None and "seat_center" in obj.meta and "sit_down" in vocabulary
             if s.kind == "sit_on" or via_edge:
                 seat, h = seat_target(obj, near=lie)
-                walk(i, _approach(obj, wm, seat=seat))
-                yaw = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]) + obj.meta.get("sit_yaw", 0.0))
+                stand, yaw = _sitting_side(obj, wm, seat, _free_at)
+                walk(i, stand)
                 if "turn" in vocabulary:
                     phases.append(Phase("turn", ("turn",), frames("turn"), goal=pos.copy(),
                                         step=i, heading=yaw, info={"object": obj.name}))

@@ -7,7 +7,7 @@ Weights are random (speed does not depend on them). For each config: the naive s
 steps, ancestral, scene and action encoders recomputed at every step), the fast one (conditions
 encoded once per episode, ``--steps``
 respaced DDIM steps, no guidance), the **default** one (``SamplerConfig()``, what ``trumans sample``
-runs: 10 steps, the last 3 guided by 2 backward passes each, action guidance 2) and the earlier
+runs: 10 steps, the last 5 guided by 2 backward passes each, action guidance 2) and the earlier
 default, ``QUALITY_SCHEDULE`` (20 steps, every one guided by 3 backward passes); one episode of
 batch 1 at a time, the median of ``--repeats`` episodes after a warm-up (half as many for the slow
 samplers). The scene-dependent guidance terms (seat, penetration) need a scene and are not timed

@@ -57,10 +57,11 @@ class SamplerConfig:
     pass per update) or 'x0' (the costs' gradient w.r.t. the predicted x0 itself, no backward pass
     through the network: one forward per step, ``goal_iters`` cheap updates of size
     ``goal_guidance * x0_guidance`` on x0 before the DDIM step).
-    The default schedule (10 steps, the last 3 guided, 2 updates of size 45 each: 13 network passes,
-    6 of them backward; goal heading weight 6) is ~5x cheaper than the earlier 20 steps x 3 updates
-    of size 20 every step (``QUALITY_SCHEDULE``), a little farther from the goals (``trumans eval
-    synthesis``, seeds 0 / 1: goal 6.3 / 6.0 -> 8.5 / 7.7 cm; docs/results.md, "Sampling speed");
+    The default schedule (10 steps, the last 5 guided, 2 updates of size 45 each: 15 network passes,
+    10 of them backward; goal heading weight 6) is ~4x cheaper than the earlier 20 steps x 3 updates
+    of size 20 every step (``QUALITY_SCHEDULE``) and a little farther from the goals (docs/results.md,
+    "Sampling speed"); guiding only the last 3 steps was ~1.5x faster again but left bodies short of
+    the 1 m gap of the safety benchmark's partition room (8 of 12 runs never finished their plan);
     guidance: the guidance terms (goal, seat, penetration; ``trumans.sample.guidance.terms``);
     cleanup: the steps after the network, in their order (``trumans.sample.cleanup.pipeline``).
     ``to_dict`` / ``from_dict`` give and take the whole config as plain data (unknown keys are
@@ -73,7 +74,7 @@ class SamplerConfig:
     naive: bool = False
     goal_guidance: float = 45.0
     goal_iters: int = 2
-    guided_steps: int = 3
+    guided_steps: int = 5
     guidance_space: Literal["xt", "x0"] = "xt"
     x0_guidance: float = 1.0
     guidance: GuidanceConfig = field(default_factory=GuidanceConfig)
@@ -109,7 +110,7 @@ class SamplerConfig:
 
 
 # ``SamplerConfig(**QUALITY_SCHEDULE)``: the default until the speed issue (38), 20 steps, every one guided by
-# 3 updates of size 20, heading weight 3 (~6x slower; a little closer to the goals: docs/results.md, "Sampling speed")
+# 3 updates of size 20, heading weight 3 (~4x slower; a little closer to the goals: docs/results.md, "Sampling speed")
 QUALITY_SCHEDULE: dict = {"steps": 20, "goal_guidance": 20.0, "goal_iters": 3, "guided_steps": 0,
                           "guidance": GuidanceConfig(goal=GoalTermConfig(heading_weight=3.0))}
 

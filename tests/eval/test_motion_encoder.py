@@ -14,6 +14,7 @@ from trumans.importers.bvh import import_bvh
 from trumans.rotations import yaw_matrix
 from trumans.skeleton import REST_JOINTS, heading
 from trumans.synth.cases import make_case
+from trumans.sample.sampler import SamplerConfig
 
 from helpers import CMU_WALK_BVH
 
@@ -281,7 +282,7 @@ def test_eval_synthesis_refuses_bad_sampler_settings():
     """Bad --eta / --steps are refused before any room is built, naming the values."""
     from trumans.cli import main
 
-    with pytest.raises(ValueError, match=r"--eta in \[0, 1\], got 20, 0, 1.5"):
+    with pytest.raises(ValueError, match=rf"--eta in \[0, 1\], got {SamplerConfig().steps}, 0, 1.5"):
         main(["eval", "synthesis", "--rooms", "1", "--eta", "1.5", "--naive-episodes", "0"])
     with pytest.raises(ValueError, match="--steps must be >= 1"):
         main(["eval", "synthesis", "--rooms", "1", "--steps", "0"])

@@ -7,7 +7,8 @@ import pytest
 from trumans.mocap_corpus import (CORPUS_PATH, HELD_OUT_SUBJECTS, convert_clip, decode_joints,
                                   drop_tpose_frame, encode_joints, load_corpus, write_corpus)
 from trumans.motion_labels import MOTION_STATES, label_states, segments
-from trumans.eval.realism import STATISTICS, clip_statistics, compare, reference_range
+from trumans.eval.realism import (STATISTICS, RealismClip, bootstrap_range, clip_events, clip_statistics, compare,
+                                  reference_ranges, score, seams_from_goals)
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import REST_JOINTS
 
@@ -89,17 +90,21 @@ def test_seated_statistics():
 
 
 def test_compare_and_range():
-    assert reference_range([1.0, 3.0]) == (1.0, 3.0)
-    lo, hi = reference_range(list(np.arange(11.0)))
-    assert (lo, hi) == (1.0, 9.0)
-    rep = compare([walker(cadence=100)], [walker(cadence=c) for c in (95, 100, 105)])
+    rep = compare([walker(cadence=100)], [walker(cadence=c) for c in (95, 100, 105)], min_events=3)
     assert set(rep["statistics"]) == set(STATISTICS)
     assert rep["statistics"]["cadence"]["inside"] is True
     assert rep["statistics"]["seated_trunk_tilt"]["inside"] is None
-    out = compare([walker(cadence=140)], [walker(cadence=c) for c in (95, 100, 105)])
+    out = compare([walker(cadence=140)], [walker(cadence=c) for c in (95, 100, 105)], min_events=3)
     assert out["statistics"]["cadence"]["inside"] is False
     assert 0 <= out["fraction_inside"] < rep["fraction_inside"]
+    assert out["inside_count"] == round(out["fraction_inside"] * out["compared"])
     json.dumps(rep)
+    # too few real events: no range, reported as such, counted neither way
+    few = compare([walker(cadence=140)], [walker(cadence=c) for c in (95, 100, 105)])
+    row = few["statistics"]["cadence"]
+    assert row["inside"] is None and row["reference"]["lo"] is None
+    assert row["reference"]["note"].startswith("n/a: 3 events in 3 clips")
+    assert few["compared"] == 0
 
 
 # ------------------------------------------------------------------------------------ corpus
@@ -169,10 +174,169 @@ def test_cli_eval_realism(tmp_path, capsys):
     seqs = [(f"w{c}", Sequence(joints=walker(cadence=c).astype(np.float32), fps=FPS)) for c in (100, 110, 120)]
     with DatasetWriter(tmp_path / "ds", "test", {}) as writer:
         write_dataset(writer, seqs, {}, name="walkers", seed=0)
-    assert main(["eval", "realism", str(tmp_path / "ds"), "--reference", str(tmp_path / "ds"), "--json"]) == 0
+    assert main(["eval", "realism", str(tmp_path / "ds"), "--reference", str(tmp_path / "ds"), "--min-events", "3",
+                 "--json"]) == 0
     rep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert rep["dataset_clips"] == 3 and rep["reference_clips"] == 3
-    assert rep["statistics"]["cadence"]["dataset"] == pytest.approx(110, rel=0.06)
-    assert rep["fraction_inside"] == 1.0  # a dataset is inside its own range
+    assert rep["clips"] == 3 and rep["reference_clips"] == 3
+    assert rep["statistics"]["cadence"]["value"] == pytest.approx(110, rel=0.06)
+    assert rep["statistics"]["cadence"]["inside"] is True  # the median walker is inside its own set's p10-p90
+    assert rep["statistics"]["seam_jerk_peak_ratio"]["note"].startswith("not measured")
     with pytest.raises(FileNotFoundError, match="not a dataset folder"):
         main(["eval", "realism", str(tmp_path / "none"), "--reference", str(tmp_path / "ds")])
+
+
+# ------------------------------------------------------------------------------------ issue 35's statistics
+
+def sit_down(descent=1.2, shove=0.0, wrist_offset=0.0, stand_s=2.0, seat_s=4.0):
+    """The rest body standing ``stand_s`` s, then lowered onto a 0.5 m seat (``seated``'s pose) along
+    a smoothstep over ``descent`` s while its pelvis moves backward (against its facing) by
+    ``shove`` m along a sine-squared bump (peak speed 2 shove / descent), then seated ``seat_s`` s.
+    ``wrist_offset``: the left wrist held this much (m) higher than the right throughout."""
+    up, down = REST_JOINTS.astype(np.float64), seated(1.0)[0].astype(np.float64)
+    n_stand, n_desc, n_seat = int(stand_s * FPS), int(round(descent * FPS)), int(seat_s * FPS)
+    u = np.linspace(0, 1, n_desc + 1)
+    s = 3 * u ** 2 - 2 * u ** 3  # smoothstep 0 -> 1
+    frames = np.concatenate([np.repeat(up[None], n_stand, 0), up[None] + s[:, None, None] * (down - up)[None],
+                             np.repeat(down[None], n_seat, 0)])
+    heading = 0.0  # the rest pose faces +x (body_features' heading of REST_JOINTS)
+    from trumans.motion_labels import body_features
+    heading = float(body_features(up[None].repeat(2, 0), FPS)["heading"][0])
+    back = -np.array([np.cos(heading), np.sin(heading)])
+    disp = np.zeros(len(frames))
+    disp[n_stand:n_stand + n_desc + 1] = shove * (u - np.sin(2 * np.pi * u) / (2 * np.pi))  # speed ~ sin^2
+    disp[n_stand + n_desc + 1:] = shove
+    frames[:, :, :2] += disp[:, None, None] * back
+    frames[:, J["left_wrist"], 2] += wrist_offset
+    return frames
+
+
+def test_sit_down_descent_shove_and_symmetry():
+    ev = clip_events(sit_down(descent=1.2, shove=0.3))
+    assert len(ev["sitdown_backward_shove"]) == 1
+    # the event runs from the last frame at >= 95 % of standing height to 2 cm above the seat, a fixed
+    # share of the smoothstep: its 10 -> 90 % time is under the whole curve's (0.608 of it) and scales with it
+    d12 = ev["sitdown_descent_10_90"][0]
+    assert 0.3 * 1.2 < d12 < 0.608 * 1.2 + 1 / FPS
+    assert clip_events(sit_down(descent=2.4, shove=0.3))["sitdown_descent_10_90"][0] == pytest.approx(2 * d12, abs=2 / FPS)
+    assert ev["sitdown_backward_shove"][0] == pytest.approx(2 * 0.3 / 1.2, rel=0.05)  # peak of a sin^2 bump
+    assert clip_events(sit_down(shove=0.0))["sitdown_backward_shove"][0] == pytest.approx(0.0, abs=1e-6)
+    forward = clip_events(sit_down(shove=-0.3))["sitdown_backward_shove"][0]  # moving forward is no shove
+    assert forward == pytest.approx(0.0, abs=1e-6)
+    assert clip_events(sit_down())["sitdown_wrist_height_asymmetry"][0] == pytest.approx(0.0, abs=1e-9)
+    assert clip_events(sit_down(wrist_offset=0.07))["sitdown_wrist_height_asymmetry"][0] == pytest.approx(0.07, abs=1e-6)
+
+
+def test_stand_up_pause_to_walk():
+    """Seated, risen back to standing (the sit-down reversed), then still for ``pause`` s, then walking:
+    the statistic grows by exactly the pause."""
+    got = {}
+    for pause in (0.0, 1.0):
+        rise = sit_down(descent=1.0, stand_s=0.0, seat_s=3.0)[::-1]
+        still = np.repeat(rise[-1:], int(pause * FPS), 0)
+        walk = walker(4.0)
+        walk = walk - walk[:1, J["pelvis"]] * np.array([1, 1, 0]) + rise[-1:, J["pelvis"]] * np.array([1, 1, 0])
+        ev = clip_events(np.concatenate([rise, still, walk]))
+        assert len(ev["standup_pause_to_walk"]) == 1
+        got[pause] = ev["standup_pause_to_walk"][0]
+    # the end of the rise (95 % of standing height) comes before the body is fully up, and walking is
+    # labelled where the 0.5 s mean ground speed passes 0.35 m/s, a few frames after it starts
+    assert 0.0 < got[0.0] < 0.8
+    assert got[1.0] - got[0.0] == pytest.approx(1.0, abs=2 / FPS)
+
+
+def test_foot_skate_and_feet_off():
+    stand = np.repeat(REST_JOINTS[None].astype(np.float64), 90, 0)
+    ev = clip_events(stand)
+    assert ev["stand_foot_skate_share"] == [0.0] and ev["both_feet_off_share"] == [0.0]
+    slide = stand.copy()
+    slide[:, :, 0] += 0.2 * np.arange(90)[:, None] / FPS  # the whole body glides at 0.2 m/s: every contact slides
+    assert clip_events(slide)["stand_foot_skate_share"] == [pytest.approx(1.0)]
+    hop = stand.copy()
+    hop[::3] += [0, 0, 0.2]  # every third frame both feet 20 cm up
+    assert clip_events(hop)["both_feet_off_share"][0] == pytest.approx(1 / 3, abs=0.02)
+
+
+def test_jerk_at_10fps_and_seams():
+    w = walker(6.0)
+    ev = clip_events(RealismClip(w[::3], 10.0))  # the same walk given at 10 fps
+    assert ev["walk_jerk_p95"] == []  # no 30 fps jerk from interpolated frames
+    ref = clip_events(w)["walk_jerk_p95_10fps"][0]
+    assert ev["walk_jerk_p95_10fps"][0] == pytest.approx(ref, rel=1e-6)
+    # a 5 cm jump of the whole body every 14 frames: the seam statistic sees it at its phase
+    j = walker(20.0)[::3].copy()
+    for s in range(5, len(j), 14):
+        j[s:] += [0.0, 0.05, 0.0]
+    hitch = clip_events(RealismClip(j, 10.0, seams=(14, 5)))["seam_jerk_peak_ratio"][0]
+    smooth = clip_events(RealismClip(walker(20.0)[::3], 10.0, seams=(14, 5)))["seam_jerk_peak_ratio"][0]
+    assert hitch > 2 * smooth
+    assert seams_from_goals(np.array([[15, 0, 0, 0], [29, 0, 0, 0], [20, 0, 0, 1], [43, 0, 0, 0]]),
+                            np.array(["pelvis", "pelvis", "right_wrist", "pelvis"])) == (14, 2)
+    assert seams_from_goals(np.zeros((1, 4)), np.array(["pelvis"])) is None
+
+
+def test_bootstrap_is_seeded_and_covers():
+    rng = np.random.default_rng(1)
+    clips = [rng.normal(size=int(n)) for n in rng.integers(1, 4, 12)]
+    a = bootstrap_range(clips, n_boot=200, seed=3)
+    assert a == bootstrap_range(clips, n_boot=200, seed=3)
+    assert a != bootstrap_range(clips, n_boot=200, seed=4)
+    lo, hi, lo_ci, hi_ci = a
+    assert lo_ci[0] <= lo <= lo_ci[1] and hi_ci[0] <= hi <= hi_ci[1]
+    # coverage: the true 90th percentile of N(0, 1) (1.2816) falls inside the 95 % interval of most draws
+    # (a percentile bootstrap of a tail quantile from ~60 events under-covers a little: >= 80 % of 40)
+    hits = 0
+    for t in range(40):
+        r = np.random.default_rng(100 + t)
+        clips = [r.normal(size=3) for _ in range(20)]
+        _, _, _, (c0, c1) = bootstrap_range(clips, n_boot=200, seed=t)
+        hits += c0 <= 1.2816 <= c1
+    assert hits >= 32
+
+
+def test_reference_ranges_per_event_and_na():
+    refs = [RealismClip(sit_down(descent=d)) for d in (0.9, 1.0, 1.1, 1.2, 1.3, 1.4)]
+    r = reference_ranges(refs, n_boot=50, min_events=5)["sitdown_descent_10_90"]
+    assert r["events"] == 6 and r["clips"] == 6 and r["lo"] < r["median"] < r["hi"]
+    na = reference_ranges(refs[:2], n_boot=50)["sitdown_descent_10_90"]
+    assert na["lo"] is None and na["note"].startswith("n/a: 2 events in 2 clips")
+    rep = score([RealismClip(sit_down(descent=0.5))], refs, n_boot=50, min_events=5)
+    assert rep["statistics"]["sitdown_descent_10_90"]["inside"] is False  # a too-fast sit-down is outside
+    assert rep["statistics"]["furniture_penetration_max_cm"]["note"].startswith("not measured")
+
+
+def test_bad_input(tmp_path):
+    from trumans.cli import console_main
+    from trumans.sequence import Sequence, save_sequence
+
+    with pytest.raises(ValueError, match="NaN"):
+        clip_events(np.full((60, 24, 3), np.nan))
+    with pytest.raises(ValueError, match="no input clips"):
+        score([], [RealismClip(walker())])
+    save_sequence(Sequence(joints=walker(2.0).astype(np.float32), fps=FPS), tmp_path / "plain.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    for f in ("plain.npz", "junk.npz", "none.npz"):
+        assert console_main(["eval", "realism", "--generated", str(tmp_path / f)]) == 2
+    assert console_main(["eval", "realism", str(tmp_path), "--generated", str(tmp_path / "plain.npz")]) == 2
+
+
+def test_generated_sample_is_scored(tmp_path, capsys):
+    """A sampled npz (joints at 10 fps, goals, sampler config, scene room:2) through the command."""
+    from trumans.cli import main
+    from trumans.sample.generate import GOAL_JOINTS_KEY, GOALS_KEY, SAMPLER_CONFIG_KEY
+    from trumans.sequence import Sequence, save_sequence
+
+    j = walker(20.0)[::3].astype(np.float32)
+    j[..., :2] += [1.0, 1.0]
+    frames = np.arange(15, len(j), 14)
+    goals = np.c_[frames, np.zeros((len(frames), 3))]
+    save_sequence(Sequence(joints=j, fps=10.0, scene="room:2", extra={
+        SAMPLER_CONFIG_KEY: np.asarray("{}"), GOALS_KEY: goals, GOAL_JOINTS_KEY: np.asarray(["pelvis"] * len(frames))}),
+        tmp_path / "g.npz")
+    assert main(["eval", "realism", "--generated", str(tmp_path / "g.npz"), "--bootstrap", "50", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    st = rep["statistics"]
+    assert st["seam_jerk_peak_ratio"]["value"] is not None and st["seam_jerk_peak_ratio"]["reference"]["lo"] is not None
+    assert st["furniture_penetration_max_cm"]["value"] is not None and st["furniture_penetration_max_cm"]["inside"] is None
+    assert st["walk_jerk_p95"]["note"].startswith("not measured: input below 30 fps")
+    assert st["sitdown_descent_10_90"]["reference"]["note"].startswith("n/a:")  # the held-out corpus has 4
+    assert rep["compared"] == sum(r["inside"] is not None for r in st.values())

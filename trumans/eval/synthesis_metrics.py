@@ -33,7 +33,7 @@ from trumans.eval.metrics import foot_skate_cm
 from trumans.skeleton import FOOT_JOINTS, FOOT_REST_HEIGHT, JOINT_INDEX, PARENTS
 
 __all__ = ["goal_errors_cm", "penetration_cm", "floor_err_cm", "contact_score", "bone_length_cv",
-           "transition_jerk_ratio", "folded_jerk", "seam_jerk_peak_ratio", "real_seam_reference",
+           "transition_jerk_ratio", "folded_jerk", "seam_jerk_peak_ratio", "seam_piece_ratios", "real_seam_reference",
            "foot_skate_near_floor_cm", "seat_height_errors_cm", "motion_figures"]
 
 _FEET = list(FOOT_JOINTS)
@@ -143,6 +143,21 @@ def seam_jerk_peak_ratio(joints: np.ndarray, cycle: int, first_seam: int = 0) ->
     return float(f.max() / med), int(np.argmax(f))
 
 
+def seam_piece_ratios(joints: np.ndarray, cycle: int, cycles_per_piece: int = 30) -> list[float]:
+    """joints (T, J, 3) m of one clip without seams -> ``seam_jerk_peak_ratio`` (1) of each piece of
+    ``cycles_per_piece`` cycles (a generated plan's length; the last piece kept when >= 10 cycles),
+    finite values only: how loud the loudest phase of seamless motion is by chance at this fold."""
+    vals = []
+    n = cycle * cycles_per_piece
+    for a in range(0, len(joints), n):
+        piece = joints[a:a + n]
+        if len(piece) >= 10 * cycle:
+            r, _ = seam_jerk_peak_ratio(piece, cycle)
+            if np.isfinite(r):
+                vals.append(r)
+    return vals
+
+
 @lru_cache(maxsize=8)
 def real_seam_reference(cycle: int, fps: float, cycles_per_piece: int = 30) -> tuple[float, float, float, int]:
     """``seam_jerk_peak_ratio`` of real motion at the same fold: the mocap corpus's held-out clips
@@ -154,15 +169,9 @@ def real_seam_reference(cycle: int, fps: float, cycles_per_piece: int = 30) -> t
     from trumans.sequence import Sequence
 
     vals = []
-    n = cycle * cycles_per_piece
     for c in load_corpus(split="test"):
-        j = resample_sequence(Sequence(joints=c.joints, fps=c.fps), fps).joints
-        for a in range(0, len(j), n):
-            piece = j[a:a + n]
-            if len(piece) >= 10 * cycle:
-                r, _ = seam_jerk_peak_ratio(piece, cycle)
-                if np.isfinite(r):
-                    vals.append(r)
+        vals += seam_piece_ratios(resample_sequence(Sequence(joints=c.joints, fps=c.fps), fps).joints, cycle,
+                                  cycles_per_piece)
     if not vals:
         return float("nan"), float("nan"), float("nan"), 0
     return (float(np.median(vals)), float(np.percentile(vals, 10)), float(np.percentile(vals, 90)), len(vals))

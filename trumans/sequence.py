@@ -20,7 +20,16 @@ from .input_files import check_input_file
 from .limits import check_fps
 from .skeleton import NUM_JOINTS
 
-__all__ = ["ObjectTrack", "Sequence", "save_sequence", "load_sequence", "atomic_write"]
+__all__ = ["ObjectTrack", "Sequence", "save_sequence", "load_sequence", "atomic_write", "SAMPLER_CONFIG_KEY",
+           "GOALS_KEY", "GOAL_JOINTS_KEY"]
+
+# ``extra`` entries of a sequence made by ``trumans sample``: the sampler config used, JSON
+# (``SamplerConfig.to_dict``; ``SamplerConfig.from_dict(json.loads(...))`` rebuilds it); every episode's
+# goal, ``extra[GOALS_KEY]`` (K, 4) rows (frame, x, y, z) m, the frame it is due (a pelvis goal is a floor
+# point, z = 0), and ``extra[GOAL_JOINTS_KEY]`` (K,) the joint that reaches it (``trumans view --html``
+# draws them; ``trumans eval realism --generated`` reads the episode cycle from them)
+SAMPLER_CONFIG_KEY = "sampler_config"
+GOALS_KEY, GOAL_JOINTS_KEY = "goals", "goal_joints"
 
 
 @dataclass

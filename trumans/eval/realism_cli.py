@@ -78,8 +78,7 @@ def load_generated(paths: list[str]) -> list[RealismClip]:
     scene (the spec it records: 'room:SEED', a scene folder or a mesh file). Raises ValueError naming
     a file that is not a sampled sequence."""
     from trumans.eval.realism import seams_from_goals
-    from trumans.sample.generate import GOAL_JOINTS_KEY, GOALS_KEY, SAMPLER_CONFIG_KEY
-    from trumans.sequence import load_sequence
+    from trumans.sequence import GOAL_JOINTS_KEY, GOALS_KEY, SAMPLER_CONFIG_KEY, load_sequence
 
     clips = []
     for p in paths:

@@ -17,18 +17,12 @@ import numpy as np
 from trumans.limits import MAX_SAMPLES  # bodies sampled in one batch
 from trumans.paths import MODELS_DIR
 from trumans.scenes.spec import SCENE_UP_KEY
-from trumans.sequence import Sequence
+from trumans.sequence import GOAL_JOINTS_KEY, GOALS_KEY, SAMPLER_CONFIG_KEY, Sequence  # the npz's extra keys
 
 __all__ = ["Generation", "generate_sequences", "check_points_inside", "default_plan", "resolve_plan", "DEFAULT_CHECKPOINT",
            "SAMPLER_CONFIG_KEY", "SCENE_UP_KEY", "MAX_SAMPLES", "GOALS_KEY", "GOAL_JOINTS_KEY"]
 
 DEFAULT_CHECKPOINT = MODELS_DIR / "generator.pt"
-# the sequence's ``extra`` entry with the sampler config used, JSON (``SamplerConfig.to_dict``);
-# ``SamplerConfig.from_dict(json.loads(...))`` rebuilds it
-SAMPLER_CONFIG_KEY = "sampler_config"
-# every episode's goal: ``extra[GOALS_KEY]`` (K, 4) rows (frame, x, y, z) m, the frame it is due (a pelvis goal
-# is a floor point, z = 0), and ``extra[GOAL_JOINTS_KEY]`` (K,) the joint that reaches it; ``trumans view --html`` draws them
-GOALS_KEY, GOAL_JOINTS_KEY = "goals", "goal_joints"
 
 
 @dataclass

@@ -300,3 +300,27 @@ def test_seam_weight_adds_the_term_and_zero_leaves_the_loss_alone(tiny) -> None:
     torch.testing.assert_close(losses[2.0].terms["simple"], losses[0.0].terms["simple"])
     torch.testing.assert_close(losses[2.0].loss, losses[0.0].loss + 2.0 * losses[2.0].terms["seam"])
     assert losses[2.0].terms["seam"].item() > 0
+
+
+def test_bf16_mixed_precision_trains_with_float32_weights(tiny, tmp_path: Path) -> None:
+    """train.precision = "bf16": forward and loss under autocast (CPU here, CUDA on a GPU), weights and
+    checkpoint float32, losses finite and different from the float32 run's; a bad value is refused."""
+    from trumans.train.config import GeneratorConfig, load_config
+    from trumans.train.loop import train
+    from trumans.model.checkpoint import load_checkpoint
+
+    root, cfg_path = tiny
+    cfg = load_config(cfg_path)
+    d = cfg.to_dict()
+    d["train"]["precision"] = "bf16"
+    half = GeneratorConfig.from_dict(d)
+    full = train(cfg, root, tmp_path / "fp32", steps=3, seed=1, progress=False)
+    mixed = train(half, root, tmp_path / "bf16", steps=3, seed=1, progress=False)
+    assert np.isfinite(mixed.train_loss) and np.isfinite(mixed.val_loss)
+    ck = load_checkpoint(mixed.checkpoint)
+    assert all(v.dtype == torch.float32 for v in ck.model_state.values() if v.is_floating_point())
+    assert mixed.weights_sha256 != full.weights_sha256  # autocast did run: bf16 rounding changed the steps
+    assert abs(mixed.train_loss - full.train_loss) < 0.1 * abs(full.train_loss) + 1e-3
+    d["train"]["precision"] = "fp16"
+    with pytest.raises(ValueError, match="precision"):
+        GeneratorConfig.from_dict(d)

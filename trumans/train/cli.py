@@ -50,6 +50,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="switch off a part (generator: progress (indicator), scene / action (condition), "
                         "augmented (data)); repeatable")
     p.add_argument("--time-limit", type=float, default=None, help="stop after this many seconds (overrides config)")
+    p.add_argument("--precision", choices=("fp32", "bf16"), default=None,
+                   help="bf16: mixed precision (autocast forward and loss, float32 weights; for GPUs); "
+                        "default: the config's train.precision (fp32)")
     add_device_argument(p, default=None)
     p.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
     add_no_progress_argument(p)
@@ -79,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(args.time_limit) and args.time_limit >= 0):
             raise ValueError(f"--time-limit must be >= 0 seconds (0 = none), got {args.time_limit}")
         over["train"] = {"time_limit_s": float(args.time_limit)}
+    if args.precision is not None:
+        over.setdefault("train", {})["precision"] = args.precision
     task = make_task(args.task, args.config, overrides=over, ablate=args.ablate)
     res = train(task, args.data, args.out, steps=args.steps, resume=args.resume, seed=args.seed,
                 progress=not args.no_progress, device=args.device, augmented_dirs=args.augmented, init=args.init)

@@ -43,7 +43,9 @@ class TrainSection:
     checkpoint / validation intervals, batch sizes, the inpainting-mask probabilities, condition
     dropout (classifier-free guidance), a time limit in seconds (0 = none; the run stops and
     checkpoints after it) and, for the generator, ``seam_weight``: the weight of the seam-continuity
-    term (``trumans.train.tasks.generator.seam_loss``; 0 = off, the paper's loss alone)."""
+    term (``trumans.train.tasks.generator.seam_loss``; 0 = off, the paper's loss alone); ``precision``:
+    "bf16" runs the forward and loss under ``torch.autocast`` in bfloat16 (weights, optimiser state
+    and gradients stay float32: mixed precision for GPUs; on CPUs without bf16 units it is slower)."""
 
     optimizer: Literal["adam", "adamw"] = "adam"
     steps: int = 100_000
@@ -63,8 +65,10 @@ class TrainSection:
     p_drop_action: float = 0.1
     time_limit_s: float = 0.0
     seam_weight: float = 0.0
+    precision: Literal["fp32", "bf16"] = "fp32"
 
     def __post_init__(self) -> None:
+        _need(self.precision in ("fp32", "bf16"), f"precision must be 'fp32' or 'bf16', got {self.precision!r}")
         _need(self.seam_weight >= 0, f"seam_weight must be >= 0 (0 = off), got {self.seam_weight}")
         _need(self.steps >= 0, f"steps must be >= 0, got {self.steps}")
         for name in ("checkpoint_every", "val_every"):

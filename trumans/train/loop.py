@@ -249,8 +249,9 @@ def train(task: Task | GeneratorConfig, data_dir: str | Path, out_dir: str | Pat
             batch = task.batch(step, info.rank, info.world)
             load_time += time.perf_counter() - ts
             model.train()
-            out_loss = task.loss(net, batch, g, info.device)
-            loss = out_loss.loss
+            with torch.autocast(info.device.type, dtype=torch.bfloat16, enabled=tc.precision == "bf16"):
+                out_loss = task.loss(net, batch, g, info.device)
+            loss = out_loss.loss.float()
             opt.zero_grad(set_to_none=True)
             loss.backward()
             if tc.grad_clip > 0:

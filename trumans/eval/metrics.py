@@ -128,7 +128,14 @@ def joint_centre_inside_cm(joints: np.ndarray, scene: Scene, names: list[str]) -
         near |= np.all((pts >= lo) & (pts <= hi), axis=1)
     if not near.any():
         return 0.0
-    s = SceneDistance(meshes).query(pts[near]).signed
+    # inside test first (on the float32 points SceneDistance.query tests); the closest points, and
+    # the ray-casting scene they need, only for the joints found inside
+    sd = SceneDistance(meshes, build_scene=False)
+    q = np.ascontiguousarray(pts[near], dtype=np.float32)
+    inside = sd.inside_per_mesh(q).any(-1)
+    if not inside.any():
+        return 0.0
+    s = sd.query(q[inside]).signed
     return float(max(0.0, -float(s.min())) * 100.0)
 
 

@@ -118,7 +118,13 @@ def _ring_inner(j: int, inner: int) -> np.ndarray:
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt((v * v).sum(-1))
+    """(..., 3) -> (...,) lengths (einsum: numpy's sum over a length-3 axis is twice as slow)."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(..., 3), (..., 3) -> (...,) dot products."""
+    return np.einsum("...i,...i->...", a, b)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -126,33 +132,62 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
 
 
-def _aim(a: np.ndarray, b: np.ndarray, limit: float) -> np.ndarray:
-    """Rotation vectors (n, 3) turning direction a toward b, angle clipped to ``limit`` rad."""
+def _rotmat(axis: np.ndarray, ang: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotations by ``ang`` (n,) rad about the unit ``axis`` (n, 3) (Rodrigues,
+    ``trumans.rotations.rodrigues`` without its normalising and broadcasting: the CCD steps give
+    unit axes, and this is the solver's most frequent call). Angle 0 gives the identity."""
+    c, s = np.cos(ang), np.sin(ang)
+    t = 1.0 - c
+    x, y, z = axis[:, 0], axis[:, 1], axis[:, 2]
+    tx, ty, tz = t * x, t * y, t * z
+    sx, sy, sz = s * x, s * y, s * z
+    txy, txz, tyz = tx * y, tx * z, ty * z
+    R = np.empty((len(ang), 3, 3))
+    R[:, 0, 0] = tx * x + c
+    R[:, 0, 1] = txy - sz
+    R[:, 0, 2] = txz + sy
+    R[:, 1, 0] = txy + sz
+    R[:, 1, 1] = ty * y + c
+    R[:, 1, 2] = tyz - sx
+    R[:, 2, 0] = txz - sy
+    R[:, 2, 1] = tyz + sx
+    R[:, 2, 2] = tz * z + c
+    return R
+
+
+def _aim(a: np.ndarray, b: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation turning direction a (n, 3) toward b (n, 3): unit axes (n, 3) and angles (n,)
+    rad clipped to ``limit`` (0 where a, b or their cross product vanish)."""
     cross = _cross(a, b)
     sn = _norm(cross)
-    ang = np.arctan2(sn, (a * b).sum(-1))
-    ang = np.minimum(ang, limit)
+    ang = np.minimum(np.arctan2(sn, _dot(a, b)), limit)
     ok = (sn > 1e-12) & (_norm(a) > 1e-6) & (_norm(b) > 1e-6)
-    return np.where(ok[:, None], cross / np.maximum(sn, 1e-12)[:, None] * ang[:, None], 0.0)
+    return cross / np.maximum(sn, 1e-12)[:, None], np.where(ok, ang, 0.0)
 
 
 def _bend(pu: np.ndarray, pm: np.ndarray, pe: np.ndarray, target: np.ndarray, hinge: np.ndarray,
-          limit: float) -> np.ndarray:
-    """Rotation vectors (n, 3) at a middle joint (knee / elbow) that set the upper-joint-to-effector
-    distance to the upper-joint-to-target distance (law of cosines), about the bend-plane normal
-    (the hinge axis ``hinge`` (n, 3) world when the limb is straight), clipped to ``limit`` rad.
-    Plain CCD crawls when a two-bone limb is almost straight; this step does not."""
+          limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """The rotation at a middle joint (knee / elbow) that sets the upper-joint-to-effector distance
+    to the upper-joint-to-target distance (law of cosines), about the bend-plane normal (the hinge
+    axis ``hinge`` (n, 3) world when the limb is straight), clipped to ``limit`` rad: unit axes
+    (n, 3) and signed angles (n,). Plain CCD crawls when a two-bone limb is almost straight; this
+    step does not."""
     a, b = pu - pm, pe - pm
     la, lb = _norm(a), _norm(b)
     D = np.clip(_norm(target - pu), np.abs(la - lb) + 1e-9, la + lb - 1e-9)
-    phi = np.arccos(np.clip((a * b).sum(-1) / np.maximum(la * lb, 1e-12), -1.0, 1.0))
+    phi = np.arccos(np.clip(_dot(a, b) / np.maximum(la * lb, 1e-12), -1.0, 1.0))
     phi2 = np.arccos(np.clip((la**2 + lb**2 - D**2) / np.maximum(2 * la * lb, 1e-12), -1.0, 1.0))
     n = _cross(a, b)
     nn = _norm(n)
     hinge_u = hinge / np.maximum(_norm(hinge), 1e-12)[:, None]
     # straight limb: bend so the effector moves the way the hinge flexes (sign of a x b along the hinge)
     axis = np.where((nn > 1e-6)[:, None], n / np.maximum(nn, 1e-12)[:, None], -hinge_u)
-    return axis * np.clip(phi2 - phi, -limit, limit)[:, None]
+    return axis, np.clip(phi2 - phi, -limit, limit)
+
+
+def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """R (n, 3, 3) applied to vectors v (n, 3) -> (n, 3)."""
+    return np.einsum("nij,nj->ni", R, v)
 
 
 def _sweep(P, G, target, e, chain, limits, gain, spine_gain) -> None:
@@ -160,35 +195,54 @@ def _sweep(P, G, target, e, chain, limits, gain, spine_gain) -> None:
 
     Ops at distal joints never move proximal ones, so every op uses the sweep-start pivots and
     rotations; the ops are then composed once per joint (each joint transformed once)."""
-    n = P.shape[0]
     pe = P[:, e].copy()
     ops = []
     for j in chain:
         pj = P[:, j]
         g = gain * spine_gain if j in _SPINE else gain
         if j in HINGE_AXES and len(ops) == 0 and len(chain) > 1:
-            rv = _bend(P[:, chain[1]], pj, pe, target, G[:, j] @ HINGE_AXES[j], limits[j])
+            axis, ang = _bend(P[:, chain[1]], pj, pe, target, _apply(G[:, j], np.broadcast_to(HINGE_AXES[j], pj.shape)),
+                              limits[j])
         else:
-            rv = _aim(pe - pj, target - pj, limits[j])
-        dA = axis_angle_to_matrix(g[:, None] * rv)
-        pe = np.einsum("nij,nj->ni", dA, pe - pj) + pj
+            axis, ang = _aim(pe - pj, target - pj, limits[j])
+        dA = _rotmat(axis, g * ang)
+        pe = _apply(dA, pe - pj) + pj
         ops.append((j, dA))
     # compose from the proximal end: C_m = C_{m+1} o T_m; apply C_m to subtree(j_m) \ subtree(j_{m-1})
-    Rc = np.broadcast_to(np.eye(3), (n, 3, 3))
-    tc = np.zeros((n, 3))
+    Rc = tc = None
     for m in range(len(ops) - 1, -1, -1):
         j, dR = ops[m]
         pj = P[:, j]
-        tc = np.einsum("nij,nj->ni", Rc, pj - np.einsum("nij,nj->ni", dR, pj)) + tc
-        Rc = Rc @ dR
-        sub = _ring(j, ops[m - 1][0] if m > 0 else -1)
-        P[:, sub] = np.einsum("nij,nkj->nki", Rc, P[:, sub]) + tc[:, None]
-        gsub = _ring_inner(j, ops[m - 1][0] if m > 0 else -1)
-        if len(gsub):
+        if Rc is None:  # the most proximal op: C = T (identity before it)
+            tc = pj - _apply(dR, pj)
+            Rc = dR
+        else:
+            tc = _apply(Rc, pj - _apply(dR, pj)) + tc
+            Rc = Rc @ dR
+        inner = ops[m - 1][0] if m > 0 else -1
+        sub = _ring(j, inner)
+        if len(sub) == 1:
+            k = int(sub[0])
+            P[:, k] = _apply(Rc, P[:, k]) + tc
+        else:
+            P[:, sub] = P[:, sub] @ np.swapaxes(Rc, -1, -2) + tc[:, None]
+        gsub = _ring_inner(j, inner)
+        if len(gsub) == 1:
+            k = int(gsub[0])
+            G[:, k] = Rc @ G[:, k]
+        elif len(gsub):
             G[:, gsub] = Rc[:, None] @ G[:, gsub]
 
 
 _LEGS = (LIMB_CHAINS["left_leg"], LIMB_CHAINS["right_leg"])
+_INNER: np.ndarray = np.array([j for j in range(NUM_JOINTS) if j not in _LEAVES], dtype=np.int64)
+_PARENT_ROT: np.ndarray = PARENTS[_ROTATED]
+# FK levels below the root: (joints, their parents, the non-leaf joints, their rows in joints)
+_LEVELS: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+for _d in range(1, int(DEPTH.max()) + 1):
+    _js = np.flatnonzero(DEPTH == _d)
+    _in = np.array([i for i, j in enumerate(_js) if j not in _LEAVES], dtype=np.int64)
+    _LEVELS.append((_js, PARENTS[_js], _js[_in], _in))
 
 
 def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
@@ -231,20 +285,29 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
         s_leg = np.where(C > 0, np.where(B < 0, 1.0, 0.0), s_leg)  # already out of reach: only approach
         s[on] = np.minimum(s[on], s_leg)
     c = cp[:, None]
-    P[idx] = np.einsum("nij,nkj->nki", Rz, P[idx] - c) + c + (s[:, None] * res)[:, None]
-    G[idx] = Rz[:, None] @ G[idx]
+    sel = slice(None) if len(idx) == len(P) else idx
+    P[sel] = (P[sel] - c) @ np.swapaxes(Rz, -1, -2) + c + (s[:, None] * res)[:, None]
+    # leaves' rotations are never read while solving (solve_ik rebuilds them at the end)
+    if sel is idx:
+        G[np.ix_(idx, _INNER)] = Rz[:, None] @ G[np.ix_(idx, _INNER)]
+    else:
+        G[:, _INNER] = Rz[:, None] @ G[:, _INNER]
 
 
 def _regularise(P, G, R0, off, reg) -> None:
     """Pull every CCD joint's local rotation toward the original by the fraction ``reg`` (geodesic),
-    then redo FK from the root (in place). off: (n, 24, 3) per-frame bone offsets."""
-    L = global_to_local(G)
-    rv = matrix_to_axis_angle(R0[:, _ROTATED] @ np.swapaxes(L[:, _ROTATED], -1, -2))
-    L[:, _ROTATED] = axis_angle_to_matrix(reg * rv) @ L[:, _ROTATED]
-    for j in range(1, NUM_JOINTS):
-        p = PARENTS[j]
-        G[:, j] = G[:, p] @ L[:, j]
-        P[:, j] = P[:, p] + np.einsum("nij,nj->ni", G[:, p], off[:, j])
+    then redo FK from the root (in place), one depth level at a time (the joints of a level have
+    their parents in the level above). off: (n, 24, 3) per-frame bone offsets. Leaves' rotations
+    are not rebuilt (never read while solving; solve_ik rebuilds them at the end)."""
+    L = np.swapaxes(G[:, _PARENT_ROT], -1, -2) @ G[:, _ROTATED]
+    rv = matrix_to_axis_angle(R0[:, _ROTATED] @ np.swapaxes(L, -1, -2))
+    Lr = np.empty_like(G)
+    Lr[:, _ROTATED] = axis_angle_to_matrix(reg * rv) @ L
+    for js, ps, inner, pin in _LEVELS:
+        Gp = G[:, ps]
+        P[:, js] = P[:, ps] + np.einsum("nkij,nkj->nki", Gp, off[:, js])
+        if len(inner):
+            G[:, inner] = Gp[:, pin] @ Lr[:, inner]
 
 
 def solve_ik(

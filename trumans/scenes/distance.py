@@ -48,7 +48,10 @@ class SceneDistance:
     scene per connected body.
     """
 
-    def __init__(self, meshes: dict[str, trimesh.Trimesh], watertight: Watertight = "auto") -> None:
+    def __init__(self, meshes: dict[str, trimesh.Trimesh], watertight: Watertight = "auto",
+                 build_scene: bool = True) -> None:
+        """build_scene=False defers the closest-point scene to the first ``query`` (inside tests
+        alone never build it)."""
         if not isinstance(meshes, dict) or not meshes:
             raise ValueError("meshes must be a non-empty dict name -> trimesh.Trimesh")
         for name, m in meshes.items():
@@ -56,11 +59,16 @@ class SceneDistance:
         self.names: list[str] = list(meshes)
         self.meshes = dict(meshes)
         self.watertight = watertight
-        self._scene, ids = to_o3d_scene(*meshes.values())
-        self._id_to_index = np.full(max(ids) + 1, -1, dtype=np.int64)
-        self._id_to_index[ids] = np.arange(len(ids))
+        self._scene = None
+        if build_scene:
+            self._build_scene()
         self._bodies: dict[str, list[Body]] = {}
         self._single: dict[str, SceneDistance] = {}
+
+    def _build_scene(self) -> None:
+        self._scene, ids = to_o3d_scene(*self.meshes.values())
+        self._id_to_index = np.full(max(ids) + 1, -1, dtype=np.int64)
+        self._id_to_index[ids] = np.arange(len(ids))
 
     def _bodies_of(self, name: str) -> list[Body]:
         if name not in self._bodies:
@@ -84,6 +92,8 @@ class SceneDistance:
             return DistanceResult(z, z.copy(), np.zeros(batch + (3,), np.float32),
                                   np.zeros(batch + (3,), np.float32), np.zeros(batch, np.int64),
                                   list(self.names), np.zeros(batch, bool))
+        if self._scene is None:
+            self._build_scene()
         res = self._scene.compute_closest_points(o3d.core.Tensor(flat), nthreads=nthreads())
         closest = res["points"].numpy()
         normal = res["primitive_normals"].numpy()

@@ -1,0 +1,198 @@
+"""The CCD solver's vectorised steps against the straightforward forms they replaced (issue 38).
+
+The references below are the solver's earlier code (``rodrigues`` rotations, per-joint FK, whole
+subtree rotation updates); the fast steps must give the same poses to float rounding. Leaves'
+global rotations are not maintained while solving (``solve_ik`` rebuilds them), so the step checks
+compare positions and the non-leaf rotations."""
+import numpy as np
+import pytest
+
+import trumans.ik.ccd as ccd
+from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle, yaw_matrix
+from trumans.skeleton import HINGE_AXES, NUM_JOINTS, PARENTS, TORSO, bone_offsets, forward_kinematics, global_to_local, \
+    rest_offsets
+
+INNER = ccd._INNER
+
+
+# --- references: the solver's steps before issue 38 -------------------------------------------------
+
+def _ref_aim(a, b, limit):
+    cross = np.cross(a, b)
+    sn = np.linalg.norm(cross, axis=-1)
+    ang = np.minimum(np.arctan2(sn, (a * b).sum(-1)), limit)
+    ok = (sn > 1e-12) & (np.linalg.norm(a, axis=-1) > 1e-6) & (np.linalg.norm(b, axis=-1) > 1e-6)
+    return np.where(ok[:, None], cross / np.maximum(sn, 1e-12)[:, None] * ang[:, None], 0.0)
+
+
+def _ref_bend(pu, pm, pe, target, hinge, limit):
+    a, b = pu - pm, pe - pm
+    la, lb = np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)
+    D = np.clip(np.linalg.norm(target - pu, axis=-1), np.abs(la - lb) + 1e-9, la + lb - 1e-9)
+    phi = np.arccos(np.clip((a * b).sum(-1) / np.maximum(la * lb, 1e-12), -1.0, 1.0))
+    phi2 = np.arccos(np.clip((la**2 + lb**2 - D**2) / np.maximum(2 * la * lb, 1e-12), -1.0, 1.0))
+    n = np.cross(a, b)
+    nn = np.linalg.norm(n, axis=-1)
+    hinge_u = hinge / np.maximum(np.linalg.norm(hinge, axis=-1), 1e-12)[:, None]
+    axis = np.where((nn > 1e-6)[:, None], n / np.maximum(nn, 1e-12)[:, None], -hinge_u)
+    return axis * np.clip(phi2 - phi, -limit, limit)[:, None]
+
+
+def _ref_sweep(P, G, target, e, chain, limits, gain, spine_gain):
+    n = P.shape[0]
+    pe = P[:, e].copy()
+    ops = []
+    for j in chain:
+        pj = P[:, j]
+        g = gain * spine_gain if j in ccd._SPINE else gain
+        if j in HINGE_AXES and len(ops) == 0 and len(chain) > 1:
+            rv = _ref_bend(P[:, chain[1]], pj, pe, target, G[:, j] @ HINGE_AXES[j], limits[j])
+        else:
+            rv = _ref_aim(pe - pj, target - pj, limits[j])
+        dA = axis_angle_to_matrix(g[:, None] * rv)
+        pe = np.einsum("nij,nj->ni", dA, pe - pj) + pj
+        ops.append((j, dA))
+    Rc = np.broadcast_to(np.eye(3), (n, 3, 3))
+    tc = np.zeros((n, 3))
+    for m in range(len(ops) - 1, -1, -1):
+        j, dR = ops[m]
+        pj = P[:, j]
+        tc = np.einsum("nij,nj->ni", Rc, pj - np.einsum("nij,nj->ni", dR, pj)) + tc
+        Rc = Rc @ dR
+        sub = ccd._ring(j, ops[m - 1][0] if m > 0 else -1)
+        P[:, sub] = np.einsum("nij,nkj->nki", Rc, P[:, sub]) + tc[:, None]
+        G[:, sub] = Rc[:, None] @ G[:, sub]
+
+
+def _ref_regularise(P, G, R0, off, reg):
+    L = global_to_local(G)
+    rv = matrix_to_axis_angle(R0[:, ccd._ROTATED] @ np.swapaxes(L[:, ccd._ROTATED], -1, -2))
+    L[:, ccd._ROTATED] = axis_angle_to_matrix(reg * rv) @ L[:, ccd._ROTATED]
+    for j in range(1, NUM_JOINTS):
+        p = PARENTS[j]
+        G[:, j] = G[:, p] @ L[:, j]
+        P[:, j] = P[:, p] + np.einsum("nij,nj->ni", G[:, p], off[:, j])
+
+
+def _ref_root_step(P, G, target, wt, leg_len, reach, yaw_limit):
+    rg = list(TORSO)
+    w = wt[:, rg].copy()
+    w[:, 0] *= 2.0
+    ws = w.sum(1)
+    has = ws > 0
+    if not has.any():
+        return
+    idx = np.flatnonzero(has)
+    w, ws = w[idx], ws[idx]
+    p, t = P[idx][:, rg], target[idx][:, rg]
+    cp = (p * w[..., None]).sum(1) / ws[:, None]
+    ct = (t * w[..., None]).sum(1) / ws[:, None]
+    th = np.clip(fit_yaw(p - cp[:, None], t - ct[:, None], w), -yaw_limit, yaw_limit)
+    Rz = yaw_matrix(th)
+    res = ct - cp
+    s = np.ones(len(idx))
+    for (h, _, an), L in zip(ccd._LEGS, leg_len):
+        on = wt[idx, an] > 0
+        if not on.any():
+            continue
+        u = P[idx[on], h] - target[idx[on], an]
+        d = res[on]
+        R = np.maximum(reach * L, np.linalg.norm(P[idx[on], h] - P[idx[on], an], axis=-1))
+        A = (d * d).sum(-1)
+        B = 2 * (u * d).sum(-1)
+        C = (u * u).sum(-1) - R ** 2
+        root = (-B + np.sqrt(np.maximum(B * B - 4 * A * C, 0.0))) / np.maximum(2 * A, 1e-12)
+        s_leg = np.where(A + B + C <= 0, 1.0, np.clip(root, 0.0, 1.0))
+        s_leg = np.where(C > 0, np.where(B < 0, 1.0, 0.0), s_leg)
+        s[on] = np.minimum(s[on], s_leg)
+    c = cp[:, None]
+    P[idx] = np.einsum("nij,nkj->nki", Rz, P[idx] - c) + c + (s[:, None] * res)[:, None]
+    G[idx] = Rz[:, None] @ G[idx]
+
+
+# --- cases ---------------------------------------------------------------------------------------------
+
+def _random_pose(n: int, seed: int, spread: float = 0.4):
+    rng = np.random.default_rng(seed)
+    rot = axis_angle_to_matrix(rng.normal(0, spread, (n, NUM_JOINTS, 3)))
+    P, G = forward_kinematics(rot, rng.normal(0, 0.5, (n, 3)), rest_offsets())
+    return P, G, rng
+
+
+def test_rotmat_is_rodrigues():
+    rng = np.random.default_rng(1)
+    axis = rng.normal(size=(500, 3))
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    ang = np.concatenate([rng.uniform(-np.pi, np.pi, 497), [0.0, np.pi, -1e-9]])
+    R = ccd._rotmat(axis, ang)
+    assert np.abs(R - axis_angle_to_matrix(axis * ang[:, None])).max() < 1e-14
+    assert np.array_equal(ccd._rotmat(axis[:1], np.zeros(1))[0], np.eye(3))
+
+
+@pytest.mark.parametrize("e", [20, 21, 18, 22, 7, 10, 15, 4])
+def test_sweep_matches_reference(e):
+    n = 97
+    P, G, rng = _random_pose(n, e)
+    target = P[:, e] + rng.normal(0, 0.1, (n, 3))
+    target[:3] = P[:3, e]  # already on target: a zero step
+    limits = ccd.IKConfig().limits()
+    gain, sg = rng.uniform(0, 1, n), rng.uniform(0, 1, n)
+    gain[5] = 0.0
+    chain = ccd.CHAINS[e]
+    P1, G1, P2, G2 = P.copy(), G.copy(), P.copy(), G.copy()
+    _ref_sweep(P1, G1, target, e, chain, limits, gain, sg)
+    ccd._sweep(P2, G2, target, e, chain, limits, gain, sg)
+    assert np.abs(P1 - P2).max() < 1e-10
+    assert np.abs(G1[:, INNER] - G2[:, INNER]).max() < 1e-10
+    assert np.abs(P1 - P).max() > 1e-3  # the sweep did move the chain
+
+
+def test_regularise_matches_reference():
+    n = 64
+    P, G, rng = _random_pose(n, 3)
+    P0, G0, _ = _random_pose(n, 4, 0.2)
+    R0, off = global_to_local(G0), bone_offsets(P0, G0)
+    P1, G1, P2, G2 = P.copy(), G.copy(), P.copy(), G.copy()
+    _ref_regularise(P1, G1, R0, off, 0.25)
+    ccd._regularise(P2, G2, R0, off, 0.25)
+    assert np.abs(P1 - P2).max() < 1e-10
+    assert np.abs(G1[:, INNER] - G2[:, INNER]).max() < 1e-10
+
+
+@pytest.mark.parametrize("every_frame", [True, False])
+def test_root_step_matches_reference(every_frame):
+    n = 50
+    P, G, rng = _random_pose(n, 5)
+    target = P + rng.normal(0, 0.05, P.shape)
+    wt = np.zeros((n, NUM_JOINTS))
+    wt[:, [0, 3, 7, 8]] = rng.uniform(0.2, 1.0, (n, 4))
+    if not every_frame:
+        wt[::3, :3] = 0.0
+        wt[::3, 3] = 0.0
+    leg_len = [0.8, 0.8]
+    P1, G1, P2, G2 = P.copy(), G.copy(), P.copy(), G.copy()
+    _ref_root_step(P1, G1, target, wt, leg_len, 0.97, 0.1)
+    ccd._root_step(P2, G2, target, wt, leg_len, 0.97, 0.1)
+    assert np.abs(P1 - P2).max() < 1e-10
+    assert np.abs(G1[:, INNER] - G2[:, INNER]).max() < 1e-10
+
+
+def test_solve_ik_matches_reference_steps(monkeypatch):
+    """The whole solve, fast steps against the reference steps: same joints and rotations."""
+    n = 80
+    P, G, rng = _random_pose(n, 6, 0.3)
+    tgt = P.copy()
+    act = np.zeros((n, NUM_JOINTS))
+    for j in (0, 7, 10, 20, 21, 22):
+        tgt[:, j] += rng.normal(0, 0.03, (n, 3))
+        act[:, j] = rng.uniform(0.3, 1.0, n)
+    act[::4, 20] = 0.0
+    fast = ccd.solve_ik(P, G, tgt, act)
+    monkeypatch.setattr(ccd, "_sweep", _ref_sweep)
+    monkeypatch.setattr(ccd, "_regularise", _ref_regularise)
+    monkeypatch.setattr(ccd, "_root_step", _ref_root_step)
+    ref = ccd.solve_ik(P, G, tgt, act)
+    assert np.abs(fast.joints - ref.joints).max() < 1e-9
+    assert np.abs(fast.global_rot - ref.global_rot).max() < 1e-9
+    assert np.abs(fast.local_rot - ref.local_rot).max() < 1e-9
+    assert np.array_equal(fast.unreachable, ref.unreachable)

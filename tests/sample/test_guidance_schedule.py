@@ -53,3 +53,16 @@ def test_cheaper_guidance_still_guides(config):
     guided = _episode(config)
     np.testing.assert_allclose(guided[0, -1, 0, :2], free[0, -1, 0, :2], atol=1e-5)
     assert np.abs(guided - free).max() > 1e-3
+
+
+def test_last_step_runs_no_backward_pass_its_result_cannot_use(monkeypatch):
+    """The last step's final guidance update would only move x_{t-1} after the last step: it is not
+    computed (one backward pass fewer an episode), and the episode is what it was."""
+    calls = []
+    real = torch.autograd.grad
+    monkeypatch.setattr(torch.autograd, "grad", lambda *a, **k: calls.append(1) or real(*a, **k))
+    _episode(SamplerConfig(steps=4, guided_steps=2, goal_iters=3))
+    assert len(calls) == 2 * 3 - 1
+    calls.clear()
+    _episode(SamplerConfig(steps=4, guided_steps=1, goal_iters=1))
+    assert calls == []

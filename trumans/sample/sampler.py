@@ -58,8 +58,8 @@ class SamplerConfig:
     through the network: one forward per step, ``goal_iters`` cheap updates of size
     ``goal_guidance * x0_guidance`` on x0 before the DDIM step).
     The default schedule (10 steps, the last 5 guided, 2 updates of size 45 each: 15 network passes,
-    10 of them backward; goal heading weight 6) is ~4x cheaper than the earlier 20 steps x 3 updates
-    of size 20 every step (``QUALITY_SCHEDULE``) and a little farther from the goals (docs/results.md,
+    9 of them backward, as the last step's last update would move nothing; goal heading weight 6) is
+    ~4x cheaper than the earlier 20 steps x 3 updates of size 20 every step (``QUALITY_SCHEDULE``) and a little farther from the goals (docs/results.md,
     "Sampling speed"); guiding only the last 3 steps was ~1.5x faster again but left bodies short of
     the 1 m gap of the safety benchmark's partition room (8 of 12 runs never finished their plan);
     guidance: the guidance terms (goal, seat, penetration; ``trumans.sample.guidance.terms``);
@@ -244,9 +244,14 @@ class EpisodeSampler:
                                          ts[i + 1] if i + 1 < len(ts) else -1, generator)
                 continue
             grad = torch.zeros_like(x)
+            last = i + 1 == len(ts)
             with torch.enable_grad():
                 for it in range(self.config.goal_iters):
                     xg = (x - grad).detach().requires_grad_(True)
+                    if last and it + 1 == self.config.goal_iters:  # its gradient would move nothing: the
+                        with torch.no_grad():  # last step's x0 comes from this prediction, no x - grad follows
+                            out = model_fn(xg, t, mask=mask)
+                        break
                     out = model_fn(xg, t, mask=mask)
                     x0_hat, _ = d.x0_and_eps(out, t, xg)
                     prediction = Prediction(x0_hat, mean, std, self.k, rotation, origin)

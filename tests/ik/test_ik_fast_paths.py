@@ -1,4 +1,4 @@
-"""The CCD solver's vectorised steps against the straightforward forms they replaced (issue 38).
+"""The CCD solver's vectorised steps (trumans.ik.ccd, trumans.ik.sweep) against the straightforward forms they replaced (issue 38).
 
 The references below are the solver's earlier code (``rodrigues`` rotations, per-joint FK, whole
 subtree rotation updates); the fast steps must give the same poses to float rounding. Leaves'
@@ -9,6 +9,7 @@ import pytest
 
 import trumans.ik.ccd as ccd
 from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle, yaw_matrix
+import trumans.ik.sweep as sw
 from trumans.skeleton import HINGE_AXES, NUM_JOINTS, PARENTS, TORSO, bone_offsets, forward_kinematics, global_to_local, \
     rest_offsets
 
@@ -44,7 +45,7 @@ def _ref_sweep(P, G, target, e, chain, limits, gain, spine_gain):
     ops = []
     for j in chain:
         pj = P[:, j]
-        g = gain * spine_gain if j in ccd._SPINE else gain
+        g = gain * spine_gain if j in sw._SPINE else gain
         if j in HINGE_AXES and len(ops) == 0 and len(chain) > 1:
             rv = _ref_bend(P[:, chain[1]], pj, pe, target, G[:, j] @ HINGE_AXES[j], limits[j])
         else:
@@ -59,7 +60,7 @@ def _ref_sweep(P, G, target, e, chain, limits, gain, spine_gain):
         pj = P[:, j]
         tc = np.einsum("nij,nj->ni", Rc, pj - np.einsum("nij,nj->ni", dR, pj)) + tc
         Rc = Rc @ dR
-        sub = ccd._ring(j, ops[m - 1][0] if m > 0 else -1)
+        sub = sw.ring(j, ops[m - 1][0] if m > 0 else -1)
         P[:, sub] = np.einsum("nij,nkj->nki", Rc, P[:, sub]) + tc[:, None]
         G[:, sub] = Rc[:, None] @ G[:, sub]
 
@@ -110,6 +111,14 @@ def _ref_root_step(P, G, target, wt, leg_len, reach, yaw_limit):
     G[idx] = Rz[:, None] @ G[idx]
 
 
+def _ref_sweep_on(P, G, target, e, chain, limits, gain, spine_gain, frames):
+    if frames is None:
+        return _ref_sweep(P, G, target, e, chain, limits, gain, spine_gain)
+    Pe, Ge = P[frames], G[frames]
+    _ref_sweep(Pe, Ge, target, e, chain, limits, gain, spine_gain)
+    P[frames], G[frames] = Pe, Ge
+
+
 # --- cases ---------------------------------------------------------------------------------------------
 
 def _random_pose(n: int, seed: int, spread: float = 0.4):
@@ -124,9 +133,9 @@ def test_rotmat_is_rodrigues():
     axis = rng.normal(size=(500, 3))
     axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
     ang = np.concatenate([rng.uniform(-np.pi, np.pi, 497), [0.0, np.pi, -1e-9]])
-    R = ccd._rotmat(axis, ang)
+    R = np.moveaxis(sw._rotmat(axis.T.copy(), ang), -1, 0)  # (3, 3, n) -> (n, 3, 3)
     assert np.abs(R - axis_angle_to_matrix(axis * ang[:, None])).max() < 1e-14
-    assert np.array_equal(ccd._rotmat(axis[:1], np.zeros(1))[0], np.eye(3))
+    assert np.array_equal(sw._rotmat(axis[:1].T.copy(), np.zeros(1))[..., 0], np.eye(3))
 
 
 @pytest.mark.parametrize("e", [20, 21, 18, 22, 7, 10, 15, 4])
@@ -141,10 +150,17 @@ def test_sweep_matches_reference(e):
     chain = ccd.CHAINS[e]
     P1, G1, P2, G2 = P.copy(), G.copy(), P.copy(), G.copy()
     _ref_sweep(P1, G1, target, e, chain, limits, gain, sg)
-    ccd._sweep(P2, G2, target, e, chain, limits, gain, sg)
+    sw.sweep(P2, G2, target, e, chain, limits, gain, sg)
     assert np.abs(P1 - P2).max() < 1e-10
     assert np.abs(G1[:, INNER] - G2[:, INNER]).max() < 1e-10
     assert np.abs(P1 - P).max() > 1e-3  # the sweep did move the chain
+    # on a subset of the frames (the solver's usual call): those frames as above, the others untouched
+    fr = np.arange(0, n, 3)
+    P3, G3 = P.copy(), G.copy()
+    sw.sweep(P3, G3, target[fr], e, chain, limits, gain[fr], sg[fr], frames=fr)
+    assert np.abs(P3[fr] - P2[fr]).max() < 1e-12 and np.abs(G3[fr][:, INNER] - G2[fr][:, INNER]).max() < 1e-12
+    rest = np.setdiff1d(np.arange(n), fr)
+    assert np.array_equal(P3[rest], P[rest]) and np.array_equal(G3[rest], G[rest])
 
 
 def test_regularise_matches_reference():
@@ -188,7 +204,7 @@ def test_solve_ik_matches_reference_steps(monkeypatch):
         act[:, j] = rng.uniform(0.3, 1.0, n)
     act[::4, 20] = 0.0
     fast = ccd.solve_ik(P, G, tgt, act)
-    monkeypatch.setattr(ccd, "_sweep", _ref_sweep)
+    monkeypatch.setattr(ccd, "sweep", lambda P, G, t, e, c, lim, g, sg, frames=None: _ref_sweep_on(P, G, t, e, c, lim, g, sg, frames))
     monkeypatch.setattr(ccd, "_regularise", _ref_regularise)
     monkeypatch.setattr(ccd, "_root_step", _ref_root_step)
     ref = ccd.solve_ik(P, G, tgt, act)

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle, yaw_matrix
-from trumans.skeleton import (DEPTH, HINGE_AXES, JOINT_INDEX, LIMB_CHAINS, NUM_JOINTS, PARENTS, SPINE, SUBTREE, TORSO,
-                              bone_offsets, global_to_local)
+from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle
+from trumans.skeleton import DEPTH, JOINT_INDEX, LIMB_CHAINS, NUM_JOINTS, PARENTS, TORSO, bone_offsets, global_to_local
+
+from trumans.ik.sweep import LEAVES, sweep
 
 __all__ = ["IKConfig", "IKResult", "ROOT_GROUP", "CHAINS", "solve_ik"]
 
@@ -35,7 +36,6 @@ _J = JOINT_INDEX
 
 # Joints moved by translating the root (seat / bed contacts): the rigid trunk.
 ROOT_GROUP: tuple[int, ...] = TORSO
-_SPINE = frozenset(SPINE)
 # root-group joints above spine1: contacts that bending the spine would tear off
 _UPPER: list[int] = [_J[n] for n in ("spine2", "spine3", "neck", "head", "left_collar", "right_collar",
                                       "left_shoulder", "right_shoulder")]
@@ -93,28 +93,7 @@ class IKResult:
     unreachable: np.ndarray
 
 
-_RING: dict[tuple[int, int], np.ndarray] = {}
-
-
-def _ring(j: int, inner: int) -> np.ndarray:
-    """Joints of subtree(j) not in subtree(inner) (inner = -1: the whole subtree), cached."""
-    key = (j, inner)
-    if key not in _RING:
-        _RING[key] = SUBTREE[j] if inner < 0 else np.setdiff1d(SUBTREE[j], SUBTREE[inner], assume_unique=True)
-    return _RING[key]
-
-
-_LEAVES = frozenset(j for j in range(NUM_JOINTS) if not (PARENTS == j).any())
-_RING_INNER: dict[tuple[int, int], np.ndarray] = {}
-
-
-def _ring_inner(j: int, inner: int) -> np.ndarray:
-    """``_ring`` without leaf joints: a leaf's rotation is never read while solving (its local
-    rotation never changes), so it is rebuilt from its parent once at the end."""
-    key = (j, inner)
-    if key not in _RING_INNER:
-        _RING_INNER[key] = np.array([k for k in _ring(j, inner) if k not in _LEAVES], dtype=np.int64)
-    return _RING_INNER[key]
+_LEAVES = LEAVES
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
@@ -125,113 +104,6 @@ def _norm(v: np.ndarray) -> np.ndarray:
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(..., 3), (..., 3) -> (...,) dot products."""
     return np.einsum("...i,...i->...", a, b)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
-
-
-def _rotmat(axis: np.ndarray, ang: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotations by ``ang`` (n,) rad about the unit ``axis`` (n, 3) (Rodrigues,
-    ``trumans.rotations.rodrigues`` without its normalising and broadcasting: the CCD steps give
-    unit axes, and this is the solver's most frequent call). Angle 0 gives the identity."""
-    c, s = np.cos(ang), np.sin(ang)
-    t = 1.0 - c
-    x, y, z = axis[:, 0], axis[:, 1], axis[:, 2]
-    tx, ty, tz = t * x, t * y, t * z
-    sx, sy, sz = s * x, s * y, s * z
-    txy, txz, tyz = tx * y, tx * z, ty * z
-    R = np.empty((len(ang), 3, 3))
-    R[:, 0, 0] = tx * x + c
-    R[:, 0, 1] = txy - sz
-    R[:, 0, 2] = txz + sy
-    R[:, 1, 0] = txy + sz
-    R[:, 1, 1] = ty * y + c
-    R[:, 1, 2] = tyz - sx
-    R[:, 2, 0] = txz - sy
-    R[:, 2, 1] = tyz + sx
-    R[:, 2, 2] = tz * z + c
-    return R
-
-
-def _aim(a: np.ndarray, b: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
-    """The rotation turning direction a (n, 3) toward b (n, 3): unit axes (n, 3) and angles (n,)
-    rad clipped to ``limit`` (0 where a, b or their cross product vanish)."""
-    cross = _cross(a, b)
-    sn = _norm(cross)
-    ang = np.minimum(np.arctan2(sn, _dot(a, b)), limit)
-    ok = (sn > 1e-12) & (_norm(a) > 1e-6) & (_norm(b) > 1e-6)
-    return cross / np.maximum(sn, 1e-12)[:, None], np.where(ok, ang, 0.0)
-
-
-def _bend(pu: np.ndarray, pm: np.ndarray, pe: np.ndarray, target: np.ndarray, hinge: np.ndarray,
-          limit: float) -> tuple[np.ndarray, np.ndarray]:
-    """The rotation at a middle joint (knee / elbow) that sets the upper-joint-to-effector distance
-    to the upper-joint-to-target distance (law of cosines), about the bend-plane normal (the hinge
-    axis ``hinge`` (n, 3) world when the limb is straight), clipped to ``limit`` rad: unit axes
-    (n, 3) and signed angles (n,). Plain CCD crawls when a two-bone limb is almost straight; this
-    step does not."""
-    a, b = pu - pm, pe - pm
-    la, lb = _norm(a), _norm(b)
-    D = np.clip(_norm(target - pu), np.abs(la - lb) + 1e-9, la + lb - 1e-9)
-    phi = np.arccos(np.clip(_dot(a, b) / np.maximum(la * lb, 1e-12), -1.0, 1.0))
-    phi2 = np.arccos(np.clip((la**2 + lb**2 - D**2) / np.maximum(2 * la * lb, 1e-12), -1.0, 1.0))
-    n = _cross(a, b)
-    nn = _norm(n)
-    hinge_u = hinge / np.maximum(_norm(hinge), 1e-12)[:, None]
-    # straight limb: bend so the effector moves the way the hinge flexes (sign of a x b along the hinge)
-    axis = np.where((nn > 1e-6)[:, None], n / np.maximum(nn, 1e-12)[:, None], -hinge_u)
-    return axis, np.clip(phi2 - phi, -limit, limit)
-
-
-def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R (n, 3, 3) applied to vectors v (n, 3) -> (n, 3)."""
-    return np.einsum("nij,nj->ni", R, v)
-
-
-def _sweep(P, G, target, e, chain, limits, gain, spine_gain) -> None:
-    """One CCD pass (distal -> proximal) for effector e on frames of P/G (modified in place).
-
-    Ops at distal joints never move proximal ones, so every op uses the sweep-start pivots and
-    rotations; the ops are then composed once per joint (each joint transformed once)."""
-    pe = P[:, e].copy()
-    ops = []
-    for j in chain:
-        pj = P[:, j]
-        g = gain * spine_gain if j in _SPINE else gain
-        if j in HINGE_AXES and len(ops) == 0 and len(chain) > 1:
-            axis, ang = _bend(P[:, chain[1]], pj, pe, target, _apply(G[:, j], np.broadcast_to(HINGE_AXES[j], pj.shape)),
-                              limits[j])
-        else:
-            axis, ang = _aim(pe - pj, target - pj, limits[j])
-        dA = _rotmat(axis, g * ang)
-        pe = _apply(dA, pe - pj) + pj
-        ops.append((j, dA))
-    # compose from the proximal end: C_m = C_{m+1} o T_m; apply C_m to subtree(j_m) \ subtree(j_{m-1})
-    Rc = tc = None
-    for m in range(len(ops) - 1, -1, -1):
-        j, dR = ops[m]
-        pj = P[:, j]
-        if Rc is None:  # the most proximal op: C = T (identity before it)
-            tc = pj - _apply(dR, pj)
-            Rc = dR
-        else:
-            tc = _apply(Rc, pj - _apply(dR, pj)) + tc
-            Rc = Rc @ dR
-        inner = ops[m - 1][0] if m > 0 else -1
-        sub = _ring(j, inner)
-        if len(sub) == 1:
-            k = int(sub[0])
-            P[:, k] = _apply(Rc, P[:, k]) + tc
-        else:
-            P[:, sub] = P[:, sub] @ np.swapaxes(Rc, -1, -2) + tc[:, None]
-        gsub = _ring_inner(j, inner)
-        if len(gsub) == 1:
-            k = int(gsub[0])
-            G[:, k] = Rc @ G[:, k]
-        elif len(gsub):
-            G[:, gsub] = Rc[:, None] @ G[:, gsub]
 
 
 _LEGS = (LIMB_CHAINS["left_leg"], LIMB_CHAINS["right_leg"])
@@ -264,7 +136,7 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
     ct = (t * w[..., None]).sum(1) / ws[:, None]
     a, b = p - cp[:, None], t - ct[:, None]
     th = np.clip(fit_yaw(a, b, w), -yaw_limit, yaw_limit)
-    Rz = yaw_matrix(th)
+    cz, sz = np.cos(th), np.sin(th)
     res = ct - cp
     s = np.ones(len(idx))
     for (h, _, an), L in zip(_LEGS, leg_len):
@@ -286,12 +158,22 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
         s[on] = np.minimum(s[on], s_leg)
     c = cp[:, None]
     sel = slice(None) if len(idx) == len(P) else idx
-    P[sel] = (P[sel] - c) @ np.swapaxes(Rz, -1, -2) + c + (s[:, None] * res)[:, None]
+    # the yaw Rz (about +z by th) mixes only the x and y rows: Rz v = (c x - s y, s x + c y, z)
+    q = P[sel] - c
+    shift = c + (s[:, None] * res)[:, None]
+    cq, sq = cz[:, None], sz[:, None]
+    x, y = q[..., 0].copy(), q[..., 1].copy()
+    q[..., 0] = cq * x - sq * y
+    q[..., 1] = sq * x + cq * y
+    P[sel] = q + shift
     # leaves' rotations are never read while solving (solve_ik rebuilds them at the end)
-    if sel is idx:
-        G[np.ix_(idx, _INNER)] = Rz[:, None] @ G[np.ix_(idx, _INNER)]
-    else:
-        G[:, _INNER] = Rz[:, None] @ G[:, _INNER]
+    rows = (idx[:, None], _INNER) if sel is idx else (slice(None), _INNER)
+    Gi = G[rows]  # (n, 19, 3, 3): rows 0 and 1 of each rotation mix
+    cg, sg = cz[:, None, None], sz[:, None, None]
+    g0, g1 = Gi[:, :, 0].copy(), Gi[:, :, 1]
+    Gi[:, :, 0] = cg * g0 - sg * g1
+    Gi[:, :, 1] = sg * g0 + cg * g1
+    G[rows] = Gi
 
 
 def _regularise(P, G, R0, off, reg) -> None:
@@ -398,12 +280,10 @@ def solve_ik(
             # limbs may bend the spine only as far as no bed/back contact holds the upper torso
             sg = np.ones(len(Pt)) if e in ROOT_GROUP else 1.0 - wtt[:, _UPPER].max(1)
             if need.all():
-                _sweep(Pt, Gt, tt[:, e], int(e), chain, limits, wtt[:, e], sg)
+                sweep(Pt, Gt, tt[:, e], int(e), chain, limits, wtt[:, e], sg)
             else:
                 fr = np.flatnonzero(need)
-                Pe, Ge = Pt[fr], Gt[fr]
-                _sweep(Pe, Ge, tt[fr, e], int(e), chain, limits, wtt[fr, e], sg[fr])
-                Pt[fr], Gt[fr] = Pe, Ge
+                sweep(Pt, Gt, tt[fr, e], int(e), chain, limits, wtt[fr, e], sg[fr], frames=fr)
         err = np.where(at, _norm(Pt - tt), 0.0).max(1)
         keep = (err > cfg.tol) & ((reg > 0) | (err < prevt - 1e-6))  # done: converged, or stalled after the regularised iterations
         prevt = err

@@ -10,6 +10,7 @@ import pytest
 import trumans.ik.ccd as ccd
 from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle, yaw_matrix
 import trumans.ik.sweep as sw
+from trumans.ik import soa
 from trumans.skeleton import HINGE_AXES, NUM_JOINTS, PARENTS, TORSO, bone_offsets, forward_kinematics, global_to_local, \
     rest_offsets
 
@@ -75,6 +76,13 @@ def _ref_regularise(P, G, R0, off, reg):
         P[:, j] = P[:, p] + np.einsum("nij,nj->ni", G[:, p], off[:, j])
 
 
+def _ref_regularise_soa_args(P, G, R0s, offs, reg):
+    """``_ref_regularise`` called with the solver's component-major R0 (18 rows) and offsets."""
+    R0 = np.broadcast_to(np.eye(3), G.shape).copy()
+    R0[:, ccd._ROTATED] = soa.from_soa(R0s)
+    _ref_regularise(P, G, R0, soa.from_soa(offs), reg)
+
+
 def _ref_root_step(P, G, target, wt, leg_len, reach, yaw_limit):
     rg = list(TORSO)
     w = wt[:, rg].copy()
@@ -128,14 +136,35 @@ def _random_pose(n: int, seed: int, spread: float = 0.4):
     return P, G, rng
 
 
+def test_soa_arithmetic_matches_frame_major():
+    rng = np.random.default_rng(2)
+    A, B = axis_angle_to_matrix(rng.normal(size=(4, 50, 3))), axis_angle_to_matrix(rng.normal(size=(4, 50, 3)))
+    v = rng.normal(size=(4, 50, 3))
+    As, Bs, vs = (np.moveaxis(x, 1, -1) for x in (A, B, v))  # (4, ..., 50)
+    assert np.abs(np.moveaxis(soa.matmul(As, Bs), -1, 1) - A @ B).max() < 1e-14
+    assert np.abs(np.moveaxis(soa.matmul(As, soa.transpose(Bs)), -1, 1) - A @ np.swapaxes(B, -1, -2)).max() < 1e-14
+    assert np.abs(np.moveaxis(soa.apply(As, vs), -1, 1) - np.einsum("knij,knj->kni", A, v)).max() < 1e-14
+    assert np.abs(np.moveaxis(soa.cross(vs, vs[::-1]), -1, 1) - np.cross(v, v[::-1])).max() < 1e-14
+    # rotation vectors, including the identity and half turns (the scipy route)
+    rv = rng.normal(size=(4, 50, 3))
+    rv[0, :3] = 0.0
+    rv[1, :4] *= ((np.pi - np.array([0.0, 1e-5, 5e-4, 2e-3])) / np.linalg.norm(rv[1, :4], axis=-1))[:, None]
+    R = axis_angle_to_matrix(rv)
+    got = np.moveaxis(soa.axis_angle(np.moveaxis(R, 1, -1)), -1, 1)
+    assert np.abs(got - matrix_to_axis_angle(R)).max() < 1e-12
+    assert np.abs(axis_angle_to_matrix(got) - R).max() < 1e-9
+    x = rng.normal(size=(7, 24, 3, 3))
+    assert np.array_equal(soa.from_soa(soa.to_soa(x)), x)
+
+
 def test_rotmat_is_rodrigues():
     rng = np.random.default_rng(1)
     axis = rng.normal(size=(500, 3))
     axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
     ang = np.concatenate([rng.uniform(-np.pi, np.pi, 497), [0.0, np.pi, -1e-9]])
-    R = np.moveaxis(sw._rotmat(axis.T.copy(), ang), -1, 0)  # (3, 3, n) -> (n, 3, 3)
+    R = np.moveaxis(soa.rotmat(axis.T.copy(), ang), -1, 0)  # (3, 3, n) -> (n, 3, 3)
     assert np.abs(R - axis_angle_to_matrix(axis * ang[:, None])).max() < 1e-14
-    assert np.array_equal(sw._rotmat(axis[:1].T.copy(), np.zeros(1))[..., 0], np.eye(3))
+    assert np.array_equal(soa.rotmat(axis[:1].T.copy(), np.zeros(1))[..., 0], np.eye(3))
 
 
 @pytest.mark.parametrize("e", [20, 21, 18, 22, 7, 10, 15, 4])
@@ -170,7 +199,7 @@ def test_regularise_matches_reference():
     R0, off = global_to_local(G0), bone_offsets(P0, G0)
     P1, G1, P2, G2 = P.copy(), G.copy(), P.copy(), G.copy()
     _ref_regularise(P1, G1, R0, off, 0.25)
-    ccd._regularise(P2, G2, R0, off, 0.25)
+    ccd._regularise(P2, G2, soa.to_soa(R0, ccd._ROTATED), soa.to_soa(off), 0.25)
     assert np.abs(P1 - P2).max() < 1e-10
     assert np.abs(G1[:, INNER] - G2[:, INNER]).max() < 1e-10
 
@@ -205,7 +234,7 @@ def test_solve_ik_matches_reference_steps(monkeypatch):
     act[::4, 20] = 0.0
     fast = ccd.solve_ik(P, G, tgt, act)
     monkeypatch.setattr(ccd, "sweep", lambda P, G, t, e, c, lim, g, sg, frames=None: _ref_sweep_on(P, G, t, e, c, lim, g, sg, frames))
-    monkeypatch.setattr(ccd, "_regularise", _ref_regularise)
+    monkeypatch.setattr(ccd, "_regularise", _ref_regularise_soa_args)
     monkeypatch.setattr(ccd, "_root_step", _ref_root_step)
     ref = ccd.solve_ik(P, G, tgt, act)
     assert np.abs(fast.joints - ref.joints).max() < 1e-9

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from trumans.rotations import axis_angle_to_matrix, fit_yaw, matrix_to_axis_angle
+from trumans.rotations import fit_yaw
 from trumans.skeleton import DEPTH, JOINT_INDEX, LIMB_CHAINS, NUM_JOINTS, PARENTS, TORSO, bone_offsets, global_to_local
 
+from trumans.ik import soa
 from trumans.ik.sweep import LEAVES, sweep
 
 __all__ = ["IKConfig", "IKResult", "ROOT_GROUP", "CHAINS", "solve_ik"]
@@ -110,11 +111,17 @@ _LEGS = (LIMB_CHAINS["left_leg"], LIMB_CHAINS["right_leg"])
 _INNER: np.ndarray = np.array([j for j in range(NUM_JOINTS) if j not in _LEAVES], dtype=np.int64)
 _PARENT_ROT: np.ndarray = PARENTS[_ROTATED]
 # FK levels below the root: (joints, their parents, the non-leaf joints, their rows in joints)
-_LEVELS: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+# the same in rows of _INNER: (joints, parents, rows of the non-leaf joints, rows of the parents,
+# the non-leaf joints' places in joints)
+_ROW = {int(j): i for i, j in enumerate(_INNER)}
+_ROT_ROW: np.ndarray = np.array([_ROW[j] for j in _ROTATED], dtype=np.int64)
+_PARENT_ROW: np.ndarray = np.array([_ROW[int(p)] for p in _PARENT_ROT], dtype=np.int64)
+_LEVELS_SOA: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
 for _d in range(1, int(DEPTH.max()) + 1):
     _js = np.flatnonzero(DEPTH == _d)
     _in = np.array([i for i, j in enumerate(_js) if j not in _LEAVES], dtype=np.int64)
-    _LEVELS.append((_js, PARENTS[_js], _js[_in], _in))
+    _LEVELS_SOA.append((_js, PARENTS[_js], np.array([_ROW[int(j)] for j in _js[_in]], dtype=np.int64),
+                        np.array([_ROW[int(p)] for p in PARENTS[_js]], dtype=np.int64), _in))
 
 
 def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
@@ -179,17 +186,25 @@ def _root_step(P, G, target, wt, leg_len, reach, yaw_limit) -> None:
 def _regularise(P, G, R0, off, reg) -> None:
     """Pull every CCD joint's local rotation toward the original by the fraction ``reg`` (geodesic),
     then redo FK from the root (in place), one depth level at a time (the joints of a level have
-    their parents in the level above). off: (n, 24, 3) per-frame bone offsets. Leaves' rotations
-    are not rebuilt (never read while solving; solve_ik rebuilds them at the end)."""
-    L = np.swapaxes(G[:, _PARENT_ROT], -1, -2) @ G[:, _ROTATED]
-    rv = matrix_to_axis_angle(R0[:, _ROTATED] @ np.swapaxes(L, -1, -2))
-    Lr = np.empty_like(G)
-    Lr[:, _ROTATED] = axis_angle_to_matrix(reg * rv) @ L
-    for js, ps, inner, pin in _LEVELS:
-        Gp = G[:, ps]
-        P[:, js] = P[:, ps] + np.einsum("nkij,nkj->nki", Gp, off[:, js])
-        if len(inner):
-            G[:, inner] = Gp[:, pin] @ Lr[:, inner]
+    their parents in the level above), in the component-major layout of ``trumans.ik.soa``.
+    P (n, 24, 3), G (n, 24, 3, 3) frame-major; R0: (18, 3, 3, n) the original local rotations of
+    the ``_ROTATED`` joints; off: (24, 3, n) per-frame bone offsets (both component-major). Leaves'
+    rotations are not rebuilt (never read while solving; solve_ik rebuilds them at the end)."""
+    Gs = soa.to_soa(G, _INNER)  # (19, 3, 3, n), rows in _INNER order
+    Ps = soa.to_soa(P)  # (24, 3, n)
+    L = soa.matmul(soa.transpose(Gs[_PARENT_ROW]), Gs[_ROT_ROW])  # local rotations (18, 3, 3, n)
+    rv = reg * soa.axis_angle(soa.matmul(R0, soa.transpose(L)))
+    ang = soa.norm(rv)
+    E = soa.rotmat(rv / np.maximum(ang, 1e-12)[..., None, :], ang)
+    Lr = np.empty_like(Gs)
+    Lr[_ROT_ROW] = soa.matmul(E, L)
+    for js, ps, rows, prow, pin in _LEVELS_SOA:
+        Gp = Gs[prow]
+        Ps[js] = Ps[ps] + soa.apply(Gp, off[js])
+        if len(rows):
+            Gs[rows] = soa.matmul(Gp[pin], Lr[rows])
+    P[:] = soa.from_soa(Ps)
+    G[:, _INNER] = soa.from_soa(Gs)
 
 
 def solve_ik(
@@ -250,7 +265,9 @@ def solve_ik(
     R0t = offt = None
     if n_reg:
         R0t = global_to_local(G0[todo]) if rest_local is None else np.asarray(rest_local, dtype=np.float64)[todo]
-        offt = bone_offsets(P0[todo], G0[todo])  # per-frame bone offsets in the parent's frame (exact for this input)
+        R0t = soa.to_soa(R0t, _ROTATED)  # component-major (18, 3, 3, n), as _regularise works
+        # per-frame bone offsets in the parent's frame (exact for this input), (24, 3, n)
+        offt = soa.to_soa(bone_offsets(P0[todo], G0[todo]))
     for it in range(cfg.iterations):
         if len(todo) == 0:
             break
@@ -293,7 +310,7 @@ def solve_ik(
             todo = todo[keep]
             Pt, Gt, tt, at, wtt, prevt = (a[keep] for a in (Pt, Gt, tt, at, wtt, prevt))
             if R0t is not None:
-                R0t, offt = R0t[keep], offt[keep]
+                R0t, offt = R0t[..., keep], offt[..., keep]
     P[todo], G[todo] = Pt, Gt
     for j in _LEAVES:  # leaves were skipped while solving; their local rotations are unchanged
         p = PARENTS[j]

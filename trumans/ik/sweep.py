@@ -3,13 +3,12 @@
 The solver keeps frame-major state, joints ``P (n, 24, 3)`` m and global rotations ``G (n, 24, 3,
 3)``. A sweep touches only the subtree of its chain's top joint, so it gathers that subtree's
 joints (and the frames it works on) into component-major copies, ``(J, 3, n)`` and ``(J', 3, 3,
-n)``: every 3-vector and 3x3 product is then a few whole-row multiply-adds over the frames, where
-numpy's stacked (n, 3, 3) products cost about 150 ns each (issue 38: the sweeps took two thirds of
-``trumans eval augment``). The arithmetic is the same as the frame-major form's, to float rounding
+n)``: every 3-vector and 3x3 product is then a few whole-row multiply-adds over the frames
+(``trumans.ik.soa``; issue 38: the sweeps took two thirds of ``trumans eval augment``). The arithmetic is the same as the frame-major form's, to float rounding
 (``tests/ik/test_ik_fast_paths.py`` checks it against that form).
 
-Conventions: a rotation ``R (3, 3, n)`` holds ``R[i, j]`` of every frame in one row; angles are
-radians; rotations act on column vectors (``v' = R v``) about a pivot.
+Conventions: the component-major layout of ``trumans.ik.soa``; angles are radians; rotations act
+on column vectors (``v' = R v``) about a pivot.
 """
 from __future__ import annotations
 
@@ -18,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from trumans.skeleton import HINGE_AXES, NUM_JOINTS, PARENTS, SPINE, SUBTREE
+
+from trumans.ik.soa import apply as _apply, cross as _cross, matmul as _matmul, norm as _norm, rotmat as _rotmat
 
 __all__ = ["LEAVES", "ring", "ring_inner", "sweep"]
 
@@ -98,56 +99,6 @@ def _plan(e: int, chain: tuple[int, ...]) -> _Plan:
     return _PLANS[key]
 
 
-# --- component-major 3-vector and 3x3 arithmetic: vectors (..., 3, n), rotations (..., 3, 3, n) ---------
-
-def _norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.empty(a.shape)
-    np.subtract(a[1] * b[2], a[2] * b[1], out=out[0])
-    np.subtract(a[2] * b[0], a[0] * b[2], out=out[1])
-    np.subtract(a[0] * b[1], a[1] * b[0], out=out[2])
-    return out
-
-
-def _apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R (3, 3, n) times vectors v (..., 3, n) -> (..., 3, n)."""
-    return R[:, 0] * v[..., 0, None, :] + R[:, 1] * v[..., 1, None, :] + R[:, 2] * v[..., 2, None, :]
-
-
-def _matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A (3, 3, n) times B (..., 3, 3, n) -> (..., 3, 3, n)."""
-    return (A[:, 0, None] * B[..., 0, None, :, :] + A[:, 1, None] * B[..., 1, None, :, :]
-            + A[:, 2, None] * B[..., 2, None, :, :])
-
-
-def _rotmat(axis: np.ndarray, ang: np.ndarray) -> np.ndarray:
-    """(3, 3, n) rotations by ``ang`` (n,) rad about the unit ``axis`` (3, n) (Rodrigues,
-    ``R = c I + s [k]x + (1 - c) k k^T``); angle 0 gives the identity."""
-    c, s = np.cos(ang), np.sin(ang)
-    t = 1.0 - c
-    x, y, z = axis
-    tx, ty, tz = t * x, t * y, t * z
-    sx, sy, sz = s * x, s * y, s * z
-    txy, txz, tyz = tx * y, tx * z, ty * z
-    R = np.empty((3, 3) + ang.shape)
-    np.multiply(tx, x, out=R[0, 0])
-    R[0, 0] += c
-    np.subtract(txy, sz, out=R[0, 1])
-    np.add(txz, sy, out=R[0, 2])
-    np.add(txy, sz, out=R[1, 0])
-    np.multiply(ty, y, out=R[1, 1])
-    R[1, 1] += c
-    np.subtract(tyz, sx, out=R[1, 2])
-    np.subtract(txz, sy, out=R[2, 0])
-    np.add(tyz, sx, out=R[2, 1])
-    np.multiply(tz, z, out=R[2, 2])
-    R[2, 2] += c
-    return R
-
-
 def _aim(a: np.ndarray, b: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
     """The rotation turning direction a (3, n) toward b (3, n): unit axes (3, n) and angles (n,)
     clipped to ``limit`` rad (0 where a, b or their cross product vanish)."""
@@ -220,18 +171,14 @@ def sweep(P: np.ndarray, G: np.ndarray, target: np.ndarray, e: int, chain: tuple
     per-joint rotation clip, rad; gain (n,) and spine_gain (n,) or scalar scale each step's angle
     (the spine's by gain * spine_gain). Leaves' rotations are not updated (``LEAVES``)."""
     plan = _plan(int(e), tuple(int(j) for j in chain))
-    if frames is None:
-        Ps, Gs = P[:, plan.joints], G[:, plan.rotated]
-    else:
-        fc = frames[:, None]
-        Ps, Gs = P[fc, plan.joints], G[fc, plan.rotated]
-    Pk = np.ascontiguousarray(Ps.transpose(1, 2, 0))  # (J, 3, n)
-    Gk = np.ascontiguousarray(Gs.transpose(1, 2, 3, 0))  # (J', 3, 3, n)
+    # whole frames first (contiguous rows), then the subtree's joints: several times faster than
+    # one two-index gather of small (3,) / (3, 3) items
+    Pf, Gf = (P, G) if frames is None else (P[frames], G[frames])
+    Pk = np.take(Pf, plan.joints, axis=1).transpose(1, 2, 0).copy()  # (J, 3, n)
+    Gk = np.take(Gf, plan.rotated, axis=1).transpose(1, 2, 3, 0).copy()  # (J', 3, 3, n)
     _sweep_rows(Pk, Gk, np.ascontiguousarray(np.asarray(target).T), plan, limits, np.asarray(gain),
                 spine_gain if np.isscalar(spine_gain) else np.asarray(spine_gain))
-    if frames is None:
-        P[:, plan.joints] = Pk.transpose(2, 0, 1)
-        G[:, plan.rotated] = Gk.transpose(3, 0, 1, 2)
-    else:
-        P[fc, plan.joints] = Pk.transpose(2, 0, 1)
-        G[fc, plan.rotated] = Gk.transpose(3, 0, 1, 2)
+    Pf[:, plan.joints] = Pk.transpose(2, 0, 1)
+    Gf[:, plan.rotated] = Gk.transpose(3, 0, 1, 2)
+    if frames is not None:
+        P[frames], G[frames] = Pf, Gf

@@ -25,6 +25,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config  # noqa: E402
+from trumans.sample.sampler import SamplerConfig  # noqa: E402
 
 
 def main() -> int:
@@ -32,7 +33,7 @@ def main() -> int:
     p.add_argument("checkpoint", nargs="?", default=None)
     p.add_argument("--rooms", type=int, default=3)
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--steps", type=int, default=SamplerConfig().steps, help="denoising steps (default: trumans sample's)")
     p.add_argument("--eta", type=float, default=0.0)
     add_guidance_arguments(p)
     add_postprocess_arguments(p)

@@ -23,6 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, postprocess_kwargs  # noqa: E402
+from trumans.sample.sampler import SamplerConfig  # noqa: E402
 
 
 def penetration_report(J: np.ndarray, sc, res, top: int = 8) -> dict:
@@ -74,7 +75,7 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("checkpoint", nargs="?", default=None)
     p.add_argument("--rooms", type=int, default=2)
-    p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--steps", type=int, default=SamplerConfig().steps, help="denoising steps (default: trumans sample's)")
     add_guidance_arguments(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--save", default=None)

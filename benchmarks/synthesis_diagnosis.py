@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, postprocess_kwargs  # noqa: E402
+from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config  # noqa: E402
 from trumans.sample.sampler import SamplerConfig  # noqa: E402
 
 
@@ -76,6 +76,7 @@ def main() -> int:
     p.add_argument("checkpoint", nargs="?", default=None)
     p.add_argument("--rooms", type=int, default=2)
     p.add_argument("--steps", type=int, default=SamplerConfig().steps, help="denoising steps (default: trumans sample's)")
+    p.add_argument("--eta", type=float, default=SamplerConfig().eta)
     add_guidance_arguments(p)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--save", default=None)
@@ -88,7 +89,7 @@ def main() -> int:
     from trumans.sample.cli import DEFAULT_CHECKPOINT
     from trumans.sample.eval_synthesis import EVAL_ROOM_SEEDS, eval_plan
     from trumans.sample.rollout import sample_plan, start_pose
-    from trumans.sample.sampler import EpisodeSampler, SamplerConfig
+    from trumans.sample.sampler import EpisodeSampler
     from trumans.sample.scene_input import load_sample_scene
     from trumans.eval.synthesis_metrics import motion_figures
     from trumans.model.checkpoint import load_checkpoint
@@ -101,8 +102,7 @@ def main() -> int:
     for r, room_seed in enumerate(EVAL_ROOM_SEEDS[:args.rooms]):
         sc = load_sample_scene(f"room:{room_seed}")
         plan = eval_plan(sc, args.seed * 1000 + r)
-        cfg = SamplerConfig(steps=args.steps, goal_guidance=args.goal_guidance, goal_iters=args.goal_iters,
-                            scene_scale=args.guidance[0], action_scale=args.guidance[1], **postprocess_kwargs(args))
+        cfg = sampler_config(args)
         res = sample_plan(ckpt, EpisodeSampler(ckpt, sc.grids, cfg), sc.scene, sc.walkmap, plan, seed=args.seed + r)
         J = res.joints[0].astype(np.float64)
         old = motion_figures(res, sc, sit_offset=seat_clearance(offsets_from_joints(start_pose(ckpt)[None])))

@@ -50,7 +50,8 @@ def penetration_report(J: np.ndarray, sc, res, top: int = 8) -> dict:
 def skate_report(J: np.ndarray, fps: float) -> dict:
     """Foot skate of the benchmark's definition broken down by run length and foot speed."""
     from trumans.intervals import run_bounds
-    from trumans.eval.synthesis_metrics import _FEET, _FOOT_REST
+    from trumans.eval.synthesis_metrics import _FEET
+    from trumans.skeleton import FOOT_REST_HEIGHT as _FOOT_REST
 
     feet = J[:, _FEET]
     contact = (feet[..., 2] - _FOOT_REST) < 0.05

@@ -9,7 +9,11 @@ Two depth figures, not to be confused:
 """
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
+
 import numpy as np
+import trimesh
 
 from trumans.scenes.distance import SceneDistance
 from trumans.scenes.scene import Scene
@@ -110,10 +114,40 @@ def penetration_max_cm(penetration: np.ndarray) -> float:
     return float(d.max() * 100.0) if d.size else 0.0
 
 
+# SceneDistance of an object's mesh in its own frame, by mesh content (vertices and faces): a moved
+# object, or the same replacement placed again, is tested with the bodies and the ray-casting scene
+# already built; least recently used dropped first
+_LOCAL_DISTANCE: OrderedDict[bytes, SceneDistance] = OrderedDict()
+_LOCAL_DISTANCE_SIZE = 64
+
+
+def _local_distance(mesh: trimesh.Trimesh) -> SceneDistance:
+    v = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    f = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    key = hashlib.blake2b(v.tobytes() + b"|" + f.tobytes(), digest_size=16).digest()
+    sd = _LOCAL_DISTANCE.get(key)
+    if sd is None:
+        sd = _LOCAL_DISTANCE[key] = SceneDistance({"object": mesh}, build_scene=False)
+        while len(_LOCAL_DISTANCE) > _LOCAL_DISTANCE_SIZE:
+            _LOCAL_DISTANCE.popitem(last=False)
+    else:
+        _LOCAL_DISTANCE.move_to_end(key)
+    return sd
+
+
+def _is_rigid(pose: np.ndarray) -> bool:
+    R = pose[:3, :3]
+    return bool(np.allclose(R.T @ R, np.eye(3), atol=1e-9) and np.allclose(pose[3], [0, 0, 0, 1]))
+
+
 def joint_centre_inside_cm(joints: np.ndarray, scene: Scene, names: list[str]) -> float:
     """Deepest joint centre inside the objects ``names`` of ``scene`` (objects at their scene
     poses), cm; 0 if no joint centre is inside. joints: (T, 24, 3) m world. Unlike
-    ``penetration_max_cm`` this ignores the body's thickness (module doc)."""
+    ``penetration_max_cm`` this ignores the body's thickness (module doc).
+
+    Computed in each object's own frame (inside-ness and distances do not change under its rigid
+    pose), with the object's bodies and ray-casting scene cached by mesh content; a joint inside
+    any of the objects counts with its distance to the nearest of their surfaces."""
     joints = _check_joints(joints)
     unknown = [n for n in names if n not in scene.objects]
     if unknown:
@@ -121,15 +155,39 @@ def joint_centre_inside_cm(joints: np.ndarray, scene: Scene, names: list[str]) -
     if not names:
         return 0.0
     pts = joints.reshape(-1, 3)
-    meshes = {n: scene.objects[n].world_mesh() for n in names}
+    objs = [scene.objects[n] for n in names]
+    if not all(_is_rigid(o.pose) for o in objs):
+        return _joint_centre_inside_world_cm(pts, {n: o.world_mesh() for n, o in zip(names, objs)})
+    local, near = [], np.zeros(len(pts), bool)
+    for o in objs:
+        inv = np.linalg.inv(o.pose)
+        q = pts @ inv[:3, :3].T + inv[:3, 3]
+        lo, hi = o.mesh.bounds  # only joints inside an object's box can be inside the object
+        near |= np.all((q >= lo) & (q <= hi), axis=1)
+        local.append(q)
+    if not near.any():
+        return 0.0
+    # inside test first; the closest points only for the joints found inside
+    inside = np.zeros(int(near.sum()), bool)
+    for o, q in zip(objs, local):
+        inside |= _local_distance(o.mesh).inside_per_mesh(np.ascontiguousarray(q[near], dtype=np.float32))[:, 0]
+    if not inside.any():
+        return 0.0
+    depth = np.full(int(inside.sum()), np.inf)
+    for o, q in zip(objs, local):
+        d = _local_distance(o.mesh).query(np.ascontiguousarray(q[near][inside], dtype=np.float32)).dist
+        depth = np.minimum(depth, d)
+    return float(depth.max() * 100.0)
+
+
+def _joint_centre_inside_world_cm(pts: np.ndarray, meshes: dict[str, trimesh.Trimesh]) -> float:
+    """``joint_centre_inside_cm`` on world meshes (objects with a pose that is not rigid)."""
     near = np.zeros(len(pts), bool)
-    for m in meshes.values():  # only joints inside an object's box can be inside the object
+    for m in meshes.values():
         lo, hi = m.bounds
         near |= np.all((pts >= lo) & (pts <= hi), axis=1)
     if not near.any():
         return 0.0
-    # inside test first (on the float32 points SceneDistance.query tests); the closest points, and
-    # the ray-casting scene they need, only for the joints found inside
     sd = SceneDistance(meshes, build_scene=False)
     q = np.ascontiguousarray(pts[near], dtype=np.float32)
     inside = sd.inside_per_mesh(q).any(-1)

@@ -38,6 +38,27 @@ __all__ = ["BonesConfig", "input_bone_lengths", "project_bone_lengths"]
 _ORDER = np.argsort(DEPTH[1:], kind="stable") + 1  # joints 1..23, parents before children
 
 
+def _bone_groups(order: np.ndarray) -> list[np.ndarray]:
+    """``order``'s bones (child joints) in groups that share no joint, each bone in the group after
+    the last one holding a bone it shares a joint with: the half-way moves of a group touch distinct
+    joints, so moving a whole group at once is the one-by-one sequence in ``order`` (the same
+    arithmetic on every joint, in the same order)."""
+    groups: list[list[int]] = []
+    touched: list[set[int]] = []
+    for j in (int(j) for j in order):
+        ends = {j, int(PARENTS[j])}
+        g = 1 + max((i for i, t in enumerate(touched) if t & ends), default=-1)
+        if g == len(groups):
+            groups.append([])
+            touched.append(set())
+        groups[g].append(j)
+        touched[g] |= ends
+    return [np.array(g, dtype=np.int64) for g in groups]
+
+
+_GROUPS = _bone_groups(_ORDER)
+
+
 @dataclass(frozen=True)
 class BonesConfig:
     """enabled: whether the post-step runs (``trumans.refine.post_steps``); smooth_frames: the
@@ -120,16 +141,15 @@ def project_bone_lengths(joints: np.ndarray, lengths: np.ndarray, rounds: int = 
     if L.shape != (NUM_JOINTS,):
         raise ValueError(f"lengths must be (24,), got {L.shape}")
     X = np.ascontiguousarray(J.transpose(1, 0, 2))  # (24, T, 3): each joint's frames contiguous
+    groups = [g[np.isfinite(L[g])] for g in _GROUPS]  # a NaN length keeps its bone as it is
+    groups = [(g, PARENTS[g], L[g][:, None, None]) for g in groups if len(g)]
     for _ in range(max(0, rounds)):
-        for j in _ORDER:
-            if not np.isfinite(L[j]):
-                continue
-            p = PARENTS[j]
-            d = X[j] - X[p]
-            n = np.sqrt(np.einsum("ti,ti->t", d, d))[:, None]
-            half = 0.5 * np.where(n > 1e-9, 1.0 - L[j] / np.maximum(n, 1e-9), 0.0) * d
-            X[p] += half
-            X[j] -= half
+        for js, ps, lg in groups:  # bones sharing no joint, each moved as when moved alone
+            d = X[js] - X[ps]  # (k, T, 3)
+            n = np.sqrt(np.einsum("kti,kti->kt", d, d))[..., None]
+            half = 0.5 * np.where(n > 1e-9, 1.0 - lg / np.maximum(n, 1e-9), 0.0) * d
+            X[ps] += half
+            X[js] -= half
     out = X.copy()
     for j in _ORDER:
         p = PARENTS[j]

@@ -81,7 +81,7 @@ def _noise_residual(body: TrackedBody, fps: float, config: GateConfig) -> tuple[
     seen, r = body.seen, body.residual
     win = max(3, int(round(config.noise_window_s * fps)) | 1)
     # the running median over observed frames: missing ones count as the joint's own median residual
-    med = np.nanmedian(np.where(seen, r, np.nan), axis=0) if seen.any() else np.zeros(NUM_JOINTS)
+    med = body.residual_median if seen.any() else np.zeros(NUM_JOINTS)
     rm = np.where(seen, r, np.nan_to_num(med)[None])
     # one joint at a time: scipy's 1-D median filter is several times faster than its n-D one, same values
     running = np.stack([median_filter(rm[:, j], size=win, mode="mirror") for j in range(rm.shape[1])], axis=1)
@@ -99,10 +99,7 @@ def noise_level(tracked: np.ndarray | TrackedBody) -> np.ndarray:
     ``TrackedBody``) -> (24,) m, the std per axis of white noise that would give the median cubic-fit
     residual over the observed frames (0 for a joint never observed)."""
     body = as_tracked_body(tracked)
-    seen = body.seen
-    r = np.where(seen, body.residual, np.nan)
-    with np.errstate(all="ignore"):
-        med = np.nanmedian(r, axis=0) if seen.any() else np.zeros(NUM_JOINTS)
+    med = body.residual_median if body.seen.any() else np.zeros(NUM_JOINTS)
     return np.nan_to_num(med) / (_NORM_MEDIAN * _RES_STD)
 
 

@@ -9,6 +9,7 @@ network's condition). Units: metres; joints (T, 24, 3) z-up world.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.signal import savgol_filter
@@ -17,7 +18,7 @@ from trumans.skeleton import NUM_JOINTS
 
 from trumans.refine.frame import fill_missing_joints
 
-__all__ = ["TrackedBody", "cubic_residual", "as_tracked_body"]
+__all__ = ["TrackedBody", "cubic_residual", "as_tracked_body", "column_median"]
 
 
 def cubic_residual(filled: np.ndarray) -> np.ndarray:
@@ -53,6 +54,23 @@ class TrackedBody:
             if F.shape != J.shape or not np.isfinite(F).all():
                 raise ValueError(f"filled joints must be finite and shaped like the tracked {J.shape}, got {F.shape}")
         return cls(J, F, np.isfinite(J).all(-1), cubic_residual(F))
+
+    @cached_property
+    def residual_median(self) -> np.ndarray:
+        """(24,) m each joint's median ``residual`` over its observed frames (NaN for a joint never
+        observed): ``np.nanmedian`` of the residual with unobserved frames NaN, by one sort (nanmedian
+        goes column by column when there are NaNs); read by the gate and the bone lengths alike."""
+        return column_median(self.residual, self.seen)
+
+
+def column_median(values: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """(T, J) values, (T, J) bool -> (J,) median of each column's ``seen`` entries (the mean of the two
+    middle ones for an even count; NaN for none), as ``np.nanmedian(np.where(seen, values, nan), 0)``."""
+    v = np.sort(np.where(seen, values, np.inf), axis=0)
+    k = seen.sum(0)
+    cols = np.arange(v.shape[1])
+    lo, hi = v[np.maximum(k - 1, 0) // 2, cols], v[k // 2 - (k == 0), cols]
+    return np.where(k > 0, np.where(k % 2 == 1, lo, (lo + hi) / 2), np.nan)
 
 
 def as_tracked_body(tracked: np.ndarray | TrackedBody) -> TrackedBody:

@@ -15,6 +15,8 @@ a smooth offset of 5-15 cm whose direction and size drift with time and distance
   minus its radius, >= 0) to the attached object during the tracked interactions (``_gt``: the
   same on the true motion during true interactions);
 - the same object and distance figures without trajectory correction (``*_nocorr``);
+- ``--real``: the same tracker on real motion (the corpus's handling clips with their fitted
+  scenes and objects; figures in ``trumans.track.eval_real``);
 - ``motion_min_per_s``: minutes of motion tracked per second of wall-clock time (prediction,
   correction and objects; after a warm-up run), and per second of this process's CPU time
   (``motion_min_per_cpu_s``: the same work on an unshared machine).
@@ -45,6 +47,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rooms", type=int, default=4, help="rooms of the held-out set built without --data (default 4)")
     p.add_argument("--max-seqs", type=int, default=12, help="at most this many sequences (default 12)")
     p.add_argument("--seed", type=argtypes.seed, default=0, help="random seed (held-out set, drift)")
+    p.add_argument("--real", action="store_true",
+                   help="evaluate on real motion instead: the corpus clips that pick up / carry / put down (or reach "
+                        "down), placed with their fitted scenes and objects as the dataset's real takes "
+                        "(trumans.track.eval_real); --max-seqs caps the clips, --seed seeds the rooms and the drift")
+    p.add_argument("--real-split", choices=("test", "train"), default="test",
+                   help="corpus split of --real (default test: the held-out subjects; train clips may be in the "
+                        "contact model's training data)")
     p.add_argument("--stride", type=int, default=3, help="prediction stride (default 3; 1 = the centre frame of every window, as the paper)")
     add_device_argument(p, runs="the contact predictor(s); the tracker's correction and objects are numpy on the CPU")
     p.add_argument("--json", action="store_true", help="print the figures as one JSON object on the last line")
@@ -184,7 +193,13 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--max-seqs and --rooms must be >= 1, got {args.max_seqs}, {args.rooms}")
     if args.stride < 1 or args.stride % 2 == 0:
         raise ValueError(f"--stride must be an odd number >= 1, got {args.stride}")
+    if args.real and args.data is not None:
+        raise ValueError("--real evaluates the corpus's real clips; give --real or --data, not both")
     model = load_contact_models(resolve_checkpoint(args), device=args.device)
+    if args.real:
+        from trumans.track.eval_real import run_real
+
+        return run_real(model, args)
     with tempfile.TemporaryDirectory(prefix="trumans_eval_contacts_") as tmp:
         if args.data is None:
             from trumans.synth.build import SynthConfig, build_dataset

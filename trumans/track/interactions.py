@@ -43,6 +43,8 @@ from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
+from trumans.track.release import carried_release, lift_off, riding_poses
+from trumans.track.support import SupportQuery
 from trumans.track.object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
 __all__ = ["TrackerConfig", "AttachedContact", "TrackResult", "contact_probabilities", "interval_classes",
@@ -225,9 +227,11 @@ def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
 
 
 def drive_contact(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray], joints: np.ndarray,
-                  wrist_rot: np.ndarray) -> None:
+                  wrist_rot: np.ndarray, support: SupportQuery | None = None) -> None:
     """Apply interaction ``it`` to ``poses[it.name]`` in place: driven during its segments, then
-    released where it was left. joints: (T, 24, 3); wrist_rot: (T, 2, 3, 3)."""
+    released where it was left; with ``support``, a free object let go before the last frame comes
+    to rest upright on the surface under it (``SupportQuery.rest_pose``: nothing floats after a
+    put-down). joints: (T, 24, 3); wrist_rot: (T, 2, 3, 3)."""
     obj = scene.objects[it.name]
     track = poses[it.name]
     for seg in it.segments:
@@ -236,6 +240,9 @@ def drive_contact(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray
                          obj.axis, obj.hinge_point)
         track[s:e] = clip_to_limits(obj, M @ track[s])
         track[e:] = track[e - 1]
+    e = it.segments[-1].end
+    if support is not None and it.dof == "free" and e < len(track):
+        track[e:] = support.rest_pose(it.name, track[e - 1], {n: p[e] for n, p in poses.items() if n != it.name})
 
 
 def attach_contact(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarray,
@@ -274,11 +281,32 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
     return release_support_gap(queries, name, trial[name][e], others)
 
 
+def _hold_while_carried(support: SupportQuery, name: str, poses: dict[str, np.ndarray], segs: tuple[ContactSegment, ...],
+                        a: int, contact_end: int, next_start: int, joints: np.ndarray,
+                        wrist_rot: np.ndarray, fps: float) -> tuple[ContactSegment, ...]:
+    """The held segments of free object ``name`` attached at frame ``a``: started at its lift-off when
+    riding from ``a`` would push it into its support (``trumans.track.release.lift_off``), the last
+    one run on to the frame the hands can let it go (``carried_release``: a contact that ends while
+    the object is carried up continues until it touches down on a surface, or to the end)."""
+    last = segs[-1]
+    main = 1 if last.hands[1] else 0
+    others = {n: p[contact_end - 1] for n, p in poses.items() if n != name}
+    ride = riding_poses(wrist_rot[a:last.end, main], joints[a:last.end, _WRIST[main]], poses[name][a])
+    a = a + lift_off(support.gaps(name, ride, others), last.end - 1 - a)
+    segs = _clip(segs, a, last.end)
+    last = segs[-1]
+    main = 1 if last.hands[1] else 0
+    ride = riding_poses(wrist_rot[a:, main], joints[a:, _WRIST[main]], poses[name][a])
+    contact_end = max(contact_end, last.end)
+    end = carried_release(support, name, ride, a, last.end, contact_end, max(next_start, contact_end), others, fps)
+    return segs if end <= last.end else segs[:-1] + (ContactSegment(last.start, end, last.hands, last.interval),)
+
+
 def _drive_all(interactions: list[AttachedContact], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
-               wrist_rot: np.ndarray) -> dict[str, np.ndarray]:
+               wrist_rot: np.ndarray, support: SupportQuery | None = None) -> dict[str, np.ndarray]:
     poses = {n: p.copy() for n, p in base.items()}
     for it in interactions:
-        drive_contact(it, scene, poses, joints, wrist_rot)
+        drive_contact(it, scene, poses, joints, wrist_rot, support)
     return poses
 
 
@@ -321,11 +349,15 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
     c_frames: list[int] = []
     c_xy: list[np.ndarray] = []
     poses = {n: p.copy() for n, p in base.items()}
+    support = SupportQuery(scene)
+    held_until = 0  # a carried object is in the hands until this frame: later contacts are its own
     for i in sorted(cls):
         if cls[i] == "none":
             continue  # a contact with the static scene: nothing to drive
         segs = tuple(s for s in segments if s.interval == i)
         s0 = segs[0].start
+        if s0 < held_until:
+            continue  # the hands still carry an object (the reach that puts it down)
         joints = joints0.copy()
         joints[:, :, :2] += corr[:, None]
         e1 = segs[-1].end
@@ -346,6 +378,9 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         segs, a, closest, goal = attach_contact(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius)
         if cls[i] == "free":
             goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
+            later = [s.start for s in segments if s.start >= e1]
+            segs = _hold_while_carried(support, name, poses, segs, a, e1, min(later, default=T), joints, wrist_rot, fps)
+            held_until = segs[-1].end
         shift = (goal - span[a - s0])[:, :2]
         interactions.append(AttachedContact(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
         if config.correct:
@@ -356,13 +391,13 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
             # first one when nothing else pins the start)
             corr[a if (c_frames[:-1] or len(a_frames)) else 0:] += step
             joints[:, :, :2] = joints0[:, :, :2] + corr[:, None]
-        drive_contact(interactions[-1], scene, poses, joints, wrist_rot)
+        drive_contact(interactions[-1], scene, poses, joints, wrist_rot, support)
 
     if c_frames:
         corr = corrected(c_frames, c_xy)  # eq. 2 with every control point
     joints = joints0.copy()
     joints[:, :, :2] += corr[:, None]
-    poses = _drive_all(interactions, scene, base, joints, wrist_rot)
+    poses = _drive_all(interactions, scene, base, joints, wrist_rot, support)
     names = sorted({it.name for it in interactions})
     rows = np.array([[seg.start, seg.end, names.index(it.name), int(seg.hands[0]), int(seg.hands[1])]
                      for it in interactions for seg in it.segments], dtype=np.int64).reshape(-1, 5)

@@ -1,26 +1,39 @@
 """Where a let-go object comes to rest: the support under it (not in iReplica; its objects slide
 on the floor or turn on hinges, so none is ever let go in the air).
 
-A carried (free) object that the hands let go falls onto the surface under its centre: the floor,
-a table top, another object. ``SupportQuery.support_height`` casts a ray straight down from just
-above the object's bottom at the centre of its footprint (world bounding box) and returns the
-height of the first surface it meets (static meshes, static objects, other dynamic objects at
-their current poses); ``gap`` is the object's bottom height above it (m, negative when it sinks
-in); ``rest_pose`` sets the object upright (its yaw kept, footprint centre kept) with its bottom
-on that surface. Units: metres, z up, poses (4, 4) world-from-object (``docs/conventions.md``).
+A carried (free) object that the hands let go comes down onto the surface under it: the floor,
+a table top, another object. ``SupportQuery.support_height`` casts rays straight down from just
+above the object's bottom at the centre of its footprint (world bounding box) and near its four
+corners (``footprint_points``) and returns the height of the first surface each meets (static
+meshes, static objects, other dynamic objects at their current poses); ``gaps`` is the object's
+bottom height above the highest of them (m, negative when it sinks in: an object whose footprint
+is partly over a table edge stays on the table, which a localisation error of a few cm must not
+push off); ``rest_pose`` sets the object upright (its yaw kept, footprint centre kept) with its
+bottom on that surface. Units: metres, z up, poses (4, 4) world-from-object (``docs/conventions.md``).
 """
 from __future__ import annotations
 
 import numpy as np
-import trimesh
 from trimesh.ray.ray_triangle import RayMeshIntersector
 
 from trumans.scenes.scene import Scene
 
-__all__ = ["SupportQuery", "upright_pose", "ABOVE_M"]
+__all__ = ["SupportQuery", "upright_pose", "footprint_points", "ABOVE_M", "FOOTPRINT_SHARE"]
 
-ABOVE_M = 0.03  # m, the ray starts this far above the object's bottom (an object sunk into a table by less rests on it)
+ABOVE_M = 0.03  # m, the rays start this far above the object's bottom (an object sunk into a table by less rests on it)
+FOOTPRINT_SHARE = 0.8  # the rays under the footprint's corners start this share of the way out from its centre
 _DOWN = np.array([0.0, 0.0, -1.0])
+
+
+def footprint_points(lo: np.ndarray, hi: np.ndarray, share: float = FOOTPRINT_SHARE) -> np.ndarray:
+    """Ray origins (n, 5, 3) under objects with world bounding boxes lo, hi (n, 3): the footprint's
+    centre and four points ``share`` of the way to its corners, ``ABOVE_M`` above the bottom."""
+    c = 0.5 * (lo + hi)
+    h = 0.5 * share * (hi - lo)
+    sx = np.array([0.0, 1.0, 1.0, -1.0, -1.0])
+    sy = np.array([0.0, 1.0, -1.0, 1.0, -1.0])
+    x, y = c[:, None, 0] + sx * h[:, None, 0], c[:, None, 1] + sy * h[:, None, 1]
+    return np.stack([x, y, np.broadcast_to((lo[:, 2] + ABOVE_M)[:, None], x.shape)], -1)
 
 
 def upright_pose(vertices: np.ndarray, pose: np.ndarray, bottom_z: float | None = None) -> np.ndarray:
@@ -50,52 +63,74 @@ class SupportQuery:
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
-        static = list(scene.static.values())
-        self._static = RayMeshIntersector(trimesh.util.concatenate(static)) if static else None
+        self._static = [(RayMeshIntersector(m), np.asarray(m.bounds, np.float64)) for m in scene.static.values()]
         self._objects: dict[str, RayMeshIntersector] = {}
 
-    def _hit(self, name: str, pose: np.ndarray, origin: np.ndarray) -> float:
-        """Height (m) of the first surface of object ``name`` at ``pose`` straight under ``origin`` (3,); -inf if none."""
-        if name not in self._objects:
-            self._objects[name] = RayMeshIntersector(self.scene.objects[name].mesh)
-        inv = np.linalg.inv(pose)
-        o = inv[:3, :3] @ origin + inv[:3, 3]
-        d = inv[:3, :3] @ _DOWN
-        loc, _, _ = self._objects[name].intersects_location(o[None], d[None])
-        if not len(loc):
-            return -np.inf
-        return float((loc @ pose[:3, :3].T + pose[:3, 3])[:, 2].max())
+    @staticmethod
+    def _hits(intersector: RayMeshIntersector, bounds: np.ndarray, origins: np.ndarray,
+              pose: np.ndarray | None) -> np.ndarray:
+        """Height (n,) m of the highest surface of one mesh (local ``bounds`` (2, 3); at ``pose``, None:
+        world frame) straight under each of ``origins`` (n, 3) world; -inf where the ray meets none.
+        Only the rays over the mesh's world bounding box are cast."""
+        out = np.full(len(origins), -np.inf)
+        corners = np.array(np.meshgrid(*bounds.T, indexing="ij")).reshape(3, -1).T  # (8, 3)
+        if pose is not None:
+            corners = corners @ pose[:3, :3].T + pose[:3, 3]
+        lo, hi = corners.min(0), corners.max(0)
+        over = np.flatnonzero((origins[:, 0] >= lo[0]) & (origins[:, 0] <= hi[0]) & (origins[:, 1] >= lo[1])
+                              & (origins[:, 1] <= hi[1]) & (origins[:, 2] >= lo[2]))
+        if not len(over):
+            return out
+        o, d = origins[over], np.broadcast_to(_DOWN, (len(over), 3))
+        if pose is not None:
+            inv = np.linalg.inv(pose)
+            o, d = o @ inv[:3, :3].T + inv[:3, 3], d @ inv[:3, :3].T
+        loc, ray, _ = intersector.intersects_location(o, np.ascontiguousarray(d))
+        if len(loc):
+            z = (loc @ pose[:3, :3].T + pose[:3, 3])[:, 2] if pose is not None else loc[:, 2]
+            np.maximum.at(out, over[ray], z)
+        return out
 
-    def support_height(self, origin: np.ndarray, exclude: str, poses: dict[str, np.ndarray]) -> float:
-        """Height (m) of the highest surface straight under ``origin`` (3,) world: static meshes, static
-        objects at their scene pose and the objects in ``poses`` {name: (4, 4)} (``exclude`` left out);
-        0 (the floor plane) when the ray meets nothing."""
-        best = -np.inf
-        if self._static is not None:
-            loc, _, _ = self._static.intersects_location(np.asarray(origin, np.float64)[None], _DOWN[None])
-            if len(loc):
-                best = float(loc[:, 2].max())
+    def support_height(self, origins: np.ndarray, exclude: str, poses: dict[str, np.ndarray]) -> np.ndarray:
+        """Height (n,) m of the highest surface straight under each of ``origins`` (n, 3) world: static
+        meshes, static objects at their scene pose and the dynamic objects at ``poses`` {name: (4, 4)}
+        (their scene pose when absent; ``exclude`` left out); 0 (the floor plane) where a ray meets nothing."""
+        origins = np.asarray(origins, np.float64).reshape(-1, 3)
+        best = np.full(len(origins), -np.inf)
+        for intersector, bounds in self._static:
+            best = np.maximum(best, self._hits(intersector, bounds, origins, None))
         for name, obj in self.scene.objects.items():
             if name == exclude:
                 continue
+            if name not in self._objects:
+                self._objects[name] = RayMeshIntersector(obj.mesh)
             pose = poses.get(name, obj.pose) if obj.dof != "static" else obj.pose
-            best = max(best, self._hit(name, np.asarray(pose, np.float64), origin))
-        return best if np.isfinite(best) else 0.0
+            best = np.maximum(best, self._hits(self._objects[name], np.asarray(obj.mesh.bounds, np.float64), origins,
+                                               np.asarray(pose, np.float64)))
+        return np.where(np.isfinite(best), best, 0.0)
+
+    def gaps(self, name: str, poses_of: np.ndarray, others: dict[str, np.ndarray]) -> np.ndarray:
+        """Bottom heights (n,) m of object ``name`` at poses (n, 4, 4) above the highest surface under its
+        footprint (``footprint_points``; negative: sunk in; at most ``ABOVE_M`` is looked into); the
+        other objects at ``others`` {name: (4, 4)}."""
+        P = np.asarray(poses_of, np.float64).reshape(-1, 4, 4)
+        world = np.einsum("nij,vj->nvi", P[:, :3, :3], np.asarray(self.scene.objects[name].mesh.vertices, np.float64)) \
+            + P[:, None, :3, 3]
+        lo, hi = world.min(1), world.max(1)  # (n, 3)
+        origins = footprint_points(lo, hi)  # (n, 5, 3)
+        top = self.support_height(origins.reshape(-1, 3), name, others).reshape(len(P), -1).max(1)
+        return lo[:, 2] - top
 
     def gap(self, name: str, pose: np.ndarray, poses: dict[str, np.ndarray]) -> float:
         """Bottom height (m) of object ``name`` at ``pose`` (4, 4) above the surface under its footprint's
         centre (negative: sunk in by that much; at most ``ABOVE_M`` is looked into)."""
-        world = np.asarray(self.scene.objects[name].mesh.vertices, np.float64) @ pose[:3, :3].T + pose[:3, 3]
-        lo, hi = world.min(0), world.max(0)
-        origin = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2] + ABOVE_M])
-        return float(lo[2] - self.support_height(origin, name, poses))
+        return float(self.gaps(name, pose[None], poses)[0])
 
     def rest_pose(self, name: str, pose: np.ndarray, poses: dict[str, np.ndarray]) -> np.ndarray:
         """Where object ``name`` let go at ``pose`` (4, 4) comes to rest: upright (``upright_pose``) on the
-        surface under its footprint's centre (``poses``: the other objects' current poses)."""
+        highest surface under its footprint (``poses``: the other objects' current poses)."""
         vertices = self.scene.objects[name].mesh.vertices
         up = upright_pose(vertices, pose)
         world = np.asarray(vertices, np.float64) @ up[:3, :3].T + up[:3, 3]
-        lo, hi = world.min(0), world.max(0)
-        origin = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2] + ABOVE_M])
-        return upright_pose(vertices, up, self.support_height(origin, name, poses))
+        origins = footprint_points(world.min(0)[None], world.max(0)[None])[0]
+        return upright_pose(vertices, up, float(self.support_height(origins, name, poses).max()))

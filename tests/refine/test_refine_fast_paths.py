@@ -3,9 +3,11 @@ import warnings
 
 import numpy as np
 
-from trumans.refine.bones import _ORDER, project_bone_lengths
+from trumans.refine.bones import project_bone_lengths
 from trumans.refine.tracked import column_median
-from trumans.skeleton import NUM_JOINTS, PARENTS
+from trumans.skeleton import DEPTH, NUM_JOINTS, PARENTS
+
+_ORDER = np.argsort(DEPTH[1:], kind="stable") + 1  # the projection's bone order: parents before children
 
 
 def _project_one_by_one(joints: np.ndarray, lengths: np.ndarray, rounds: int = 8) -> np.ndarray:

@@ -63,7 +63,11 @@ class TrackerConfig:
     0 = the paper's nearest object);
     correct: run the contact-based trajectory correction (False = the ablation); predict_stride:
     one prediction window every that many frames (1 = the paper's centre-frame prediction; 3 is
-    about 3x cheaper, see ``predict_contacts``)."""
+    about 3x cheaper, see ``predict_contacts``); class_fallback: a contact of a movable class with no
+    object of that class within ``search_radius`` takes the nearest object of the next most probable
+    movable class (not in the paper, which ignores it; on real motion the class head calls a box
+    lifted from the floor "slide" as often as "free", issue 36.6; False = the paper's rule); hold_reach (m): a carried object is taken only once a
+    contacting hand point comes this near it (``_hold_while_carried``)."""
 
     post: PostprocessConfig = field(default_factory=PostprocessConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
@@ -72,8 +76,12 @@ class TrackerConfig:
     ambiguity: float = 0.15
     correct: bool = True
     predict_stride: int = 3
+    class_fallback: bool = True
+    hold_reach: float = 0.12
 
     def __post_init__(self) -> None:
+        if not self.hold_reach > 0:
+            raise ValueError(f"hold_reach must be > 0 (m), got {self.hold_reach}")
         if not self.search_radius > 0 or not self.hand_radius >= 0 or not self.ambiguity >= 0:
             raise ValueError(f"search_radius must be > 0, hand_radius and ambiguity >= 0 (m), got "
                              f"{self.search_radius}, {self.hand_radius}, {self.ambiguity}")
@@ -137,6 +145,14 @@ def interval_classes(class_prob: np.ndarray, segments: list[ContactSegment]) -> 
         frames = np.concatenate([np.arange(s.start, s.end) for s in segments if s.interval == i])
         out[i] = CLASSES[int(class_prob[frames].mean(0).argmax())]
     return out
+
+
+def _next_classes(class_prob: np.ndarray, segs: tuple[ContactSegment, ...], first: str) -> list[str]:
+    """The movable classes other than ``first``, most probable over the segments' frames first.
+    class_prob: (T, C) over ``CLASSES``."""
+    frames = np.concatenate([np.arange(s.start, s.end) for s in segs])
+    mean = class_prob[frames].mean(0)
+    return [CLASSES[k] for k in np.argsort(-mean, kind="stable") if CLASSES[k] not in ("none", first)]
 
 
 def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
@@ -281,18 +297,29 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
     return release_support_gap(queries, name, trial[name][e], others)
 
 
-def _hold_while_carried(support: SupportQuery, name: str, poses: dict[str, np.ndarray], segs: tuple[ContactSegment, ...],
-                        a: int, contact_end: int, next_start: int, joints: np.ndarray,
-                        wrist_rot: np.ndarray, fps: float) -> tuple[ContactSegment, ...]:
-    """The held segments of free object ``name`` attached at frame ``a``: started at its lift-off when
-    riding from ``a`` would push it into its support (``trumans.track.release.lift_off``), the last
-    one run on to the frame the hands can let it go (``carried_release``: a contact that ends while
-    the object is carried up continues until it touches down on a surface, or to the end)."""
+def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str, poses: dict[str, np.ndarray],
+                        segs: tuple[ContactSegment, ...], a: int, contact_end: int, next_start: int, joints: np.ndarray,
+                        wrist_rot: np.ndarray, fps: float, reach: float) -> tuple[ContactSegment, ...] | None:
+    """The held segments of free object ``name`` attached at frame ``a`` (joints: (T, 24, 3) with this
+    contact's correction): started at its lift-off when riding from ``a`` would push it into its
+    support (``trumans.track.release.lift_off``), or later at the first frame a contacting hand point
+    is within ``reach`` m of it (an object rides on the hand at the offset it is taken at, so one
+    taken from farther would be held with nothing in the hand); the last segment run on to the frame
+    the hands can let it go (``carried_release``: a contact that ends while the object is carried up
+    continues until it touches down on a surface, or to the end). None when no hand comes within
+    ``reach`` of it: the contact does not take it."""
     last = segs[-1]
     main = 1 if last.hands[1] else 0
     others = {n: p[contact_end - 1] for n, p in poses.items() if n != name}
     ride = riding_poses(wrist_rot[a:last.end, main], joints[a:last.end, _WRIST[main]], poses[name][a])
     a = a + lift_off(support.gaps(name, ride, others), last.end - 1 - a)
+    hands = hand_points(joints[a:last.end])  # (n, 2, 3); the object is at rest until it is taken
+    used = [h for h in (0, 1) if any(sg.hands[h] for sg in segs)]
+    _, dist = queries.closest(name, poses[name][a], hands[:, used].reshape(-1, 3))
+    near = np.flatnonzero(dist.reshape(len(hands), -1).min(1) <= reach)
+    if not len(near):
+        return None
+    a += int(near[0])
     segs = _clip(segs, a, last.end)
     last = segs[-1]
     main = 1 if last.hands[1] else 0
@@ -368,6 +395,12 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         # whose control point would then confirm the mismatch (issue 12, seed 1: 3.5 m off)
         reach = hand_points(joints_sel[s0:e1])[:, used][:_attach_window(len(span), fps)]
         cands = object_candidates(queries, poses, s0, reach, cls[i], config.search_radius)
+        if not cands and config.class_fallback:
+            for other in _next_classes(class_prob, segs, cls[i]):
+                cands = object_candidates(queries, poses, s0, reach, other, config.search_radius)
+                if cands:
+                    cls[i] = other
+                    break
         if not cands:
             continue  # no object of that class near the hands: a false positive (§4.1)
         name = cands[0][0]
@@ -378,19 +411,25 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         segs, a, closest, goal = attach_contact(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius)
         if cls[i] == "free":
             goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
-            later = [s.start for s in segments if s.start >= e1]
-            segs = _hold_while_carried(support, name, poses, segs, a, e1, min(later, default=T), joints, wrist_rot, fps)
-            held_until = segs[-1].end
         shift = (goal - span[a - s0])[:, :2]
+        step = shift.mean(0) if config.correct else np.zeros(2)
+        # until the joint solve below, the new offset holds from this contact on (and before the
+        # first one when nothing else pins the start)
+        corr_new = corr.copy()
+        corr_new[a if (c_frames or len(a_frames)) else 0:] += step
+        joints[:, :, :2] = joints0[:, :, :2] + corr_new[:, None]
+        if cls[i] == "free":
+            later = [s.start for s in segments if s.start >= e1]
+            segs = _hold_while_carried(support, queries, name, poses, segs, a, e1, min(later, default=T), joints,
+                                       wrist_rot, fps, config.hold_reach)
+            if segs is None:
+                continue  # no hand comes near it: not taken (nor a control point)
+            held_until = segs[-1].end
         interactions.append(AttachedContact(name, cls[i], segs[0].start, segs[-1].end, segs, closest.mean(0)))
         if config.correct:
-            step = shift.mean(0)
             c_frames.append(a)
             c_xy.append(root0[a] + corr[a] + step)
-            # until the joint solve below, the new offset holds from this contact on (and before the
-            # first one when nothing else pins the start)
-            corr[a if (c_frames[:-1] or len(a_frames)) else 0:] += step
-            joints[:, :, :2] = joints0[:, :, :2] + corr[:, None]
+            corr = corr_new
         drive_contact(interactions[-1], scene, poses, joints, wrist_rot, support)
 
     if c_frames:

@@ -14,7 +14,6 @@ bottom on that surface. Units: metres, z up, poses (4, 4) world-from-object (``d
 from __future__ import annotations
 
 import numpy as np
-from trimesh.ray.ray_triangle import RayMeshIntersector
 
 from trumans.scenes.scene import Scene
 
@@ -58,37 +57,42 @@ def upright_pose(vertices: np.ndarray, pose: np.ndarray, bottom_z: float | None 
 
 
 class SupportQuery:
-    """Ray casts straight down onto a scene's static meshes and objects (each object's mesh in its
-    own frame, so an object at any pose is queried without rebuilding)."""
+    """Rays straight down onto a scene's static meshes and objects (vectorised point-in-triangle tests
+    in the xy plane; each object's triangles moved to its pose on each query)."""
 
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
-        self._static = [(RayMeshIntersector(m), np.asarray(m.bounds, np.float64)) for m in scene.static.values()]
-        self._objects: dict[str, RayMeshIntersector] = {}
+        self._static = [np.asarray(m.triangles, np.float64) for m in scene.static.values()]
+        self._objects: dict[str, np.ndarray] = {}
 
     @staticmethod
-    def _hits(intersector: RayMeshIntersector, bounds: np.ndarray, origins: np.ndarray,
-              pose: np.ndarray | None) -> np.ndarray:
-        """Height (n,) m of the highest surface of one mesh (local ``bounds`` (2, 3); at ``pose``, None:
-        world frame) straight under each of ``origins`` (n, 3) world; -inf where the ray meets none.
-        Only the rays over the mesh's world bounding box are cast."""
+    def _hits(triangles: np.ndarray, origins: np.ndarray) -> np.ndarray:
+        """Height (n,) m of the highest of ``triangles`` (m, 3, 3) world straight under each of
+        ``origins`` (n, 3) world (at or below it); -inf where there is none. Vertical rays, so a
+        point-in-triangle test in the xy plane and the plane's height there (barycentric)."""
         out = np.full(len(origins), -np.inf)
-        corners = np.array(np.meshgrid(*bounds.T, indexing="ij")).reshape(3, -1).T  # (8, 3)
-        if pose is not None:
-            corners = corners @ pose[:3, :3].T + pose[:3, 3]
-        lo, hi = corners.min(0), corners.max(0)
-        over = np.flatnonzero((origins[:, 0] >= lo[0]) & (origins[:, 0] <= hi[0]) & (origins[:, 1] >= lo[1])
-                              & (origins[:, 1] <= hi[1]) & (origins[:, 2] >= lo[2]))
-        if not len(over):
+        if not len(triangles) or not len(origins):
             return out
-        o, d = origins[over], np.broadcast_to(_DOWN, (len(over), 3))
-        if pose is not None:
-            inv = np.linalg.inv(pose)
-            o, d = o @ inv[:3, :3].T + inv[:3, 3], d @ inv[:3, :3].T
-        loc, ray, _ = intersector.intersects_location(o, np.ascontiguousarray(d))
-        if len(loc):
-            z = (loc @ pose[:3, :3].T + pose[:3, 3])[:, 2] if pose is not None else loc[:, 2]
-            np.maximum.at(out, over[ray], z)
+        lo, hi = origins.min(0), origins.max(0)
+        tlo, thi = triangles.min(1), triangles.max(1)
+        keep = (thi[:, 0] >= lo[0]) & (tlo[:, 0] <= hi[0]) & (thi[:, 1] >= lo[1]) & (tlo[:, 1] <= hi[1]) \
+            & (tlo[:, 2] <= hi[2])
+        tri = triangles[keep]
+        a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]  # (m, 3)
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        ok = np.abs(det) > 1e-12  # triangles seen edge-on from above hold nothing up
+        a, e1, e2, det = a[ok], e1[ok], e2[ok], det[ok]
+        if not len(a):
+            return out
+        step = max(1, 2_000_000 // len(a))
+        for i in range(0, len(origins), step):
+            o = origins[i:i + step]
+            dx, dy = o[:, None, 0] - a[None, :, 0], o[:, None, 1] - a[None, :, 1]  # (k, m)
+            u = (dx * e2[None, :, 1] - dy * e2[None, :, 0]) / det
+            v = (e1[None, :, 0] * dy - e1[None, :, 1] * dx) / det
+            z = a[None, :, 2] + u * e1[None, :, 2] + v * e2[None, :, 2]
+            inside = (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9) & (z <= o[:, None, 2])
+            out[i:i + step] = np.where(inside, z, -np.inf).max(1)
         return out
 
     def support_height(self, origins: np.ndarray, exclude: str, poses: dict[str, np.ndarray]) -> np.ndarray:
@@ -97,16 +101,15 @@ class SupportQuery:
         (their scene pose when absent; ``exclude`` left out); 0 (the floor plane) where a ray meets nothing."""
         origins = np.asarray(origins, np.float64).reshape(-1, 3)
         best = np.full(len(origins), -np.inf)
-        for intersector, bounds in self._static:
-            best = np.maximum(best, self._hits(intersector, bounds, origins, None))
+        for triangles in self._static:
+            best = np.maximum(best, self._hits(triangles, origins))
         for name, obj in self.scene.objects.items():
             if name == exclude:
                 continue
             if name not in self._objects:
-                self._objects[name] = RayMeshIntersector(obj.mesh)
-            pose = poses.get(name, obj.pose) if obj.dof != "static" else obj.pose
-            best = np.maximum(best, self._hits(self._objects[name], np.asarray(obj.mesh.bounds, np.float64), origins,
-                                               np.asarray(pose, np.float64)))
+                self._objects[name] = np.asarray(obj.mesh.triangles, np.float64)
+            pose = np.asarray(poses.get(name, obj.pose) if obj.dof != "static" else obj.pose, np.float64)
+            best = np.maximum(best, self._hits(self._objects[name] @ pose[:3, :3].T + pose[:3, 3], origins))
         return np.where(np.isfinite(best), best, 0.0)
 
     def gaps(self, name: str, poses_of: np.ndarray, others: dict[str, np.ndarray]) -> np.ndarray:

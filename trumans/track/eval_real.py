@@ -28,7 +28,11 @@ Figures per clip and pooled (means over clips' frames / events, not over clips):
   ``FLOAT_TOL_M`` up;
 - ``false_hold_s``: seconds the tracker holds (moves) an object the fitting does not hold then
   (any object: the room's own never move in a real take); ``out_of_reach_s``: seconds the
-  tracker holds an object none of whose contacting hands is within ``REACH_M`` of it.
+  tracker holds an object none of whose contacting hands is within ``REACH_M`` of it;
+  ``contact_nothing_s``: hand-seconds the output says a hand is in contact (``extra/contact_mask``)
+  with no surface of the scene (static meshes, every object at its tracked pose) within ``REACH_M``
+  of its skin (``_raw``: the same for the predicted contacts, thresholded and gap-filled, which
+  the tracker output before issue 36.6).
 """
 from __future__ import annotations
 
@@ -95,6 +99,10 @@ def clip_figures(seq, scene, res) -> dict:
     ``TrackResult`` on its drifted copy. Sums and lists, pooled by ``pool``."""
     from trumans.track.evaluate import _Dist, _hand_surface_dist
     from trumans.track.labels import hand_labels
+    from trumans.contacts.rule import JOINT_RADIUS
+    from trumans.track.object_choice import ObjectQueries
+    from trumans.track.postprocess import PostprocessConfig, contact_mask
+    from trumans.track.predictor import HAND_JOINTS, HANDS
     from trumans.track.support import SupportQuery
 
     T, fps = seq.num_frames, float(seq.fps)
@@ -143,11 +151,20 @@ def clip_figures(seq, scene, res) -> dict:
         poses = {n: o.pose[it.end].astype(np.float64) for n, o in out.objects.items()}
         floats.append(100 * max(support.gap(it.name, poses[it.name], poses), 0.0))
     labels = hand_labels(seq.contacts)
+    raw = contact_mask(res.prob, fps, PostprocessConfig())  # the predicted contacts as thresholded and gap-filled
+    objects = ObjectQueries(scene)
+    nothing = np.zeros((T, 2), bool)
+    for h, hand in enumerate(HANDS):
+        jj = list(HAND_JOINTS[hand])
+        d = objects.surface_distance(out.joints[:, jj].astype(np.float64),
+                                     {n: o.pose.astype(np.float64) for n, o in out.objects.items()})
+        nothing[:, h] = (d - JOINT_RADIUS[jj]).min(1) > REACH_M
     return {"clip": str(seq.extra.get("source", seq.scene)), "frames": T, "fps": fps, "fitted": names,
             "prob": res.prob, "labels": labels, "grasp": grasp,
             "held_inter": inter, "held_union": union, "gt_held_frames": gt_frames,
             "tracker_held_frames": int(np.any(list(held.values()), axis=0).sum()) if held else 0,
             "false_hold_frames": int(false_hold.sum()), "out_of_reach_frames": int(reach_bad.sum()),
+            "contact_nothing_frames": int((res.mask & nothing).sum()), "raw_nothing_frames": int((raw & nothing).sum()),
             "centre_err": centre_err, "end_err": end_err, "hand_d": hand_d, "floats": floats,
             "interactions": [f"{it.name} {it.dof} {it.start}-{it.end}" for it in res.interactions]}
 
@@ -177,6 +194,8 @@ def pool(rows: list[dict]) -> dict:
         "floating": int(sum(f > 100 * FLOAT_TOL_M for f in floats)), "releases": len(floats),
         "false_hold_s": sum(r["false_hold_frames"] / r["fps"] for r in rows),
         "out_of_reach_s": sum(r["out_of_reach_frames"] / r["fps"] for r in rows),
+        "contact_nothing_s": sum(r["contact_nothing_frames"] / r["fps"] for r in rows),
+        "contact_nothing_s_raw": sum(r["raw_nothing_frames"] / r["fps"] for r in rows),
         "held_s": sum(r["tracker_held_frames"] / r["fps"] for r in rows),
         "fitted_held_s": sum(r["gt_held_frames"] / r["fps"] for r in rows),
         "clips": len(rows), "motion_min": sum(r["frames"] / r["fps"] for r in rows) / 60,
@@ -220,10 +239,12 @@ def run_real(model, args: argparse.Namespace) -> int:
               f"held {s['fitted_held_s']:4.1f}s iou {s['held_iou']:.2f} share {s['held_share']:.2f} "
               f"centre {s['obj_center_err_cm']:5.1f} cm hand {s['hand_obj_dist_cm']:5.1f} cm "
               f"float max {s['float_max_cm']:5.1f} cm false hold {s['false_hold_s']:4.1f}s out of reach "
-              f"{s['out_of_reach_s']:4.1f}s | {'; '.join(r['interactions']) or 'no interaction'}")
+              f"{s['out_of_reach_s']:4.1f}s contact with nothing near {s['contact_nothing_s']:4.1f}s "
+              f"(predicted {s['contact_nothing_s_raw']:4.1f}s) | {'; '.join(r['interactions']) or 'no interaction'}")
     fig = pool(rows)
     for k in ("ap", "held_ap", "held_iou", "held_share", "obj_center_err_cm", "obj_center_err_end_cm",
-              "hand_obj_dist_cm", "float_cm", "float_max_cm", "false_hold_s", "out_of_reach_s"):
+              "hand_obj_dist_cm", "float_cm", "float_max_cm", "false_hold_s", "out_of_reach_s", "contact_nothing_s",
+              "contact_nothing_s_raw"):
         print(f"{k:24s} {fig[k]:.3f}")
     print(f"{fig['clips']} clips ({args.real_split}), {fig['motion_min']:.1f} min of motion, fitted objects held "
           f"{fig['fitted_held_s']:.1f} s, the tracker holds {fig['held_s']:.1f} s; {fig['floating']} of "

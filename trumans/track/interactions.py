@@ -16,9 +16,14 @@
    the bending-energy correction (§4.1 eqs. 1-2, with every control point so far and any anchors);
 4. with the final corrected body, each interaction drives its object within its dof (supp. §10:
    two-hand / one-hand sliding, hinge, free), segment by segment, doors and drawers within their
-   range (``clip_to_limits``); the object is released at the contact's end and stays where it was left.
+   range (``clip_to_limits``); the object is released at the contact's end and stays where it was left,
+   except a carried (free) object: it is taken when a hand comes within ``hold_reach`` of it, held
+   on while it is carried up after the predicted contact ends, until it touches down on a surface
+   (``trumans.track.release``), and settles upright on the surface under it (``trumans.track.support``).
 The result is a Sequence with the corrected joints / root and ``objects/<name>/pose`` for every
-dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)``,
+dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)`` (the
+predicted contacts without those with no surface within ``contact_reach`` of the hand, §4.2, and
+with every frame a hand holds an object),
 ``root_correction (T, 2)`` (m) and ``interactions (N, 5)`` int64 rows, one per hand-set segment,
 ``[start, end, object index into extra['interaction_objects'], left, right]``.
 """
@@ -67,7 +72,10 @@ class TrackerConfig:
     object of that class within ``search_radius`` takes the nearest object of the next most probable
     movable class (not in the paper, which ignores it; on real motion the class head calls a box
     lifted from the floor "slide" as often as "free", issue 36.6; False = the paper's rule); hold_reach (m): a carried object is taken only once a
-    contacting hand point comes this near it (``_hold_while_carried``)."""
+    contacting hand point comes this near it (``_hold_while_carried``); contact_reach (m): an output
+    contact (``extra['contact_mask']``) needs a surface of the scene this near the hand point on the
+    corrected path (a localisation error of up to ~15 cm plus the hand's reach; §4.2 drops contacts
+    with nothing near as false positives)."""
 
     post: PostprocessConfig = field(default_factory=PostprocessConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
@@ -78,10 +86,11 @@ class TrackerConfig:
     predict_stride: int = 3
     class_fallback: bool = True
     hold_reach: float = 0.12
+    contact_reach: float = 0.25
 
     def __post_init__(self) -> None:
-        if not self.hold_reach > 0:
-            raise ValueError(f"hold_reach must be > 0 (m), got {self.hold_reach}")
+        if not self.hold_reach > 0 or not self.contact_reach > 0:
+            raise ValueError(f"hold_reach and contact_reach must be > 0 (m), got {self.hold_reach}, {self.contact_reach}")
         if not self.search_radius > 0 or not self.hand_radius >= 0 or not self.ambiguity >= 0:
             raise ValueError(f"search_radius must be > 0, hand_radius and ambiguity >= 0 (m), got "
                              f"{self.search_radius}, {self.hand_radius}, {self.ambiguity}")
@@ -102,7 +111,8 @@ class AttachedContact:
 
 @dataclass
 class TrackResult:
-    """sequence: the output; interactions; prob (T, 2) / mask (T, 2) per hand; classes (N,) the
+    """sequence: the output; interactions; prob (T, 2) / mask (T, 2) per hand (the output
+    ``extra['contact_mask']``); classes (N,) the
     class name of each union contact interval; correction (T, 2) m added to the root path."""
 
     sequence: Sequence
@@ -298,7 +308,7 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
 
 
 def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str, poses: dict[str, np.ndarray],
-                        segs: tuple[ContactSegment, ...], a: int, contact_end: int, next_start: int, joints: np.ndarray,
+                        segs: tuple[ContactSegment, ...], a: int, contact_end: int, joints: np.ndarray,
                         wrist_rot: np.ndarray, fps: float, reach: float) -> tuple[ContactSegment, ...] | None:
     """The held segments of free object ``name`` attached at frame ``a`` (joints: (T, 24, 3) with this
     contact's correction): started at its lift-off when riding from ``a`` would push it into its
@@ -325,7 +335,7 @@ def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str
     main = 1 if last.hands[1] else 0
     ride = riding_poses(wrist_rot[a:, main], joints[a:, _WRIST[main]], poses[name][a])
     contact_end = max(contact_end, last.end)
-    end = carried_release(support, name, ride, a, last.end, contact_end, max(next_start, contact_end), others, fps)
+    end = carried_release(support, name, ride, a, last.end, contact_end, others, fps)
     return segs if end <= last.end else segs[:-1] + (ContactSegment(last.start, end, last.hands, last.interval),)
 
 
@@ -419,9 +429,8 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         corr_new[a if (c_frames or len(a_frames)) else 0:] += step
         joints[:, :, :2] = joints0[:, :, :2] + corr_new[:, None]
         if cls[i] == "free":
-            later = [s.start for s in segments if s.start >= e1]
-            segs = _hold_while_carried(support, queries, name, poses, segs, a, e1, min(later, default=T), joints,
-                                       wrist_rot, fps, config.hold_reach)
+            segs = _hold_while_carried(support, queries, name, poses, segs, a, e1, joints, wrist_rot, fps,
+                                       config.hold_reach)
             if segs is None:
                 continue  # no hand comes near it: not taken (nor a control point)
             held_until = segs[-1].end
@@ -445,6 +454,13 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
         root_pos = np.asarray(seq.root_pos, np.float64).copy()
         root_pos[:, :2] += corr
     extra = dict(seq.extra)
+    # §4.2: a contact with no surface within contact_reach of the hand is a false positive, and a
+    # hand holding an object is in contact for as long as it holds it (the run-on of a carry)
+    near = queries.surface_distance(hand_points(joints), poses) <= config.contact_reach  # (T, 2)
+    mask = mask & near
+    for it in interactions:
+        for seg in it.segments:
+            mask[seg.start:seg.end] |= np.asarray(seg.hands)
     extra.update(contact_prob=prob, contact_mask=mask, root_correction=corr.astype(np.float32), interactions=rows,
                  interaction_objects=np.asarray(names, dtype=np.str_))
     out = Sequence(

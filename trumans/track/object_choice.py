@@ -48,6 +48,22 @@ class ObjectQueries:
         out = np.where((r.signed < 0)[:, None] | (dist < 1e-9)[:, None], normal, away)
         return closest, dist, closest + gap * out
 
+    def surface_distance(self, points: np.ndarray, poses: dict[str, np.ndarray]) -> np.ndarray:
+        """points (T, k, 3) world -> (T, k) m, the distance to the nearest surface of the scene on each
+        frame: the static meshes, static objects at their scene pose and the objects in ``poses``
+        {name: (T, 4, 4)} (their scene pose when absent) at their pose on that frame."""
+        pts = np.asarray(points, np.float64)
+        T, k = pts.shape[:2]
+        best = self.static_distance(pts.reshape(-1, 3)).reshape(T, k)
+        for name, obj in self.scene.objects.items():
+            P = np.asarray(poses[name], np.float64) if name in poses else np.broadcast_to(obj.pose, (T, 4, 4))
+            if name not in self._sd:
+                self._sd[name] = SceneDistance({name: obj.mesh})
+            inv = np.linalg.inv(P)
+            local = np.einsum("tij,tkj->tki", inv[:, :3, :3], pts) + inv[:, None, :3, 3]
+            best = np.minimum(best, self._sd[name].query(local.reshape(-1, 3)).dist.astype(np.float64).reshape(T, k))
+        return best
+
     def static_distance(self, points: np.ndarray) -> np.ndarray:
         """points (n, 3) world -> unsigned distance (n,) m to the static meshes (inf when none)."""
         if not self.scene.static:

@@ -8,13 +8,14 @@ a box left 92 cm from the hands, a bottle 2.2 m up). A carried object can only b
 rests on something, so (not in the paper):
 
 - ``carried_release``: the object rides on the holding hand from its attach frame. If it is not
-  within ``REST_M`` of a surface at the detach frame, or it is lifted more than ``LIFT_M`` above
-  the surface under it after the detach frame and before the predicted contact ends (before the
-  next predicted contact starts when the contact moved it less than ``CARRY_M``: a contact on the
-  reach that picks it up only), the hands carry it: the contact is not over. It is held on until
-  it touches down after its highest frame (``touchdown``: within ``REST_M`` of a surface, or
-  stopping to come down within ``LIFT_M`` of one, moving at most ``STILL_MPS``), or to the end of the motion when it never does (carried to
-  the end). Otherwise the object rests where the hand let go and the detach frame stands.
+  within ``REST_M`` of a surface at the detach frame, or its bottom rises more than ``LIFT_M``
+  after the detach frame and before the predicted contact ends, or (when the
+  contact moved it less than ``CARRY_M``: a contact on the reach that picks it up only) more than
+  ``PICK_LIFT_M`` within ``PICK_S`` after the contact's end, the hands carry it: the contact is not
+  over. It is held on until it touches down after its highest frame (``touchdown``: within
+  ``REST_M`` of a surface, or stopping to come down within ``LIFT_M`` of one, moving at most
+  ``STILL_MPS``), or to the end of the motion when it never does (carried to the end). Otherwise
+  the object rests where the hand let go and the detach frame stands.
 - an object attached while the hand is still coming down would be pushed into its support by the
   riding: it is taken at its deepest frame instead (``lift_off``), the hand's lowest reach.
 - at the release the object settles upright on the surface under it (``SupportQuery.rest_pose``,
@@ -27,12 +28,14 @@ import numpy as np
 from trumans.track.objects import free_motion
 from trumans.track.support import SupportQuery
 
-__all__ = ["LIFT_M", "REST_M", "CARRY_M", "STILL_MPS", "riding_poses", "lift_off", "touchdown", "carried_release"]
+__all__ = ["LIFT_M", "REST_M", "CARRY_M", "STILL_MPS", "PICK_LIFT_M", "PICK_S", "riding_poses", "lift_off", "touchdown", "carried_release"]
 
 LIFT_M = 0.10  # m, an object lifted this far above its support while the contact lasts is being carried
 REST_M = 0.03  # m, an object whose bottom comes this close to the surface under it can be let go there
 CARRY_M = 0.15  # m, a contact that moved its object this far carried it (its end is the put-down)
 STILL_MPS = 0.3  # m/s, an object set down moves at most this fast (horizontally) when it touches down
+PICK_LIFT_M = 0.30  # m, after a contact on the reach only, the hand lifts a picked-up object this far ...
+PICK_S = 1.5  # s ... within this long after the contact's end (a hand leaving a table rises less)
 
 
 def riding_poses(wrist_rot: np.ndarray, wrist_pos: np.ndarray, pose0: np.ndarray) -> np.ndarray:
@@ -69,30 +72,36 @@ def touchdown(gaps: np.ndarray, start: int, speed: np.ndarray | None = None, res
 
 
 def carried_release(support: SupportQuery, name: str, ride: np.ndarray, attach: int, detach: int, contact_end: int,
-                    next_start: int, others: dict[str, np.ndarray], fps: float, lift: float = LIFT_M,
-                    rest: float = REST_M, carry: float = CARRY_M) -> int:
+                    others: dict[str, np.ndarray], fps: float, lift: float = LIFT_M, rest: float = REST_M,
+                    carry: float = CARRY_M, pick_lift: float = PICK_LIFT_M, pick_s: float = PICK_S) -> int:
     """The frame (exclusive end of the hold) at which free object ``name`` is let go (module doc).
     ride: (n, 4, 4) its poses riding on the hand from frame ``attach`` to the end of the motion
     (``riding_poses``); detach: the detach frame found on the hands' speed (``attach_detach``);
-    contact_end: the predicted contact's end (>= detach); next_start: the start of the next
-    predicted contact (>= contact_end; ``attach + n`` when none); others: the other objects' poses
-    {name: (4, 4)} (supports); fps: frames per second. Returns ``detach`` when the object rests there (and, when the
-    contact barely moved it, the hand does not lift it before the next contact), else the frame
-    after it touches down past its highest frame (``touchdown``), else ``attach + n`` (held to the end)."""
+    contact_end: the predicted contact's end (>= detach); others: the other objects' poses
+    {name: (4, 4)} (supports); fps: frames per second. Returns ``detach`` when the object rests
+    there and is not carried up (module doc), else the frame after it touches down past its
+    highest frame (``touchdown``), else ``attach + n`` (held to the end)."""
     n = len(ride)
-    if not attach < detach <= contact_end <= next_start <= attach + n:
-        raise ValueError(f"need attach < detach <= contact_end <= next_start <= attach + len(ride), got {attach}, "
-                         f"{detach}, {contact_end}, {next_start}, {attach + n}")
+    if not attach < detach <= contact_end <= attach + n:
+        raise ValueError(f"need attach < detach <= contact_end <= attach + len(ride), got {attach}, {detach}, "
+                         f"{contact_end}, {attach + n}")
     gaps = _LazyGaps(support, name, ride, others)
-    d, ce, ns = detach - 1 - attach, contact_end - attach, next_start - attach  # d: the last held frame
+    d, ce = detach - 1 - attach, contact_end - attach  # d: the last held frame
     centre = ride[:, :3, 3]
     speed = np.linalg.norm(np.gradient(centre[:, :2], axis=0), axis=-1) * fps if n > 1 else np.zeros(n)  # (n,) m/s
     moved = float(np.linalg.norm(centre[: d + 1] - centre[0], axis=-1).max())
-    horizon = ce if moved > carry else max(ns, ce)  # a contact that only took it: does the hand lift it before the next?
-    window = gaps.upto(max(horizon, d + 1))[d:]
-    if window[0] <= rest and window.max() - window[0] <= lift:
+    vertices = np.asarray(support.scene.objects[name].mesh.vertices, np.float64)
+    stop = min(n, max(ce, d + 1) + (int(round(pick_s * fps)) if moved <= carry else 0))
+    bottom = (np.einsum("nj,vj->nv", ride[d:stop, 2, :3], vertices) + ride[d:stop, 2, 3:4]).min(1)  # (m,) m
+    rise = bottom - bottom[0]  # the object's own rise from the last held frame (not its gap: it may pass a table edge)
+    inside = rise[: max(ce, d + 1) - d]  # to the contact's end
+    carried = inside.max() > lift or gaps.upto(d + 1)[d] > rest
+    if not carried and moved <= carry:  # a contact on the reach only: does the hand take it up right after?
+        carried = rise.max() > pick_lift
+    window = rise if moved <= carry else inside
+    if not carried:
         return detach  # let go where it rests: a put-down, or a touch that did not take it
-    peak = d + int(np.argmax(window))  # carried up: it comes down after its highest frame
+    peak = d + int(np.argmax(window))  # carried up: it comes down after its highest frame (of the contact)
     while True:  # a few seconds at a time: the touchdown is usually near
         g = gaps.upto(gaps.done + _CHUNK)
         k = touchdown(g, peak, speed, rest, lift)

@@ -128,3 +128,22 @@ def test_tracker_holds_a_real_pick_up_to_the_end():
     held = [it for it in res.interactions if it.name.startswith("fit_box")]
     assert held and held[-1].end == seq.num_frames
     assert res.mask[held[-1].start:].any(axis=1).all()
+
+
+def test_a_box_between_two_hands_turns_with_them_and_stays_level():
+    """Hands 30 cm apart turn 90 deg about the vertical through their midpoint and rise 0.5 m, the left
+    one 5 cm higher than the right: the box turns 90 deg about z, rises 0.5 m, and stays level about
+    the hands' axis' horizontal normal (no wrist roll)."""
+    from trumans.track.objects import two_hand_free_motion
+
+    t = np.linspace(0, np.pi / 2, 20)
+    mid = np.c_[np.full(20, 1.0), np.full(20, 2.0), np.linspace(0.3, 0.8, 20)]
+    across = 0.15 * np.c_[-np.sin(t), np.cos(t), np.zeros(20)]
+    left, right = mid + across, mid - across
+    M = two_hand_free_motion(left, right)
+    np.testing.assert_allclose(M[0], np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(M[-1][:3, :3], axis_angle_to_matrix(np.array([0.0, 0.0, np.pi / 2])), atol=1e-9)
+    np.testing.assert_allclose(M[-1][:3, :3] @ mid[0] + M[-1][:3, 3], mid[-1], atol=1e-9)  # the midpoint moves with them
+    tilted = two_hand_free_motion(left + [0, 0, 0.05], right)[-1][:3, :3]
+    x = tilted @ np.array([1.0, 0.0, 0.0])
+    assert abs(x[2]) < 1e-9  # the box's front stays horizontal when one hand is higher

@@ -37,7 +37,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from trumans.scenes.scene import Scene, SceneObject
 from trumans.track.model_io import ContactModels
-from trumans.track.objects import (dof_limits, free_motion, hand_points, hinge_motion, one_hand_motion, rotation_about_axis,
+from trumans.track.objects import (TWO_HAND_SPAN_M, dof_limits, free_motion, hand_points, two_hand_free_motion, hinge_motion, one_hand_motion, rotation_about_axis,
                                       rotation_angles, two_hand_motion)
 from trumans.track.postprocess import ContactSegment, PostprocessConfig, contact_mask, contact_segments
 from trumans.track.per_dof import predict_dof_contacts
@@ -48,7 +48,7 @@ from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import ObjectTrack, Sequence
 from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
-from trumans.track.release import carried_release, lift_off, riding_poses
+from trumans.track.release import carried_release, lift_off
 from trumans.track.support import SupportQuery
 from trumans.track.object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
 
@@ -56,6 +56,7 @@ __all__ = ["TrackerConfig", "AttachedContact", "TrackResult", "contact_probabili
            "attach_detach", "attach_contact", "drive_object", "drive_contact", "clip_to_limits", "track"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
+PALMS_OUTSIDE_M = 0.08  # m, hand points holding a box between them are at most this much farther apart than its width
 
 
 @dataclass(frozen=True)
@@ -210,11 +211,14 @@ def _clip(segs: tuple[ContactSegment, ...], a: int, d: int) -> tuple[ContactSegm
 
 
 def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np.ndarray, wrist_pos: np.ndarray,
-                 pose0: np.ndarray, axis: np.ndarray | None, hinge_point: np.ndarray | None) -> np.ndarray:
+                 pose0: np.ndarray, axis: np.ndarray | None, hinge_point: np.ndarray | None,
+                 width: float = 0.0) -> np.ndarray:
     """Motions (n, 4, 4) of an object over a segment (supp. §10). hands: (n, 2, 3) hand points;
     wrist_rot: (n, 2, 3, 3) / wrist_pos: (n, 2, 3) wrist world poses (a free object rides on the
     wrist's frame: the fingers move relative to it while grasping); pose0: the object's pose at the segment start;
-    axis / hinge_point: object frame (slide direction or hinge)."""
+    axis / hinge_point: object frame (slide direction or hinge); width: the free object's largest
+    horizontal extent (m): two hands ``TWO_HAND_SPAN_M`` or more and at most ``PALMS_OUTSIDE_M`` more
+    than that apart hold it between them (``two_hand_free_motion``), else it rides on the leading wrist."""
     used = [h for h in (0, 1) if seg.hands[h]]
     main = 1 if seg.hands[1] else 0  # the right hand leads when both hold on
     if dof == "hinge":
@@ -226,6 +230,9 @@ def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np
             return two_hand_motion(hands[:, 0], hands[:, 1])
         return one_hand_motion(hands[:, main])
     if dof == "free":
+        span = float(np.linalg.norm(hands[0, 0] - hands[0, 1]))
+        if seg.two_handed and TWO_HAND_SPAN_M <= span <= width + PALMS_OUTSIDE_M:  # a box between the palms
+            return two_hand_free_motion(hands[:, 0], hands[:, 1])
         return free_motion(wrist_rot[:, main], wrist_pos[:, main])
     raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
 
@@ -263,7 +270,7 @@ def drive_contact(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray
     for seg in it.segments:
         s, e = seg.start, seg.end
         M = drive_object(it.dof, seg, hand_points(joints[s:e]), wrist_rot[s:e], joints[s:e][:, list(_WRIST)], track[s],
-                         obj.axis, obj.hinge_point)
+                         obj.axis, obj.hinge_point, _width(obj))
         track[s:e] = clip_to_limits(obj, M @ track[s])
         track[e:] = track[e - 1]
     e = it.segments[-1].end
@@ -307,6 +314,19 @@ def _release_gap(queries: ObjectQueries, name: str, poses: dict[str, np.ndarray]
     return release_support_gap(queries, name, trial[name][e], others)
 
 
+def _width(obj: SceneObject) -> float:
+    """An object's largest horizontal extent (m) in its own frame."""
+    return float((obj.mesh.bounds[1] - obj.mesh.bounds[0])[:2].max())
+
+
+def _ride(obj: SceneObject, seg: ContactSegment, a: int, b: int, joints: np.ndarray, wrist_rot: np.ndarray,
+          pose0: np.ndarray) -> np.ndarray:
+    """Poses (b - a, 4, 4) of free object ``obj`` taken at ``pose0`` on frame ``a`` and held as in
+    segment ``seg`` (``drive_object``: between two hands holding it between them, else on the leading wrist)."""
+    return drive_object("free", seg, hand_points(joints[a:b]), wrist_rot[a:b], joints[a:b][:, list(_WRIST)], pose0,
+                        None, None, _width(obj)) @ pose0
+
+
 def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str, poses: dict[str, np.ndarray],
                         segs: tuple[ContactSegment, ...], a: int, contact_end: int, joints: np.ndarray,
                         wrist_rot: np.ndarray, fps: float, reach: float) -> tuple[ContactSegment, ...] | None:
@@ -319,9 +339,8 @@ def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str
     continues until it touches down on a surface, or to the end). None when no hand comes within
     ``reach`` of it: the contact does not take it."""
     last = segs[-1]
-    main = 1 if last.hands[1] else 0
     others = {n: p[contact_end - 1] for n, p in poses.items() if n != name}
-    ride = riding_poses(wrist_rot[a:last.end, main], joints[a:last.end, _WRIST[main]], poses[name][a])
+    ride = _ride(support.scene.objects[name], last, a, last.end, joints, wrist_rot, poses[name][a])
     a = a + lift_off(support.gaps(name, ride, others), last.end - 1 - a)
     hands = hand_points(joints[a:last.end])  # (n, 2, 3); the object is at rest until it is taken
     used = [h for h in (0, 1) if any(sg.hands[h] for sg in segs)]
@@ -332,8 +351,7 @@ def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str
     a += int(near[0])
     segs = _clip(segs, a, last.end)
     last = segs[-1]
-    main = 1 if last.hands[1] else 0
-    ride = riding_poses(wrist_rot[a:, main], joints[a:, _WRIST[main]], poses[name][a])
+    ride = _ride(support.scene.objects[name], last, a, len(joints), joints, wrist_rot, poses[name][a])
     contact_end = max(contact_end, last.end)
     end = carried_release(support, name, ride, a, last.end, contact_end, others, fps)
     return segs if end <= last.end else segs[:-1] + (ContactSegment(last.start, end, last.hands, last.interval),)

@@ -13,7 +13,9 @@ Hand positions are "the middle of each hand" (``hand_points``: midpoint of wrist
   objects such as drawers that slide along one direction.
 - hinged (§10 C): the angle between the hinge->hand vectors (eq. 6) about the hinge axis, signed
   by the axis and unwrapped over time (a door may swing past +-180 deg).
-- free: the object follows the hand's pose (position and orientation of the wrist).
+- free: the object follows the hand's pose (position and orientation of the wrist); held between
+  two hands ``TWO_HAND_SPAN_M`` or more apart (a box), it follows the frame between them
+  (``two_hand_free_motion``).
 """
 from __future__ import annotations
 
@@ -30,6 +32,8 @@ __all__ = [
     "one_hand_motion",
     "hinge_motion",
     "free_motion",
+    "two_hand_free_motion",
+    "TWO_HAND_SPAN_M",
     "rotation_about_axis",
 ]
 
@@ -131,6 +135,24 @@ def free_motion(hand_rot: np.ndarray, hand_pos: np.ndarray) -> np.ndarray:
     inv0[:3, :3] = R[0].T
     inv0[:3, 3] = -R[0].T @ hand_pos[0]
     return H @ inv0
+
+
+TWO_HAND_SPAN_M = 0.10  # m, two hands this far apart hold an object between them (a box), not one small object
+
+
+def two_hand_free_motion(left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """Free object held between two hands (a box; not in the paper, whose free objects ride on one
+    hand): it moves with the frame whose origin is the hands' midpoint, y from the right hand to the
+    left one and z as near +z as that allows (the holding frame of ``trumans.synth.real_objects``), so
+    it stays level between the palms instead of turning with one wrist. left, right: (n, 3) hand
+    points (m, world). Returns H[t] @ inv(H[0]) (n, 4, 4)."""
+    left, right = _check_track(left, "left"), _check_track(right, "right")
+    y = left - right
+    y /= np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9)
+    z = _UP - (y @ _UP)[:, None] * y
+    z /= np.maximum(np.linalg.norm(z, axis=-1, keepdims=True), 1e-9)
+    R = np.stack([np.cross(y, z), y, z], axis=-1)
+    return free_motion(R, 0.5 * (left + right))
 
 
 def dof_limits(obj) -> tuple[float, float]:

@@ -25,23 +25,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from trumans.track.objects import free_motion
 from trumans.track.support import SupportQuery
 
-__all__ = ["LIFT_M", "REST_M", "CARRY_M", "STILL_MPS", "PICK_LIFT_M", "PICK_S", "riding_poses", "lift_off", "touchdown", "carried_release"]
+__all__ = ["LIFT_M", "REST_M", "CARRY_M", "STILL_MPS", "PICK_LIFT_M", "PICK_S", "lift_off", "touchdown", "carried_release"]
 
-LIFT_M = 0.10  # m, an object lifted this far above its support while the contact lasts is being carried
+LIFT_M = 0.10  # m, an object whose bottom rises this far while the contact lasts is being carried
 REST_M = 0.03  # m, an object whose bottom comes this close to the surface under it can be let go there
 CARRY_M = 0.15  # m, a contact that moved its object this far carried it (its end is the put-down)
 STILL_MPS = 0.3  # m/s, an object set down moves at most this fast (horizontally) when it touches down
 PICK_LIFT_M = 0.30  # m, after a contact on the reach only, the hand lifts a picked-up object this far ...
 PICK_S = 1.5  # s ... within this long after the contact's end (a hand leaving a table rises less)
-
-
-def riding_poses(wrist_rot: np.ndarray, wrist_pos: np.ndarray, pose0: np.ndarray) -> np.ndarray:
-    """Poses (n, 4, 4) of an object taken at ``pose0`` (4, 4) on the first frame and riding rigidly on
-    the holding wrist: wrist_rot (n, 3, 3) world rotations, wrist_pos (n, 3) m."""
-    return free_motion(wrist_rot, wrist_pos) @ np.asarray(pose0, np.float64)
 
 
 def lift_off(gaps: np.ndarray, last: int, rest: float = REST_M) -> int:
@@ -76,7 +69,7 @@ def carried_release(support: SupportQuery, name: str, ride: np.ndarray, attach: 
                     carry: float = CARRY_M, pick_lift: float = PICK_LIFT_M, pick_s: float = PICK_S) -> int:
     """The frame (exclusive end of the hold) at which free object ``name`` is let go (module doc).
     ride: (n, 4, 4) its poses riding on the hand from frame ``attach`` to the end of the motion
-    (``riding_poses``); detach: the detach frame found on the hands' speed (``attach_detach``);
+    (``interactions.drive_object``: on the holding wrist, or between two hands); detach: the detach frame found on the hands' speed (``attach_detach``);
     contact_end: the predicted contact's end (>= detach); others: the other objects' poses
     {name: (4, 4)} (supports); fps: frames per second. Returns ``detach`` when the object rests
     there and is not carried up (module doc), else the frame after it touches down past its

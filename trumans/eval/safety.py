@@ -23,6 +23,14 @@ room is solid, so a body that has passed a wall is deep in it, not in free space
   is as deep as it is far from the room. (The mesh-exact contact-rule penetration of the synthesis
   figures, ``trumans.eval.synthesis_metrics.penetration_cm``, is the other half of the benchmark's
   penetration figure.)
+- **contact depth** (``contact_depths``): that contact-rule penetration measured in the enclosed
+  field instead of the meshes: ``max(0, r_eff - sdf(x_j))`` with ``r_eff`` the contact radius
+  (``JOINT_RADIUS``) where the field's descent direction (``-gradient``, toward the nearest
+  surface) lies within 60 deg of one of the joint's outward directions
+  (``trumans.contacts.rule.outward_directions``: a heel, a seat, a lying back) or the joint is
+  inside a solid, else the core radius (``trumans.contacts.rule.body_penetration``). Never below
+  the core depth; within about 2 cm of the mesh-exact figure where the field sees the surface (a
+  part thinner than a voxel may be missing from it: a cabinet's drawer front).
 - **floating** / **sinking** frames: on frames the feet carry (``upright``), the lowest foot joint
   more than ``FLOAT_M`` above its resting height (``trumans.skeleton.FOOT_REST_HEIGHT``); on any
   frame, more than ``SINK_M`` below it.
@@ -39,12 +47,12 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from trumans.contacts.rule import JOINT_CORE_RADIUS, JOINT_RADIUS
+from trumans.contacts.rule import FACING_COS, JOINT_CORE_RADIUS, JOINT_RADIUS, body_penetration, outward_directions
 from trumans.scenes.sdf import SceneSDF
 from trumans.skeleton import ANKLES, FEET, FOOT_REST_HEIGHT, HIPS, JOINT_INDEX, KNEES
 
 __all__ = ["CROSS_DEPTH", "FLOAT_M", "SINK_M", "FEET_OFF_M", "LEG_JOINTS", "swept_dips", "crossings",
-           "room_exits", "core_depths", "floating_frames", "sinking_frames", "feet_off_frames", "seat_errors",
+           "room_exits", "core_depths", "contact_depths", "floating_frames", "sinking_frames", "feet_off_frames", "seat_errors",
            "lying_leg_depths"]
 
 CROSS_DEPTH = 0.01  # m a segment must dip below its ends (and the surface) to cross a solid
@@ -138,6 +146,18 @@ def core_depths(joints: np.ndarray, sdf: SceneSDF) -> np.ndarray:
     """(T, 24) m: ``max(0, core radius - sdf)`` per joint in ``sdf.enclosed()``."""
     J = _joints(joints)
     return np.maximum(JOINT_CORE_RADIUS[None] - _field(sdf.enclosed(), J), 0.0)
+
+
+def contact_depths(joints: np.ndarray, sdf: SceneSDF) -> np.ndarray:
+    """(T, 24) m: the contact-rule penetration of each joint's body in ``sdf.enclosed()`` (module doc:
+    the contact radius where the nearest surface faces an outward direction or the joint is inside,
+    else the core radius); >= ``core_depths``."""
+    J = _joints(joints)
+    d, g = sdf.enclosed().value_and_gradient(torch.as_tensor(J, dtype=torch.float32))
+    d, g = d.numpy().astype(np.float64), g.numpy().astype(np.float64)
+    toward = -g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-9)  # (T, 24, 3) to the surface
+    cos = np.einsum("tjkc,tjc->tjk", outward_directions(J), toward).max(-1)
+    return np.maximum(body_penetration(d, cos > FACING_COS), core_depths(J, sdf))
 
 
 def _mask(mask: np.ndarray, T: int, what: str) -> np.ndarray:

@@ -33,6 +33,7 @@ from trumans.sample.plan import Plan
 from trumans.sample.cleanup.reach import ReachCleanupConfig, reach_schedule, release_weights
 
 __all__ = ["Phase", "EpisodeControl", "Controller", "compile_plan", "DEFAULT_SECONDS", "TURN_BEFORE_WALK", "free_margin", "seat_target",
+           "lie_heading", "lie_head_flipped", "SYMMETRIC_LIE",
            "line_of_sight_arc", "off_walkable", "sit_down_subgoal"]
 
 # a walk whose path leaves more than this off the body's heading starts with a turn on the spot
@@ -166,14 +167,46 @@ def _stand_facing(point: np.ndarray, pos: np.ndarray, wm: WalkMap) -> np.ndarray
     return nearest_walkable(wm, stand) if not wm.query(stand[None])[0] else stand
 
 
-def lie_heading(obj) -> float | None:
+def lie_heading(obj, flip: bool = False) -> float | None:
     """The body heading (rad, world; ``trumans.skeleton.heading``: perpendicular to the hip line) of a person
     lying on their back on ``obj`` with the head along its ``lie_yaw`` (meta, local frame: the feet -> head
     direction; a bed's headboard end, ``trumans.scenes.furniture`` / ``affordances``): the hip line's forward
-    points to the feet, so heading = object yaw + lie_yaw + pi. None when the object gives no ``lie_yaw``."""
+    points to the feet, so heading = object yaw + lie_yaw + pi; ``flip``: the head at the other end
+    (``lie_head_flipped``). None when the object gives no ``lie_yaw``."""
     if "lie_yaw" not in obj.meta:
         return None
-    return _wrap(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])) + float(obj.meta["lie_yaw"]) + np.pi)
+    return _wrap(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])) + float(obj.meta["lie_yaw"]) + np.pi
+                 + (np.pi if flip else 0.0))
+
+
+SYMMETRIC_LIE = ("sofa",)  # lying objects whose two ends are alike (no headboard, no pillow): the head may go to either
+# where a lying object's end's room is taken: this far (m) inside the lying length from the end, and this far
+# beyond the approach point (0.2 m in front of a sofa: too close to be walkable) in front of the object
+LIE_END_INSIDE_M, LIE_END_AHEAD_M = 0.1, 0.35
+
+
+def lie_head_flipped(obj, wm: WalkMap, free_at) -> bool:
+    """Whether a person lying on ``obj`` should put the head at the end opposite its ``lie_yaw``: only for
+    ``SYMMETRIC_LIE`` objects, when the floor in front of the other end has more than 10 cm more room (the
+    walkable floor's free margin, ``free_at``: m; -1 off the floor) ``LIE_END_AHEAD_M`` beyond the approach
+    point and ``LIE_END_INSIDE_M`` inside the lying length (meta 'lie_length') from the end. The network lays
+    the body down from the edge seat and its head can swing in front of the cushion: at a sofa's end with a
+    cabinet in front of it the head went into the cabinet's drawer (the safety benchmark's plan 13, 7.7 cm;
+    the drawer front is thinner than the field's voxels, so no cleanup step sees it)."""
+    meta = obj.meta
+    if obj.category not in SYMMETRIC_LIE or not all(k in meta for k in ("lie_yaw", "lie_center", "approach")):
+        return False
+    half = 0.5 * float(meta.get("lie_length", 1.8)) - LIE_END_INSIDE_M
+    c, a = np.asarray(meta["lie_center"], dtype=np.float64)[:2], np.asarray(meta["approach"], dtype=np.float64)[:2]
+    head = np.array([np.cos(float(meta["lie_yaw"])), np.sin(float(meta["lie_yaw"]))])
+    ahead = (a - c) - ((a - c) @ head) * head  # from the lying centre to the approach, across the lying direction
+    ahead = ahead * (1.0 + LIE_END_AHEAD_M / max(float(np.linalg.norm(ahead)), 1e-9))
+
+    def room(sign: float) -> float:
+        q = _world(obj, c + ahead + sign * half * head)
+        return free_at(q) if wm.query(q[None])[0] else -1.0
+
+    return room(-1.0) > room(1.0) + 0.1
 
 
 def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: dict[str, float],
@@ -250,10 +283,16 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             walk(i, np.asarray(s.to, dtype=np.float64))
         elif s.kind in ("sit_on", "lie_on"):
             lie = _world(obj, np.asarray(obj.meta["lie_center"], dtype=np.float64)) if s.kind == "lie_on" else None
-            # lying as in the data: sit on the edge first (the seat place nearest the lying pelvis)
+            flip = s.kind == "lie_on" and lie_head_flipped(obj, wm, _free_at)  # the head at the end with room
+            # lying as in the data: sit on the edge first (the seat place nearest the lying pelvis; flipped, of two
+            # places as near, the one at the head's end, which has the room: not the feet in front of the cabinet)
             via_edge = lie is not None and "seat_center" in obj.meta and "sit_down" in vocabulary
             if s.kind == "sit_on" or via_edge:
-                seat, h = seat_target(obj, near=lie)
+                near = lie
+                if flip:
+                    yaw_w = float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0]) + obj.meta["lie_yaw"]) + np.pi
+                    near = lie + 1e-3 * np.array([np.cos(yaw_w), np.sin(yaw_w), 0.0])
+                seat, h = seat_target(obj, near=near)
                 stand, yaw = _sitting_side(obj, wm, seat, _free_at)
                 walk(i, stand)
                 if "turn" in vocabulary:
@@ -273,10 +312,10 @@ def compile_plan(plan: Plan, scene, wm: WalkMap, start_xy: np.ndarray, seconds: 
             else:
                 phases.append(Phase("lie_down", ("lie_down",), frames("lie_down"), goal=lie[:2], step=i,
                                     info={"surface_height": float(lie[2]), "object": obj.name},
-                                    heading=lie_heading(obj)))
+                                    heading=lie_heading(obj, flip)))
                 phases.append(Phase("lie", ("lie",), frames("lie", s.seconds), goal=lie[:2], step=i,
                                     info={"surface_height": float(lie[2]), "object": obj.name},
-                                    heading=lie_heading(obj)))
+                                    heading=lie_heading(obj, flip)))
                 posture = "lie"
                 edge_seat = seat[:2].copy() if via_edge else None
             posture_exit = pos.copy()

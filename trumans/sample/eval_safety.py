@@ -39,7 +39,7 @@ from trumans import argtypes
 from trumans.sample.sampling_args import add_guidance_arguments, add_postprocess_arguments, sampler_config
 
 __all__ = ["add_arguments", "run", "evaluate", "PERTURBATIONS", "PLAN_KINDS", "TARGETS", "write_room_models",
-           "run_figures", "plan_kind"]
+           "run_figures", "plan_kind", "parse_only_plans"]
 
 PERTURBATIONS: tuple[str, ...] = ("base", "threads2", "seed", "start1mm")
 PLAN_KINDS: tuple[str, ...] = ("default", "wall", "lie")
@@ -63,6 +63,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "out/safety_rooms)")
     p.add_argument("--demo", action="store_true", help="also run the demo (`trumans sample` with its defaults: the "
                    "default plan in the default room) under every perturbation, as plan 'demo'")
+    p.add_argument("--only-plans", default=None, metavar="I,J,...",
+                   help="run only these plan numbers (each < --plans; 'demo' for the demo plan), e.g. 45,10,21 to "
+                   "rerun failing runs: each plan keeps its room, kind and seeds as in the full benchmark")
     p.add_argument("--perturbations", default=",".join(PERTURBATIONS),
                    help=f"comma-separated among {', '.join(PERTURBATIONS)} (default all)")
     from trumans.sample.sampler import SamplerConfig
@@ -134,6 +137,19 @@ def _edge_point(wm, start: np.ndarray, rng: np.random.Generator, within: float =
     d = np.linalg.norm(wm.centers(idx) - start, axis=1)
     pick = idx[(d > 1.0) & (d < within)] if ((d > 1.0) & (d < within)).any() else idx
     return wm.centers(pick[rng.integers(len(pick))])
+
+
+def parse_only_plans(text: str | None, plans: int, demo: bool) -> tuple[set[int] | None, bool]:
+    """``--only-plans`` ("45,10,demo") -> (plan numbers to run or None for all, whether to run the demo).
+    Every number must be in [0, plans): plan i keeps the room, kind and seeds it has in the full run."""
+    if text is None:
+        return None, demo
+    items = [t.strip() for t in text.split(",") if t.strip()]
+    nums = [t for t in items if t != "demo"]
+    if not items or not all(t.isdigit() and int(t) < plans for t in nums):
+        raise ValueError(f"--only-plans must be comma-separated plan numbers in [0, --plans={plans}) or 'demo', "
+                         f"got {text!r}")
+    return {int(t) for t in nums}, "demo" in items
 
 
 def plan_kind(i: int, rooms: int) -> str:
@@ -255,10 +271,11 @@ def _worst(runs: list[dict]) -> dict:
 
 def evaluate(ckpt_path, plans: int, rooms: int, mesh_rooms: int, perturbations: tuple[str, ...], seed: int,
              config=None, mesh_dir: str | Path = "out/safety_rooms", max_seconds: float = 120.0,
-             log=None, demo: bool = False, device: str = "cpu") -> dict:
+             log=None, demo: bool = False, device: str = "cpu", only: set[int] | None = None) -> dict:
     """Run the benchmark (module doc) -> {"runs": [...], "worst": {...}, "targets": {...}}; ``demo``:
     also the default plan in the default room from its default start (what ``make demo`` samples,
-    seed 0), under every perturbation ('seed': seed 1)."""
+    seed 0), under every perturbation ('seed': seed 1); ``only``: run just these plan numbers (each in
+    the room, with the kind and seeds it has among ``plans``), None = all."""
     import torch
 
     from trumans.contacts.rule import ContactScene
@@ -276,7 +293,8 @@ def evaluate(ckpt_path, plans: int, rooms: int, mesh_rooms: int, perturbations: 
     threads = torch.get_num_threads()
     runs: list[dict] = []
     jobs = [("default", ["demo"])] if demo else []
-    jobs += [(spec, [i for i in range(plans) if i % len(specs) == r]) for r, spec in enumerate(specs)]
+    jobs += [(spec, [i for i in range(plans) if i % len(specs) == r and (only is None or i in only)])
+             for r, spec in enumerate(specs)]
     for spec, todo in jobs:
         if not todo:
             continue
@@ -339,9 +357,11 @@ def run(args: argparse.Namespace) -> int:
                          f"{args.plans}, {args.rooms}, {args.mesh_rooms}")
     if not (np.isfinite(args.max_seconds) and args.max_seconds > 0):
         raise ValueError(f"--max-seconds must be > 0, got {args.max_seconds}")
+    only, demo = parse_only_plans(args.only_plans, args.plans, args.demo)
     figs = evaluate(args.checkpoint or DEFAULT_CHECKPOINT, args.plans, args.rooms, args.mesh_rooms, perts, args.seed,
                     sampler_config(args), args.mesh_dir, args.max_seconds,
-                    log=lambda line: print(line, file=sys.stderr, flush=True), demo=args.demo, device=args.device)
+                    log=lambda line: print(line, file=sys.stderr, flush=True), demo=demo, device=args.device,
+                    only=only)
     if args.json:
         from trumans.summary import print_summary
 

@@ -96,6 +96,25 @@ def test_low_priority_target_yields_to_contact():
     assert r.error[:, 0].max() < 2e-3 < r.error[:, J["left_hip"]].min()
 
 
+def test_fading_effector_is_done_within_tol_over_its_weight():
+    """A frame's effector of weight w (``active`` = sqrt(w)) is done within tol / w: a half-faded
+    wrist stops short of its target, a full-weight one reaches tol, and a frame whose weighted
+    error is already within tol is left untouched."""
+    T = 3
+    P, G = _sitting(T)
+    tgt = P.copy()
+    tgt[:, J["right_wrist"]] += [0.0, -0.05, 0.03]
+    a = np.zeros((T, 24))
+    a[:, J["right_wrist"]] = [1.0, 0.3, 0.3]  # weights 1, 0.09, 0.09
+    tgt[2, J["right_wrist"]] = P[2, J["right_wrist"]] + [0.0, 0.0, 0.0015]  # 1.5 mm x 0.09 < tol
+    cfg = IKConfig()
+    r = solve_ik(P, G, tgt, a, config=cfg)
+    e = r.error[:, J["right_wrist"]]
+    assert e[0] <= cfg.tol
+    assert cfg.tol < e[1] and e[1] * 0.09 <= cfg.tol * 1.0001
+    assert np.array_equal(r.joints[2], P[2])
+
+
 def test_bad_inputs():
     P, G = _sitting(2)
     with pytest.raises(ValueError, match="joints must be"):

@@ -222,7 +222,7 @@ def solve_ik(
     joints: (T, 24, 3) m world; global_rot: (T, 24, 3, 3) global rotations consistent with joints;
     targets: (T, 24, 3) m world (only entries where ``active``); active: (T, 24) bool effectors,
     or float weights in [0, 1] (> 0 = effector; a lower weight is a lower priority: its CCD steps
-    and its share of the root fit are scaled by weight**2);
+    and its share of the root fit are scaled by weight**2, and it is done within tol / weight**2);
     rest_local: (T, 24, 3, 3) local rotations to regularise toward (default: those of global_rot);
     local: also return local rotations (``local_rot`` is None otherwise); init: (joints, global_rot)
     of a previous solve to start from (a warm start; the regularisation still pulls toward the
@@ -254,8 +254,9 @@ def solve_ik(
         P, G = (np.array(a, dtype=np.float64) for a in init)
         if P.shape != P0.shape or G.shape != G0.shape:
             raise ValueError(f"init must be (joints {P0.shape}, global_rot {G0.shape})")
-    err0 = np.where(act, np.linalg.norm(P - tgt, axis=-1), 0.0).max(1)
-    todo = np.flatnonzero(err0 > cfg.tol)  # frames already at their targets need no work
+    d0 = np.linalg.norm(P - tgt, axis=-1)
+    err0 = np.where(act, d0, 0.0).max(1)
+    todo = np.flatnonzero(np.where(act, d0 * wt, 0.0).max(1) > cfg.tol)  # frames at their targets need no work
     prev = err0.copy()
     # the working set: frames still to solve, kept compact; frames leave it when done
     Pt, Gt, tt, at, wtt = P[todo], G[todo], tgt[todo], act[todo], wt[todo]
@@ -301,8 +302,12 @@ def solve_ik(
             else:
                 fr = np.flatnonzero(need)
                 sweep(Pt, Gt, tt[fr, e], int(e), chain, limits, wtt[fr, e], sg[fr], frames=fr)
-        err = np.where(at, _norm(Pt - tt), 0.0).max(1)
-        keep = (err > cfg.tol) & ((reg > 0) | (err < prevt - 1e-6))  # done: converged, or stalled after the regularised iterations
+        d = _norm(Pt - tt)
+        err = np.where(at, d, 0.0).max(1)
+        # a frame is done when every effector is within tol weighted by its priority (a fading
+        # effector of weight w is pulled only w-strongly, so tol / w is as close as it is asked to
+        # be), or when it stalled after the regularised iterations
+        keep = (np.where(at, d * wtt, 0.0).max(1) > cfg.tol) & ((reg > 0) | (err < prevt - 1e-6))
         prevt = err
         if not keep.all():
             done = ~keep

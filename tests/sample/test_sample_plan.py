@@ -286,6 +286,30 @@ def test_line_of_sight_arc_pulls_a_subgoal_past_a_corner_back_into_view():
     assert s <= s10 < 2.7
 
 
+def test_line_of_sight_arc_from_a_body_pressed_to_a_wall_end_never_aims_through_the_wall():
+    """A 5 cm partition (x 1.0-1.05, y < 1.6) with the walk map's 0.25 m margin around it; the path
+    goes up the left side, round the wall's end and down the right side. A pelvis 15 cm from the
+    end (off the margin) must not get a subgoal on the far side of the wall (it used to get the
+    farthest candidate, 1 m ahead, straight through the partition)."""
+    from trumans.sample.controller import line_of_sight_arc, off_walkable
+    from trumans.scenes.walkability import WalkMap
+
+    xy = np.stack(np.meshgrid(np.arange(-1.0, 3.0, 0.05), np.arange(-1.0, 3.0, 0.05), indexing="ij"), -1)
+    dist = np.hypot(np.maximum(np.abs(xy[..., 0] - 1.025) - 0.025, 0.0), np.maximum(xy[..., 1] - 1.6, 0.0))
+    wm = WalkMap(dist >= 0.25, np.array([-1.0, -1.0]), 0.05)  # m from the wall, walkable past the margin
+    path = np.array([[0.7, 0.0], [0.7, 1.95], [1.35, 1.95], [1.35, 0.0]])
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    off = off_walkable(wm)
+    body = np.array([0.9, 1.5])  # pressed to the wall's left face near its end: off the margin
+    assert not wm.query(body[None])[0]
+    s = line_of_sight_arc(wm, off, path, cum, 1.6, 2.6, body)
+    end = np.array([np.interp(s, cum, path[:, 0]), np.interp(s, cum, path[:, 1])])
+    assert s < 2.6 and end[0] < 1.0 + 0.25  # still on the near side or on the round the end
+    # the straight line from the body to the subgoal does not cross the partition
+    line = body + np.linspace(0, 1, 400)[:, None] * (end - body)
+    assert not ((line[:, 0] >= 1.0) & (line[:, 0] <= 1.05) & (line[:, 1] <= 1.6)).any()
+
+
 def test_controller_with_walkmap_does_not_aim_across_a_corner():
     wm, path = _corner_map()
     ph = [Phase("walk", ("walk",), path=path, goal=path[-1])]

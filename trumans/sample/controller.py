@@ -409,16 +409,22 @@ def line_of_sight_arc(wm: WalkMap, off: np.ndarray, path: np.ndarray, cum: np.nd
     cumulative arc length) whose path point is seen from ``start`` (2,) world xy (the body's pelvis):
     the straight line between them (sampled every half walk-map cell) stays within ``slack`` m of
     walkable floor (``off``: ``off_walkable(wm)``); candidates every ``step`` m back from ``s1``.
-    None seen (the body stands off the floor's margin): ``s1``."""
+    A pelvis off the floor's margin (pressed to a wall's end or furniture) looks from the nearest
+    walkable cell; if still none is seen, the nearest candidate (never a point across a wall: the
+    safety benchmark's partition plan aimed 1 m ahead through the wall from the wall's end and stood
+    there to the end of its time, docs/results.md "Scene safety")."""
     cand = np.concatenate([[s1], np.arange(s1 - step, s0, -step)])  # (C,) from the farthest back
     pts = lambda s: np.stack([np.interp(s, cum, path[:, 0]), np.interp(s, cum, path[:, 1])], -1)  # noqa: E731
     a, b = np.asarray(start, np.float64), pts(cand)  # (2,), (C, 2)
+    ia = wm.index(a)
+    if not (np.all((ia >= 0) & (ia < np.asarray(off.shape))) and off[ia[0], ia[1]] <= slack + 1e-9):
+        a = nearest_walkable(wm, a)
     n = max(2, int(np.ceil(np.linalg.norm(b - a, axis=-1).max() / (0.5 * wm.cell))) + 1)
     idx = wm.index(a + np.linspace(0.0, 1.0, n)[None, :, None] * (b[:, None] - a))  # (C, n, 2)
     inside = np.all((idx >= 0) & (idx < np.asarray(off.shape)), axis=-1)
     c = np.clip(idx, 0, np.asarray(off.shape) - 1)
     seen = (inside & (off[c[..., 0], c[..., 1]] <= slack + 1e-9)).all(-1)  # (C,)
-    return float(cand[np.argmax(seen)]) if seen.any() else float(s1)
+    return float(cand[np.argmax(seen)]) if seen.any() else float(cand[-1])
 
 
 class Controller:

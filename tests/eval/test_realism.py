@@ -349,3 +349,22 @@ def test_generated_sample_is_scored(tmp_path, capsys):
     assert st["walk_jerk_p95"]["note"].startswith("not measured: input below 30 fps")
     assert st["sitdown_descent_10_90"]["reference"]["note"].startswith("n/a:")  # the held-out corpus has 4
     assert rep["compared"] == sum(r["inside"] is not None for r in st.values())
+
+
+def test_reference_counts_postures_only_where_the_description_speaks_of_them():
+    """A squat or a crouched walk is labelled `sit` from the motion; a reference clip's seated and
+    sit-down events count only when its description speaks of sitting (and lying events of lying)."""
+    from trumans.eval.realism import RealismClip, described_postures
+
+    assert described_postures("sit on high stool, stand up") == ("sit",)
+    assert described_postures("Laying down and getting up") == ("lie",)
+    assert described_postures("Get up from floor") == ("lie",)
+    assert described_postures("walk stealthily") == () and described_postures("squats, lunges") == ()
+    clip = next(c for c in load_corpus(split="train") if c.name == "13_01")
+    seated = [k for k, (a, _, _) in STATISTICS.items() if a in ("seated", "sit-down", "stand-up")]
+    free = clip_events(RealismClip(clip.joints, clip.fps, clip.states))
+    vouched = clip_events(RealismClip(clip.joints, clip.fps, clip.states, postures=("sit",)))
+    silent = clip_events(RealismClip(clip.joints, clip.fps, clip.states, postures=()))
+    assert any(free[k] for k in seated) and all(vouched[k] == free[k] for k in STATISTICS)
+    assert not any(silent[k] for k in seated)
+    assert all(silent[k] == free[k] for k, (a, _, _) in STATISTICS.items() if a in ("walk", "upright"))

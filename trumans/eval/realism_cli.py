@@ -120,14 +120,18 @@ def _scene_of(seq, path: Path):
 
 
 def _reference(spec: str) -> list[RealismClip]:
-    """The reference clips at 30 fps, a corpus's with its stored states."""
+    """The reference clips at 30 fps, a corpus's with its stored states and the postures its
+    descriptions vouch for (``trumans.eval.realism.described_postures``)."""
+    from trumans.eval.realism import described_postures
     from trumans.mocap_corpus import load_corpus
 
     if spec.startswith("corpus:") or spec.endswith(".npz"):
         which = spec.split(":", 1)[1] if spec.startswith("corpus:") else None
         corpus = load_corpus(split=None if which in (None, "all") else which) if spec.startswith("corpus:") \
             else load_corpus(spec)
-        return [RealismClip(c.joints, c.fps, c.states, name=c.name) for c in corpus]
+        return [RealismClip(c.joints, c.fps, c.states, name=c.name,
+                            postures=described_postures(c.description) if c.description.strip() else None)
+                for c in corpus]
     return [RealismClip(j) for j in load_clips(spec)]
 
 

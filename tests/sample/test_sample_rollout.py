@@ -77,6 +77,62 @@ def test_sample_plan_runs_to_the_end_and_keeps_bones(open_room):
     assert all(f == s + 15 for (f, b, j, p), s in zip(res.goals[::2], res.episode_starts) if j == "pelvis")
 
 
+def test_overlapping_episodes_commit_less_and_crossfade(open_room, monkeypatch):
+    """SamplerConfig.overlap = D: every episode but the last commits L - k - D new frames, the next one
+    starts there, and the network's first D new frames are crossfaded with the frames the earlier
+    episode made without committing them, before the cleanup."""
+    import trumans.sample.rollout as rollout
+    from trumans.sample.cleanup.seam import crossfade
+
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint()
+    plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "goto", "to": [1.6, 0.6]},
+                                                           {"do": "act", "action": "drink", "seconds": 1.0}]})
+    raw, cleaned = [], []
+    episode, cleanup = EpisodeSampler.episode, rollout.run_cleanup
+    def made(self, *a, **kw):
+        out = episode(self, *a, **kw)
+        raw.append(out.copy())
+        return out
+    monkeypatch.setattr(EpisodeSampler, "episode", made)
+
+    def watched(bodies, config, observe=None):
+        assert config.seam.enabled is (not cleaned)  # the crossfade replaces the seam blend
+        cleaned.append((bodies.joints.copy(), cleanup(bodies, config, observe)))
+        return cleaned[-1][1]
+    monkeypatch.setattr(rollout, "run_cleanup", watched)
+    D, k = 3, 2
+    res = sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3, overlap=D)), scene, wm, plan, seed=0)
+    n = 14 - D
+    assert res.episode_starts == [n * e for e in range(res.episodes)] and len(raw) == res.episodes >= 2
+    assert res.joints.shape[1] == k + n * (res.episodes - 1) + 14  # the last episode commits all 14
+    np.testing.assert_array_equal(cleaned[0][0], raw[0])  # the first episode: nothing to crossfade
+    for e in range(1, res.episodes):
+        kept = cleaned[e - 1][1][:, k + n:]  # the earlier episode's cleaned, uncommitted frames
+        np.testing.assert_allclose(cleaned[e][0][:, k:k + D], crossfade(kept, raw[e][:, k:k + D]), atol=1e-6)
+        np.testing.assert_array_equal(cleaned[e][0][:, k + D:], raw[e][:, k + D:])
+        s = k + n * e  # what is committed: the cleaned episode
+        np.testing.assert_array_equal(res.joints[:, s:s + n], cleaned[e][1][:, k:k + n])
+    assert all(f < res.joints.shape[1] for f, *_ in res.goals)
+    cv = np.std(bone_lengths_of(res.joints[0].astype(np.float64))[:, 1:], 0)
+    assert cv.max() < 1e-4  # the crossfaded frames keep the body's bones too
+    with pytest.raises(ValueError, match="overlap 14 leaves no new frame"):
+        sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3, overlap=14)), scene, wm, plan)
+    with pytest.raises(ValueError, match="overlap must be >= 0"):
+        SamplerConfig(overlap=-1)
+
+
+def test_crossfade_weights():
+    from trumans.sample.cleanup.seam import crossfade
+
+    a, b = np.zeros((1, 3, 24, 3)), np.ones((1, 3, 24, 3))
+    w = crossfade(a, b)[0, :, 0, 0]
+    assert np.all(np.diff(w) > 0) and 0 < w[0] < 0.2 and 0.8 < w[-1] < 1 and w[1] == pytest.approx(0.5)
+    np.testing.assert_allclose(crossfade(b, b), b)
+    with pytest.raises(ValueError, match="one shape"):
+        crossfade(a, b[:, :2])
+
+
 def test_stream_incremental_schedule_and_new_plans(open_room):
     scene, occ, wm = open_room
     ck = tiny_checkpoint()

@@ -2,7 +2,13 @@
 
 ``sample_plan`` runs the closed-loop controller (``trumans.sample.controller``), the episode sampler
 (``trumans.sample.sampler``) and the cleanup after it (``trumans.sample.cleanup.pipeline``) episode by
-episode until the plan is done and returns every frame. ``stream`` is the real-time
+episode until the plan is done and returns every frame. With ``SamplerConfig.overlap`` = D > 0,
+every episode but the last commits only its first L - k - D new frames (the controller is rewound
+to what they consumed, as ``stream`` does); the next episode starts from there and its first D new
+frames (the network's, before the cleanup) are crossfaded with the D frames the earlier episode made
+and did not commit (``cleanup.seam.crossfade``; the cleanup then puts them on the body's bones, out
+of the scene, feet down; its seam blend is off for these episodes: the crossfade joins them): no frame of the output comes from one network pass's edge alone, so
+the seam's jerk (k = 2 context frames carry no acceleration) is spread over D frames. ``stream`` is the real-time
 form: a Python generator that yields new frames as soon as they are made and accepts a new plan
 at any time through ``send``; after a new plan it commits 2, then 4, then 8 new frames per
 episode before going back to full episodes (the paper's incremental schedule, §5.4), so the body
@@ -12,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Generator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
@@ -24,6 +30,7 @@ from trumans.skeleton import JOINT_INDEX, heading as body_heading
 from trumans.sample.carry_plan import planned_object_poses
 from trumans.sample.cleanup.bones import bone_lengths_of
 from trumans.sample.cleanup.pipeline import EpisodeBodies, run_cleanup
+from trumans.sample.cleanup.seam import crossfade
 from trumans.sample.controller import Controller, Phase, compile_plan
 from trumans.sample.guidance.seat import seated_heights
 from trumans.sample.plan import Plan
@@ -137,10 +144,13 @@ class _Episode:
 
 
 def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
-          lengths: np.ndarray, generator: torch.Generator | None, seat_offset: float) -> _Episode:
+          lengths: np.ndarray, generator: torch.Generator | None, seat_offset: float,
+          pending: np.ndarray | None = None) -> _Episode:
     """One episode for every sample: the controls, the network (with its guidance), then the
     cleanup pipeline (``trumans.sample.cleanup.pipeline``) on the body with bone ``lengths``;
-    ``seat_offset``: the body's pelvis height above a seat surface (``sit_offset``), m."""
+    ``seat_offset``: the body's pelvis height above a seat surface (``sit_offset``), m; ``pending``
+    (B, D, 24, 3): the previous episode's uncommitted frames, crossfaded into the network's first D
+    new frames before the cleanup (so the blend, too, is put on the bones, out of the scene, feet down)."""
     config = sampler.config
     moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
@@ -155,6 +165,9 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
             seat_z[b, f] = z
     labels = np.stack([c.labels for c in ctrls])
     world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
+    if pending is not None:
+        k, D = sampler.k, pending.shape[1]
+        world[:, k:k + D] = crossfade(pending, world[:, k:k + D])
     # dynamic objects count where they stand until the plan moves one (then the static scene only)
     sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
     bodies = EpisodeBodies(world, context, lengths, labels, tuple(sampler.ckpt.vocabulary), sampler.ckpt.fps,
@@ -167,7 +180,10 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
             bl = bone_lengths_of(joints[:, sampler.k:].astype(np.float64))[..., 1:]  # (B, L - k, 23)
             raw.append(float(np.median(bl.std(1) / np.maximum(bl.mean(1), 1e-9))))
 
-    world = run_cleanup(bodies, config.cleanup, observe=network_bones)
+    cleanup = config.cleanup
+    if pending is not None:  # the crossfade joins the episodes: the seam blend would add its own bend
+        cleanup = replace(cleanup, seam=replace(cleanup.seam, enabled=False))
+    world = run_cleanup(bodies, cleanup, observe=network_bones)
     return _Episode(world[:, sampler.k:], labels, np.stack([c.phases for c in ctrls]), goals, raw[0])
 
 
@@ -204,8 +220,13 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         [np.full((num_samples, ckpt.k), -1)]
     g = torch.Generator().manual_seed(int(seed))
     seat = sit_offset(pose)
-    limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k)))
+    overlap = sampler.config.overlap
+    if overlap > ckpt.L_epi - ckpt.k - 1:
+        raise ValueError(f"overlap {overlap} leaves no new frame to commit: an episode makes {ckpt.L_epi - ckpt.k}; "
+                         f"use at most {ckpt.L_epi - ckpt.k - 1}")
+    limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k - overlap)))
     t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
+    pending = None  # the last episode's uncommitted frames (B, overlap, 24, 3), to crossfade
     bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
     while not all(c.done for c in controllers) and (max_episodes is None or episodes < max_episodes):
         if episodes >= limit:
@@ -213,11 +234,23 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
                              f"reach its goals - check the plan or raise --max-seconds")
         tic = time.perf_counter()
         starts.append(sum(f.shape[1] for f in frames) - ckpt.k)
-        ep = _step(sampler, controllers, frames[-1][:, -ckpt.k:], labels[-1][:, -ckpt.k:], lengths, g, seat)
+        context = frames[-1][:, -ckpt.k:]
+        snapshots = [_snapshot(c) for c in controllers]
+        ep = _step(sampler, controllers, context, labels[-1][:, -ckpt.k:], lengths, g, seat, pending)
+        new = ep.new
+        n = new.shape[1]
+        if overlap and not all(c.done for c in controllers):  # commit all but the last `overlap` frames
+            n -= overlap
+            for b, (c, snap) in enumerate(zip(controllers, snapshots)):
+                _restore(c, snap)
+                _advance(c, n, context[b, -1, PELVIS, :2])
+            pending = new[:, n:]
+        else:
+            pending = None
         t0 += time.perf_counter() - tic
-        frames.append(ep.new)
-        labels.append(ep.labels[:, ckpt.k:])
-        phase.append(ep.phase[:, ckpt.k:])
+        frames.append(new[:, :n])
+        labels.append(ep.labels[:, ckpt.k:ckpt.k + n])
+        phase.append(ep.phase[:, ckpt.k:ckpt.k + n])
         end = starts[-1] + ckpt.L_epi - 1
         for b, gl in enumerate(ep.goals):
             f = end if gl.joint == "pelvis" else starts[-1] + gl.frame % ckpt.L_epi
@@ -226,6 +259,8 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         episodes += 1
         bar.update(1)
     bar.close()
+    T = sum(f.shape[1] for f in frames)
+    goals = [gl for gl in goals if gl[0] < T]  # a goal due in frames the last episode never made
     return SampleResult(np.concatenate(frames, 1), np.concatenate(labels, 1), np.concatenate(phase, 1), phases,
                         ckpt.fps, list(ckpt.vocabulary), episodes, t0, starts, goals,
                         float(np.median(cvs)) if cvs else float("nan"), seat, ckpt.k)
@@ -261,11 +296,11 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         if ctrl.done:  # hold: an empty plan keeps the last posture label
             ctrl = Controller([Phase("act", ("stand",), frames=L)], ckpt.vocabulary, L, k, ckpt.fps, _speed(ckpt),
                               reach=sampler.config.cleanup.reach)
-        snapshot = (ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, list(ctrl.releases))
+        snapshot = _snapshot(ctrl)
         ep = _step(sampler, [ctrl], context, prev, lengths, g, seat)
         new, lab = ep.new, ep.labels
         if n < L - k:  # commit only n frames: rewind the controller to what those frames consumed
-            ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, ctrl.releases = snapshot
+            _restore(ctrl, snapshot)
             _advance(ctrl, n, context[0, -1, PELVIS, :2])
         out = new[:, :n]
         context = np.concatenate([context, out], 1)[:, -k:]
@@ -274,6 +309,16 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         if sent is not None:
             ctrl = controller_for(sent, context[0, -1, PELVIS, :2].astype(np.float64), float(body_heading(context[0, -1])))
             todo = list(schedule)
+
+
+def _snapshot(ctrl: Controller) -> tuple:
+    """What ``Controller.next`` advances: restore it with ``_restore`` to rewind an episode."""
+    return ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, ctrl.approach_tries, list(ctrl.releases)
+
+
+def _restore(ctrl: Controller, snapshot: tuple) -> None:
+    ctrl.index, ctrl.elapsed, ctrl.walk_s, ctrl.body_s, ctrl.approach_tries, releases = snapshot
+    ctrl.releases = list(releases)
 
 
 def _advance(ctrl: Controller, n: int, pelvis_xy: np.ndarray) -> None:

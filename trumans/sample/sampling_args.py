@@ -26,6 +26,9 @@ def add_guidance_arguments(p: argparse.ArgumentParser) -> None:
                         f"guidance terms; 0 = inpainting only; default {d.goal_guidance:g})")
     p.add_argument("--goal-iters", type=int, default=d.goal_iters,
                    help=f"guidance updates per denoising step, each a backward pass (default {d.goal_iters})")
+    p.add_argument("--overlap", type=int, default=d.overlap, metavar="FRAMES",
+                   help="regenerate the last FRAMES new frames of each episode in the next one and crossfade "
+                        f"the two (smoother seams, more episodes; default {d.overlap}: none)")
     p.add_argument("--guided-steps", type=int, default=d.guided_steps, metavar="N",
                    help="guide only the last N denoising steps, the earlier ones are plain (0 = every step; "
                         f"default {d.guided_steps})")
@@ -93,4 +96,4 @@ def sampler_config(args: argparse.Namespace):
     return SamplerConfig(steps=args.steps, eta=args.eta, scene_scale=args.guidance[0], action_scale=args.guidance[1],
                          goal_guidance=args.goal_guidance, goal_iters=args.goal_iters,
                          guided_steps=args.guided_steps, guidance_space=args.guidance_space,
-                         x0_guidance=args.x0_guidance, **postprocess_kwargs(args))
+                         x0_guidance=args.x0_guidance, overlap=args.overlap, **postprocess_kwargs(args))

@@ -16,7 +16,7 @@ import numpy as np
 
 from trumans.easing import smoothstep
 
-__all__ = ["SeamConfig", "blend_seam", "seam_weights"]
+__all__ = ["SeamConfig", "blend_seam", "seam_weights", "crossfade"]
 
 
 @dataclass(frozen=True)
@@ -51,3 +51,15 @@ def blend_seam(context: np.ndarray, new: np.ndarray, frames: int = 4) -> np.ndar
     offset = expected - new[:, 0]  # (B, J, 3)
     w = seam_weights(new.shape[1], frames)
     return (new + w[None, :, None, None] * offset[:, None]).astype(new.dtype)
+
+
+def crossfade(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """old, new (B, D, J, 3): the same D frames from two episodes (the earlier one's uncommitted end,
+    the next one's first new frames) -> (B, D, J, 3) ``(1 - w) old + w new``, w rising from
+    smoothstep(1 / (D + 1)) to smoothstep(D / (D + 1)): the motion leaves the earlier episode's
+    prediction with its velocity and joins the next one's without a kink (``SamplerConfig.overlap``)."""
+    old, new = np.asarray(old), np.asarray(new)
+    if old.shape != new.shape or old.ndim != 4:
+        raise ValueError(f"need old and new of one shape (B, D, J, 3), got {old.shape} and {new.shape}")
+    w = smoothstep(np.arange(1, old.shape[1] + 1) / (old.shape[1] + 1))[None, :, None, None]
+    return ((1.0 - w) * old + w * new).astype(new.dtype)

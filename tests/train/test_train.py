@@ -11,6 +11,12 @@ import torch
 from helpers import DATASET_VOCAB, TINY_TOML, make_tiny_dataset
 
 
+def TINY_TOML_PATH(tmp: Path) -> Path:
+    p = Path(tmp) / "tiny.toml"
+    p.write_text(TINY_TOML)
+    return p
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     torch.set_num_threads(1)
@@ -93,6 +99,42 @@ def test_episodes_from_dataset(tiny) -> None:
     assert sorted(epoch.tolist()) == list(range(48))
     b = s.batch(0)
     assert b.x.shape == (8, 16, 72) and b.scene.shape == (8, 32, 32, 32) and b.scene.dtype == torch.bool
+
+
+def test_episode_grids_do_not_depend_on_how_many_scenes_are_held(tmp_path: Path, monkeypatch) -> None:
+    """build_episodes keeps only a few scenes' grids at a time (a dataset of thousands of scenes held
+    them all: 29 MB each); scenes that come back after being dropped give the same grids."""
+    import shutil
+
+    from trumans.dataset import Dataset
+    from trumans.scenes.occupancy import OccupancyGrid
+    from trumans.dataset import content_hash, write_index
+    from trumans.sequence import load_sequence, save_sequence
+    from trumans.train import data as train_data
+    from trumans.train.config import load_config
+
+    root = make_tiny_dataset(tmp_path / "d", num_seqs=6)
+    index = json.loads((root / "index.json").read_text())
+    for k, shift in ((1, 8), (2, 16)):  # two more rooms, the box moved along x
+        d = root / "scenes" / f"room{k}"
+        shutil.copytree(root / "scenes" / "room0", d)
+        occ = OccupancyGrid.load(d / "occupancy.npz")
+        OccupancyGrid(np.roll(occ.grid, shift, axis=0), occ.origin, occ.voxel).save(d / "occupancy.npz")
+        index["scenes"][f"room{k}"] = f"scenes/room{k}"
+    paths = index["splits"]["train"] + index["splits"]["val"]
+    for i, rel in enumerate(index["splits"]["train"]):  # rooms 0 1 2 0: room0 comes back after two others
+        seq = load_sequence(root / rel)
+        seq.scene = f"room{[0, 1, 2, 0][i]}"
+        save_sequence(seq, root / rel)
+    index["hash"] = content_hash(root, paths)
+    write_index(root, index)
+    cfg = load_config(TINY_TOML_PATH(tmp_path)).data
+    every = train_data.build_episodes(Dataset(root), "train", cfg, DATASET_VOCAB)
+    monkeypatch.setattr(train_data, "_SCENES_HELD", 1)
+    one = train_data.build_episodes(Dataset(root), "train", cfg, DATASET_VOCAB)
+    assert np.array_equal(every.grids, one.grids) and np.array_equal(every.features, one.features)
+    first, last = (every.unpack_grids(np.flatnonzero(every.sequence == s)[:1]) for s in (0, 1))
+    assert not np.array_equal(first, last)  # the rooms differ, so the grids compared are not all alike
 
 
 def test_pooled_batches_hold_each_pool_share_and_walk_each_pool_once_per_epoch(tiny) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -124,6 +125,9 @@ def _cache_key(ds: Dataset, split: str, cfg: DataSection, layout: FeatureLayout,
     return h.hexdigest()[:16]
 
 
+_SCENES_HELD = 8  # scenes whose grids build_episodes keeps between sequences
+
+
 def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
                    progress: bool = False) -> EpisodeSet:
     """Cut every sequence of ``split`` into episodes (see module doc). Raises ValueError if none fit."""
@@ -133,7 +137,9 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
     augmented = set(ds.index.get("augmented", []))
     files = [p for p in ds.index["splits"].get(split, []) if cfg.augmented or p not in augmented]
     parts: list = []
-    occ_cache: dict = {}
+    # a few scenes' grids at a time: a scene's full-resolution occupancy is megabytes, and a dataset
+    # with thousands of scenes (every real take and augmented variation has its own) held them all
+    occ_cache: OrderedDict = OrderedDict()
     memo: dict = {}  # voxelised static parts / object meshes shared between scene variations
     n = cfg.grid
     for si, rel in enumerate(tqdm(files, desc=f"episodes[{split}]", disable=not progress, leave=False)):
@@ -145,6 +151,9 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
         if seq.scene:
             if seq.scene not in occ_cache:
                 occ_cache[seq.scene] = _scene_grids(ds, seq.scene, cfg.dynamic_objects, memo)
+                while len(occ_cache) > _SCENES_HELD:
+                    occ_cache.popitem(last=False)
+            occ_cache.move_to_end(seq.scene)
             poses = {k: o.pose[starts] for k, o in seq.objects.items()} if cfg.dynamic_objects else None
             grids = episode_scene_grids(occ_cache[seq.scene], cond, poses, n=n, extent=cfg.extent)
         else:  # no scene recorded: open floor (nothing occupied above z = 0)

@@ -137,6 +137,16 @@ def test_episode_grids_do_not_depend_on_how_many_scenes_are_held(tmp_path: Path,
     assert not np.array_equal(first, last)  # the rooms differ, so the grids compared are not all alike
 
 
+def test_recent_only_memo_keeps_the_most_recently_used_entries() -> None:
+    from trumans.train.data import _RecentOnly
+
+    m = _RecentOnly(2)
+    m["a"], m["b"] = 1, 2
+    assert m["a"] == 1  # a read counts as use: "b" is now the oldest
+    m["c"] = 3
+    assert list(m) == ["a", "c"] and "b" not in m
+
+
 def test_pooled_batches_hold_each_pool_share_and_walk_each_pool_once_per_epoch(tiny) -> None:
     from trumans.train.config import load_config
     from trumans.train.data import BatchStream, build_episodes

@@ -128,6 +128,25 @@ def _cache_key(ds: Dataset, split: str, cfg: DataSection, layout: FeatureLayout,
 _SCENES_HELD = 8  # scenes whose grids build_episodes keeps between sequences
 
 
+class _RecentOnly(OrderedDict):
+    """A dict that keeps its ``size`` most recently used entries (reads count as use)."""
+
+    def __init__(self, size: int) -> None:
+        super().__init__()
+        self.size = size
+
+    def __getitem__(self, key):
+        value = super().__getitem__(key)
+        self.move_to_end(key)
+        return value
+
+    def __setitem__(self, key, value) -> None:
+        super().__setitem__(key, value)
+        self.move_to_end(key)
+        while len(self) > self.size:
+            self.popitem(last=False)
+
+
 def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
                    progress: bool = False) -> EpisodeSet:
     """Cut every sequence of ``split`` into episodes (see module doc). Raises ValueError if none fit."""
@@ -140,7 +159,7 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
     # a few scenes' grids at a time: a scene's full-resolution occupancy is megabytes, and a dataset
     # with thousands of scenes (every real take and augmented variation has its own) held them all
     occ_cache: OrderedDict = OrderedDict()
-    memo: dict = {}  # voxelised static parts / object meshes shared between scene variations
+    memo = _RecentOnly(_SCENES_HELD * 4)  # voxelised static parts / object meshes shared between scene variations
     n = cfg.grid
     for si, rel in enumerate(tqdm(files, desc=f"episodes[{split}]", disable=not progress, leave=False)):
         seq = resample_sequence(ds.load(rel), cfg.fps)

@@ -296,3 +296,57 @@ def test_knee_bent_into_a_wall_turns_outward_with_bone_lengths_kept():
                                    else np.linalg.norm(knee - ankle, axis=-1), atol=1e-9)
     assert out[0, 0, 1] > 1.05 and out[0, 0, 2] == pytest.approx(knee[0, 0, 2])  # turned outward
     np.testing.assert_array_equal(out[0, 1], knee[0, 1])
+
+
+def _seated_body(T: int, lengths: np.ndarray, stagger: np.ndarray) -> np.ndarray:
+    """(1, T, 24, 3): the standing body lowered onto a 0.5 m seat, thighs horizontal along +y (the
+    rest pose's front; checked below) and shins vertical, the left foot ``stagger`` (T,) m ahead of
+    where it sits beside the right one; feet on the floor."""
+    J = standing_body(T)
+    fwd = np.array([0.0, 1.0, 0.0])
+    assert J[0, 0, LEG_CHAINS[0][3], 1] > J[0, 0, LEG_CHAINS[0][2], 1]  # the toes point along +y
+    feet = [j for leg in LEG_CHAINS for j in leg[1:]]
+    hips_z = J[0, 0, LEG_CHAINS[0][0], 2]
+    J[0, :, [j for j in range(24) if j not in feet], 2] -= hips_z - 0.5
+    for s, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
+        toe_off = J[0, :, toe] - J[0, :, ankle]
+        J[0, :, knee] = J[0, :, hip] + lengths[knee] * fwd
+        J[0, :, ankle] = J[0, :, knee] - [0.0, 0.0, lengths[ankle]]
+        if s == 0:
+            J[0, :, ankle, 1] += stagger
+        J[0, :, toe] = J[0, :, ankle] + toe_off
+    low = min(min(J[0, 0, a, 2] - 0.08, J[0, 0, t, 2] - 0.04) for _, _, a, t in LEG_CHAINS)
+    J[0, :, :, 2] -= low
+    return J
+
+
+def test_a_seated_foot_the_network_moves_is_set_down_where_it_goes():
+    """Sitting down keeps the stagger of the last step in the locks carried over from the context
+    (17 cm in the demo; people sit with 2-5 cm). On a body that is not upright the feet carry little
+    weight: when the network moves a foot more than ``replant_distance`` from its lock, the foot is
+    lifted and set down there. An upright body's lock holds as before."""
+    k, T = 3, 40
+    lengths = bone_lengths_of(standing_body(1)[0, 0])
+    stagger = np.r_[np.full(10, 0.17), np.linspace(0.17, 0.0, 18), np.zeros(T - 28)]  # slides back 1 cm/frame
+    J = _seated_body(T, lengths, stagger)
+    ankle = LEG_CHAINS[0][2]
+    assert foot_contacts(J, FPS)[0, k:, 0].all()  # the sliding foot counts as planted all along
+    out = clean_feet(J, lengths, FPS, fixed=k)
+    held = clean_feet(J, lengths, FPS, fixed=k, config=FootCleanupConfig(replant_distance=0.0))
+    np.testing.assert_allclose(held[0, k:, ankle, :2], np.broadcast_to(J[0, k - 1, ankle, :2], (T - k, 2)), atol=1e-6)
+    # set down beside the right foot (locked at the mean of a run that begins while the network still slides)
+    np.testing.assert_allclose(out[0, -8:, ankle, :2], J[0, -8:, ankle, :2], atol=0.015)
+    assert np.abs(np.diff(out[0, :, ankle, :2], axis=0)).max() < 0.05  # no jump: it steps over a few frames
+    low = np.minimum(out[0, :, ankle, 2] - 0.08, out[0, :, LEG_CHAINS[0][3], 2] - 0.04)
+    assert low.min() > -1e-6 and low.max() < 0.07  # on or over the floor, a small step's clearance
+    solved = np.flatnonzero(np.abs(out[0, :, ankle] - J[0, :, ankle]).max(-1) > 1e-9)  # the rest keep their leg
+    assert len(solved) > 10
+    np.testing.assert_allclose(bone_lengths_of(out[0, solved])[:, LEG_CHAINS[0][1:3]], np.broadcast_to(
+        lengths[list(LEG_CHAINS[0][1:3])], (len(solved), 2)), atol=1e-6)
+    standing = standing_body(T)  # a slide of 8 cm (within the straight leg's reach) on an upright body: the lock holds
+    standing[0][:, [ankle, LEG_CHAINS[0][3]], 1] += 0.5 * stagger[:, None]
+    kept = clean_feet(standing, lengths, FPS, fixed=k)
+    # (within the straight leg's IK clamp, < 1 mm; the network's foot went 8.5 cm)
+    np.testing.assert_allclose(kept[0, k:, ankle, :2], np.broadcast_to(standing[0, k - 1, ankle, :2], (T - k, 2)), atol=1e-3)
+    with pytest.raises(ValueError, match="replant_distance"):
+        FootCleanupConfig(replant_distance=-0.1)

@@ -78,7 +78,10 @@ class FootCleanupConfig:
     the scene's field, move foot targets and knees out of furniture (steps 4, 5); support_margin /
     support_upright: ``support_foot``'s ``margin`` / ``upright``; scene_iters / scene_max_step:
     ``out_of_scene``'s ``iters`` / ``max_step``; knee_max_angle / knee_steps: ``knee_out_of_scene``'s
-    ``max_angle`` / ``steps``."""
+    ``max_angle`` / ``steps``; replant_distance: m that the network may move a foot of a body that is
+    not upright (seated, crouching: the foot carries little weight) away from its lock before the
+    foot is lifted and set down where the network puts it, ``replant_frames`` frames later (0 = off:
+    a seated body kept the stagger of its last walking step, 15-19 cm where people sit with 2-5 cm)."""
 
     enabled: bool = True
     scene: bool = True
@@ -101,6 +104,8 @@ class FootCleanupConfig:
     scene_max_step: float = 0.15
     knee_max_angle: float = float(np.pi / 3)
     knee_steps: int = 12
+    replant_distance: float = 0.05
+    replant_frames: int = 3
 
     def __post_init__(self) -> None:
         if not (self.support_margin >= 0 and self.support_upright >= 0 and self.scene_max_step > 0
@@ -116,6 +121,9 @@ class FootCleanupConfig:
             raise ValueError(f"need reach_passes >= 0 and reach_slack >= 0 m, got {self.reach_passes}, {self.reach_slack}")
         if self.blend < 0:
             raise ValueError(f"blend must be >= 0 frames, got {self.blend}")
+        if not self.replant_distance >= 0 or self.replant_frames < 1:
+            raise ValueError(f"need replant_distance >= 0 m and replant_frames >= 1, got {self.replant_distance}, "
+                             f"{self.replant_frames}")
         if not (self.swing_height >= 0 and self.swing_ratio >= 0 and self.tail_rise >= 1):
             raise ValueError(f"need swing_height, swing_ratio >= 0 and tail_rise >= 1, got {self.swing_height}, "
                              f"{self.swing_ratio}, {self.tail_rise}")
@@ -145,6 +153,13 @@ def foot_contacts(joints: np.ndarray, fps: float, config: FootCleanupConfig = Fo
                    enter_height=config.enter_height, exit_height=config.exit_height, initial=initial)
 
 
+def _upright(joints: np.ndarray, leg_length: float, upright: float) -> np.ndarray:
+    """(B, T) bool: the hips' midpoint is at least ``upright`` x ``leg_length`` (m) above the lower ankle."""
+    (lhip, _, lankle, _), (rhip, _, rankle, _) = LEG_CHAINS
+    hip_z = 0.5 * (joints[..., lhip, 2] + joints[..., rhip, 2])
+    return hip_z - np.minimum(joints[..., lankle, 2], joints[..., rankle, 2]) >= upright * leg_length
+
+
 def support_foot(contact: np.ndarray, joints: np.ndarray, leg_length: float, fps: float, fixed: int = 0,
                  margin: float = 0.02, upright: float = 0.8, speed_weight: float = 0.0) -> np.ndarray:
     """(B, T, 2) contacts -> the same with one foot planted on every new frame (>= ``fixed``) where
@@ -156,9 +171,7 @@ def support_foot(contact: np.ndarray, joints: np.ndarray, leg_length: float, fps
     B, T, _ = contact.shape
     legs = list(LEG_CHAINS)
     h = np.stack([_foot_height(joints, a, t) for _, _, a, t in legs], -1)  # (B, T, 2)
-    hip_z = 0.5 * (joints[..., legs[0][0], 2] + joints[..., legs[1][0], 2])
-    low_ankle = np.minimum(joints[..., legs[0][2], 2], joints[..., legs[1][2], 2])
-    stands = hip_z - low_ankle >= upright * leg_length
+    stands = _upright(joints, leg_length, upright)
     score = h.copy()
     if speed_weight > 0 and T > 1:
         mid = np.stack([0.5 * (joints[..., a, :2] + joints[..., t, :2]) for _, _, a, t in legs], 2)  # (B, T, 2, 2)
@@ -321,6 +334,28 @@ def _release_out_of_reach(c: np.ndarray, hip: np.ndarray, target: np.ndarray, re
     return c & ~(last_far >= _run_start(c, fixed))
 
 
+def _replant_unweighted(c: np.ndarray, ankle: np.ndarray, target: np.ndarray, upright: np.ndarray, distance: float,
+                        gap: int, fixed: int) -> np.ndarray:
+    """(B, T) contacts with a run ended at its first new frame (>= ``fixed``) where the body is not
+    ``upright`` (B, T) and the network's ankle (B, T, 3) is more than ``distance`` m (horizontally)
+    from the run's locked ``target`` (B, T, 3): the foot is lifted for ``gap`` frames and planted
+    again from there (a new run, locked where the network holds it). A seated person moves their
+    unweighted feet; the lock carried over from the last step would hold them where they landed."""
+    B, T = c.shape
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    drift = c & ~upright & (np.linalg.norm(target[..., :2] - ankle[..., :2], axis=-1) > distance) & (t >= fixed)
+    start = _run_start(c, fixed)
+    key = np.where(drift, start, -1)
+    out = c.copy()
+    for b, f in zip(*np.nonzero(drift)):
+        if key[b, f] < 0:
+            continue
+        first = f  # the run's first drifting frame: lift here; the rest of the run is a new one
+        out[b, first:first + gap] = False
+        key[b, (start[b] == start[b, first]) & c[b]] = -1  # one cut per run and pass
+    return out
+
+
 def knee_out_of_scene(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, outward: np.ndarray, sdf, radius: float,
                       max_angle: float = np.pi / 3, steps: int = 12) -> np.ndarray:
     """Knees (B, T, 3) world m turned outward (towards ``outward`` (B, T, 3): from the other hip to
@@ -358,9 +393,10 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
     J = episode_joints(joints, fixed)
     B, T = J.shape[:2]
     contact = foot_contacts(J, fps, config)
+    l, r = LEG_CHAINS
+    leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
+    upright = _upright(J, float(leg), config.support_upright)
     if config.support:
-        l, r = LEG_CHAINS
-        leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
         contact = support_foot(contact, J, float(leg), fps, fixed, margin=config.support_margin,
                                upright=config.support_upright, speed_weight=config.support_speed_weight)
     for s, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
@@ -374,6 +410,14 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
                 break
             c = cut
             A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
+        if config.replant_distance > 0:
+            for _ in range(config.reach_passes + 1):  # a re-planted run may drift again from its new lock
+                cut = _replant_unweighted(c, J[:, :, ankle], A, upright, config.replant_distance,
+                                          config.replant_frames, fixed)
+                if (cut == c).all():
+                    break
+                c = cut
+                A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
         delta = A - J[:, :, ankle]  # (B, T, 3) correction; outside runs only the floor lift
         idx, w = _fade(c, fixed, config.blend)
         run_delta = np.take_along_axis(delta, idx[..., None], axis=1) * w[..., None]

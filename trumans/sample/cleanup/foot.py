@@ -78,10 +78,12 @@ class FootCleanupConfig:
     the scene's field, move foot targets and knees out of furniture (steps 4, 5); support_margin /
     support_upright: ``support_foot``'s ``margin`` / ``upright``; scene_iters / scene_max_step:
     ``out_of_scene``'s ``iters`` / ``max_step``; knee_max_angle / knee_steps: ``knee_out_of_scene``'s
-    ``max_angle`` / ``steps``; replant_distance: m that the network may move a foot of a body that is
-    not upright (seated, crouching: the foot carries little weight) away from its lock before the
-    foot is lifted and set down where the network puts it, ``replant_frames`` frames later (0 = off:
-    a seated body kept the stagger of its last walking step, 15-19 cm where people sit with 2-5 cm)."""
+    ``max_angle`` / ``steps``; replant_distance: m that the network may move a foot away from its lock
+    on a seated frame (``clean_feet(..., seated=)``: the feet carry little weight) before the foot is
+    lifted and set down where the network puts it, ``replant_frames`` frames later (0 = off: a seated
+    body kept the stagger of its last walking step, 15-19 cm where people sit with 2-5 cm); the
+    re-planted foot's lowest joint rises ``replant_lift`` x sin(pi u) over the lifted frames (u in (0, 1)):
+    a step, not a slide along the floor."""
 
     enabled: bool = True
     scene: bool = True
@@ -106,6 +108,7 @@ class FootCleanupConfig:
     knee_steps: int = 12
     replant_distance: float = 0.05
     replant_frames: int = 3
+    replant_lift: float = 0.08
 
     def __post_init__(self) -> None:
         if not (self.support_margin >= 0 and self.support_upright >= 0 and self.scene_max_step > 0
@@ -121,9 +124,9 @@ class FootCleanupConfig:
             raise ValueError(f"need reach_passes >= 0 and reach_slack >= 0 m, got {self.reach_passes}, {self.reach_slack}")
         if self.blend < 0:
             raise ValueError(f"blend must be >= 0 frames, got {self.blend}")
-        if not self.replant_distance >= 0 or self.replant_frames < 1:
-            raise ValueError(f"need replant_distance >= 0 m and replant_frames >= 1, got {self.replant_distance}, "
-                             f"{self.replant_frames}")
+        if not (self.replant_distance >= 0 and self.replant_lift >= 0) or self.replant_frames < 1:
+            raise ValueError(f"need replant_distance, replant_lift >= 0 m and replant_frames >= 1, got "
+                             f"{self.replant_distance}, {self.replant_lift}, {self.replant_frames}")
         if not (self.swing_height >= 0 and self.swing_ratio >= 0 and self.tail_rise >= 1):
             raise ValueError(f"need swing_height, swing_ratio >= 0 and tail_rise >= 1, got {self.swing_height}, "
                              f"{self.swing_ratio}, {self.tail_rise}")
@@ -334,16 +337,16 @@ def _release_out_of_reach(c: np.ndarray, hip: np.ndarray, target: np.ndarray, re
     return c & ~(last_far >= _run_start(c, fixed))
 
 
-def _replant_unweighted(c: np.ndarray, ankle: np.ndarray, target: np.ndarray, upright: np.ndarray, distance: float,
+def _replant_unweighted(c: np.ndarray, ankle: np.ndarray, target: np.ndarray, seated: np.ndarray, distance: float,
                         gap: int, fixed: int) -> np.ndarray:
-    """(B, T) contacts with a run ended at its first new frame (>= ``fixed``) where the body is not
-    ``upright`` (B, T) and the network's ankle (B, T, 3) is more than ``distance`` m (horizontally)
+    """(B, T) contacts with a run ended at its first new frame (>= ``fixed``) where the body is
+    ``seated`` (B, T) and the network's ankle (B, T, 3) is more than ``distance`` m (horizontally)
     from the run's locked ``target`` (B, T, 3): the foot is lifted for ``gap`` frames and planted
     again from there (a new run, locked where the network holds it). A seated person moves their
     unweighted feet; the lock carried over from the last step would hold them where they landed."""
     B, T = c.shape
     t = np.broadcast_to(np.arange(T)[None], (B, T))
-    drift = c & ~upright & (np.linalg.norm(target[..., :2] - ankle[..., :2], axis=-1) > distance) & (t >= fixed)
+    drift = c & seated & (np.linalg.norm(target[..., :2] - ankle[..., :2], axis=-1) > distance) & (t >= fixed)
     start = _run_start(c, fixed)
     key = np.where(drift, start, -1)
     out = c.copy()
@@ -353,6 +356,23 @@ def _replant_unweighted(c: np.ndarray, ankle: np.ndarray, target: np.ndarray, up
         first = f  # the run's first drifting frame: lift here; the rest of the run is a new one
         out[b, first:first + gap] = False
         key[b, (start[b] == start[b, first]) & c[b]] = -1  # one cut per run and pass
+    return out
+
+
+def _lift_replants(target: np.ndarray, low: np.ndarray, lifted: np.ndarray, lift: float) -> np.ndarray:
+    """Ankle targets (B, T, 3) with the lowest foot joint (``low`` (B, T), m above rest on the targets)
+    raised to at least ``lift`` x sin(pi u) on each run of ``lifted`` (B, T) frames, u = (i + 1) / (n + 1)
+    for the i-th of its n frames."""
+    B, T = lifted.shape
+    t = np.broadcast_to(np.arange(T)[None], (B, T))
+    begins = lifted & ~np.concatenate([np.zeros((B, 1), bool), lifted[:, :-1]], 1)
+    start = np.maximum.accumulate(np.where(begins, t, 0), axis=1)
+    ends = lifted & ~np.concatenate([lifted[:, 1:], np.zeros((B, 1), bool)], 1)
+    stop = np.flip(np.minimum.accumulate(np.flip(np.where(ends, t, T), 1), axis=1), 1)
+    u = (t - start + 1) / np.maximum(stop - start + 2, 2)
+    raise_by = np.where(lifted, np.maximum(lift * np.sin(np.pi * u) - low, 0.0), 0.0)
+    out = target.copy()
+    out[..., 2] += raise_by
     return out
 
 
@@ -385,18 +405,18 @@ def knee_out_of_scene(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, outw
 
 
 def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int = 0,
-               config: FootCleanupConfig = FootCleanupConfig(), sdf=None) -> np.ndarray:
+               config: FootCleanupConfig = FootCleanupConfig(), sdf=None, seated: np.ndarray | None = None) -> np.ndarray:
     """joints (B, T, 24, 3) world m on bone ``lengths`` (24,) -> cleaned copy; frames < ``fixed``
     (the context) are kept and seed the locks. sdf: a ``SceneSDF`` of the scene (floor excluded) or
     None; with it, planted and swinging feet are moved out of furniture (``out_of_scene``, core
-    radii). See the module doc."""
+    radii). seated: (B, T) bool, the frames of a sit phase (their feet are re-planted where the
+    network moves them, ``FootCleanupConfig.replant_distance``), or None. See the module doc."""
     J = episode_joints(joints, fixed)
     B, T = J.shape[:2]
     contact = foot_contacts(J, fps, config)
-    l, r = LEG_CHAINS
-    leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
-    upright = _upright(J, float(leg), config.support_upright)
     if config.support:
+        l, r = LEG_CHAINS
+        leg = 0.5 * (lengths[l[1]] + lengths[l[2]] + lengths[r[1]] + lengths[r[2]])
         contact = support_foot(contact, J, float(leg), fps, fixed, margin=config.support_margin,
                                upright=config.support_upright, speed_weight=config.support_speed_weight)
     for s, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
@@ -410,9 +430,10 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
                 break
             c = cut
             A = _locked_ankle(J[:, :, ankle], h, c, fixed, config.lock_at_mean)
-        if config.replant_distance > 0:
+        before_replant = c
+        if config.replant_distance > 0 and seated is not None:
             for _ in range(config.reach_passes + 1):  # a re-planted run may drift again from its new lock
-                cut = _replant_unweighted(c, J[:, :, ankle], A, upright, config.replant_distance,
+                cut = _replant_unweighted(c, J[:, :, ankle], A, seated, config.replant_distance,
                                           config.replant_frames, fixed)
                 if (cut == c).all():
                     break
@@ -426,6 +447,9 @@ def clean_feet(joints: np.ndarray, lengths: np.ndarray, fps: float, fixed: int =
         corr[:, :fixed] = 0.0
         target = J[:, :, ankle] + corr
         target = _swing_paths(J[:, :, ankle], target, h, c, fixed, config)
+        if config.replant_lift > 0 and (before_replant & ~c).any():
+            target = _lift_replants(target, h + target[..., 2] - J[:, :, ankle, 2], before_replant & ~c,
+                                    config.replant_lift)
         toe_off = J[:, :, toe] - J[:, :, ankle]
         if sdf is not None:
             target[:, fixed:] = out_of_scene(target[:, fixed:], toe_off[:, fixed:], sdf,

@@ -170,7 +170,7 @@ def _arm_pushout(ep: EpisodeBodies, config: ArmPushConfig) -> np.ndarray:
 def _foot(ep: EpisodeBodies, config: FootCleanupConfig) -> np.ndarray:
     # over the committed context (it seeds the locks) and the new frames
     return clean_feet(np.concatenate([ep.context, ep.joints[:, ep.k:]], 1), ep.lengths, ep.fps, ep.k, config,
-                      sdf=ep.sdf if config.scene else None)
+                      sdf=ep.sdf if config.scene else None, seated=None if ep.seat_z is None else np.isfinite(ep.seat_z))
 
 
 def _reach(ep: EpisodeBodies, config: ReachCleanupConfig) -> np.ndarray:

@@ -5,7 +5,8 @@
 
 Keeps the EMA weights only (no optimiser state: the file is a few MB), adds the sampling
 statistics of the training split (``trumans.model.motion_stats``: walking speed, action durations,
-a standing start pose) to ``meta``, and records the training command and the data hash.
+a standing start pose; from the procedural takes) to ``meta``, or copies them from another
+generator (``--stats-from``), and records the training command and the data hash.
 """
 from __future__ import annotations
 
@@ -25,10 +26,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--data", required=True, help="the dataset the run was trained on")
     p.add_argument("--out", default="models/generator.pt")
     p.add_argument("--command", default="", help="the training command, recorded in meta")
+    p.add_argument("--stats-from", metavar="CHECKPOINT", default=None,
+                   help="copy the sampling statistics (walk speed, action durations, start body) from this "
+                        "generator checkpoint instead of measuring them on --data: a retrained network with the "
+                        "planner of the model it replaces")
     a = p.parse_args(argv)
     ck = load_checkpoint(a.checkpoint, kind="generator")
     ds = Dataset(a.data)
-    stats = sampling_stats(ds, "train", ck.vocabulary, ck.fps)
+    if a.stats_from:
+        src = load_checkpoint(a.stats_from, kind="generator")
+        if list(src.vocabulary) != list(ck.vocabulary):
+            raise SystemExit(f"--stats-from {a.stats_from} has another action vocabulary than {a.checkpoint}")
+        stats = {k: src.meta[k] for k in ("walk_speed", "action_seconds", "start_pose") if k in src.meta}
+    else:
+        stats = sampling_stats(ds, "train", ck.vocabulary, ck.fps)
     meta = dict(ck.meta)
     meta.update(stats)
     meta["train_command"] = a.command

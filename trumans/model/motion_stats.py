@@ -59,14 +59,23 @@ def standing_pose(frames: np.ndarray, per_body: int | None = None, seed: int = 0
     return can[int(np.argmin(np.linalg.norm(can - median, axis=-1).mean(-1)))]
 
 
-def sampling_stats(dataset, split: str, vocabulary: list[str], fps: float, max_sequences: int = 200) -> dict:
+def sampling_stats(dataset, split: str, vocabulary: list[str], fps: float, max_sequences: int = 200,
+                   real_takes: bool = False) -> dict:
     """{"walk_speed": m/s, "action_seconds": {name: s}, "start_pose": (24, 3) list} from ``split``.
 
-    dataset: ``trumans.dataset.Dataset``; sequences are resampled to ``fps`` first."""
+    dataset: ``trumans.dataset.Dataset``; sequences are resampled to ``fps`` first; at most
+    ``max_sequences`` of them, spread evenly over the split. real_takes: also use the takes the index
+    lists under "real" (mocap placed in fitted rooms). Off by default: their actions are labelled
+    from the motion, in fragments (the 4-h corpus' median sit run is 0.75 s, sit-down 0.1 s), and
+    the planner would time a whole sit by them."""
     speeds, durations, stand = [], {a: [] for a in vocabulary}, []
-    files = list(dataset.index["splits"].get(split, []))[:max_sequences]
+    real = set() if real_takes else set(dataset.index.get("real", {}))
+    files = [f for f in dataset.index["splits"].get(split, []) if f not in real]
     if not files:
-        raise ValueError(f"split {split!r} has no sequences to take sampling statistics from")
+        raise ValueError(f"split {split!r} has no {'' if real_takes else 'non-real '}sequences to take sampling "
+                         f"statistics from")
+    if len(files) > max_sequences:
+        files = [files[i] for i in np.linspace(0, len(files) - 1, max_sequences).round().astype(int)]
     for rel in files:
         seq = resample_sequence(dataset.load(rel), fps)
         if seq.actions is None or seq.num_frames < 3:

@@ -55,3 +55,25 @@ def test_every_body_weighs_the_same_with_per_body():
     assert legs(standing_pose(frames, per_body=6)) == pytest.approx(legs(REST_JOINTS), rel=1e-6)
     with pytest.raises(ValueError, match="per_body"):
         standing_pose(frames, per_body=0)
+
+
+def test_sampling_stats_leave_out_the_real_takes_unless_asked(tmp_path) -> None:
+    """The real takes' labels come from the motion, in fragments; the planner's durations and walking
+    speed are taken from the other takes unless ``real_takes``; with only real takes that is an error."""
+    from helpers import DATASET_VOCAB, make_tiny_dataset
+    from trumans.dataset import Dataset
+    from trumans.model.motion_stats import sampling_stats
+
+    root = make_tiny_dataset(tmp_path / "d", num_seqs=6)
+    ds = Dataset(root)
+    train = list(ds.index["splits"]["train"])
+    every = sampling_stats(ds, "train", DATASET_VOCAB, 10.0)
+    ds.index["real"] = {train[0]: {}}
+    rest = sampling_stats(ds, "train", DATASET_VOCAB, 10.0)
+    assert rest["walk_speed"] != every["walk_speed"]  # the first take no longer counts
+    assert sampling_stats(ds, "train", DATASET_VOCAB, 10.0, real_takes=True) == every
+    ds.index["real"] = {f: {} for f in train}
+    with pytest.raises(ValueError, match="no non-real sequences"):
+        sampling_stats(ds, "train", DATASET_VOCAB, 10.0)
+    one = sampling_stats(ds, "train", DATASET_VOCAB, 10.0, max_sequences=1, real_takes=True)
+    assert one["walk_speed"] > 0

@@ -138,9 +138,9 @@ def test_episode_grids_do_not_depend_on_how_many_scenes_are_held(tmp_path: Path,
 
 
 def test_recent_only_memo_keeps_the_most_recently_used_entries() -> None:
-    from trumans.train.data import _RecentOnly
+    from trumans.train.data import RecentOnly
 
-    m = _RecentOnly(2)
+    m = RecentOnly(2)
     m["a"], m["b"] = 1, 2
     assert m["a"] == 1  # a read counts as use: "b" is now the oldest
     m["c"] = 3

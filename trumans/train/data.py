@@ -37,7 +37,7 @@ from trumans.train.config import DataSection
 from trumans.scenes.occupancy import DEFAULT_VOXEL, OCCUPANCY_FILE
 from trumans.scenes.scene_grids import SceneGrids
 
-__all__ = ["EpisodeSet", "build_episodes", "load_episodes", "BatchStream", "Batch"]
+__all__ = ["EpisodeSet", "build_episodes", "load_episodes", "BatchStream", "Batch", "RecentOnly"]
 
 _CACHE_VERSION = "episodes-v2"
 
@@ -128,7 +128,7 @@ def _cache_key(ds: Dataset, split: str, cfg: DataSection, layout: FeatureLayout,
 _SCENES_HELD = 8  # scenes whose grids build_episodes keeps between sequences
 
 
-class _RecentOnly(OrderedDict):
+class RecentOnly(OrderedDict):
     """A dict that keeps its ``size`` most recently used entries (reads count as use)."""
 
     def __init__(self, size: int) -> None:
@@ -159,7 +159,7 @@ def build_episodes(ds: Dataset, split: str, cfg: DataSection, vocab: list[str],
     # a few scenes' grids at a time: a scene's full-resolution occupancy is megabytes, and a dataset
     # with thousands of scenes (every real take and augmented variation has its own) held them all
     occ_cache: OrderedDict = OrderedDict()
-    memo = _RecentOnly(_SCENES_HELD * 4)  # voxelised static parts / object meshes shared between scene variations
+    memo = RecentOnly(_SCENES_HELD * 4)  # voxelised static parts / object meshes shared between scene variations
     n = cfg.grid
     for si, rel in enumerate(tqdm(files, desc=f"episodes[{split}]", disable=not progress, leave=False)):
         seq = resample_sequence(ds.load(rel), cfg.fps)

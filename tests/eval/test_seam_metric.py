@@ -63,3 +63,17 @@ def test_short_or_still_motion_and_bad_input():
 def test_real_corpus_has_no_seam_peak():
     med, lo, hi, n = real_seam_reference(CYCLE, 10.0)
     assert n >= 10 and 1.0 < lo <= med <= hi < 1.6
+
+
+def test_pelvis_speed_max_finds_a_one_frame_jump():
+    from trumans.eval.synthesis_metrics import pelvis_speed_max
+
+    T, fps = 30, 10.0
+    J = np.zeros((T, 24, 3))
+    J[:, :, 0] = (np.arange(T) * 0.13)[:, None]  # a steady 1.3 m/s walk
+    assert pelvis_speed_max(J, fps) == pytest.approx(1.3)
+    J[12:, :, 1] += 0.3  # thrown 30 cm sideways in one frame
+    assert pelvis_speed_max(J, fps) == pytest.approx(np.hypot(0.13, 0.3) * fps)
+    assert pelvis_speed_max(J[:1], fps) == 0.0
+    with pytest.raises(ValueError, match="fps"):
+        pelvis_speed_max(J, 0.0)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from trumans.sample.cli import steps_from_flags
+from trumans.sample.sampler import SamplerConfig
 from trumans.cli import console_main
 from trumans.model.checkpoint import save_checkpoint
 from trumans.sequence import load_sequence
@@ -39,7 +40,8 @@ def test_sample_writes_files_and_figures(ckpt_path, tmp_path, capsys):
                        "--steps", "2", "--json", "--no-progress"])
     assert rc == 0
     figs = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    assert figs["episodes"] >= 1 and figs["frames"] == 2 + 14 * figs["episodes"]
+    D = SamplerConfig().overlap  # every episode but the last commits 14 - D new frames
+    assert figs["episodes"] >= 1 and figs["frames"] == 2 + (14 - D) * (figs["episodes"] - 1) + 14
     for key in ("goal_err_cm", "penetration_max_cm", "floor_err_cm", "bone_length_cv", "transition_jerk_ratio",
                 "seconds_per_episode", "realtime_factor"):
         assert key in figs

@@ -15,7 +15,7 @@ from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig, bone_len
 from trumans.scenes.scene_grids import SceneGrids
 from trumans.skeleton import JOINT_INDEX, REST_JOINTS
 
-from helpers import SAMPLE_VOCAB, tiny_checkpoint
+from helpers import SAMPLE_VOCAB, standing_body, tiny_checkpoint
 
 
 def test_project_bones_keeps_lengths_and_directions():
@@ -63,7 +63,7 @@ def test_precomputed_conditions_match_naive(open_room):
 def test_sample_plan_runs_to_the_end_and_keeps_bones(open_room):
     scene, occ, wm = open_room
     ck = tiny_checkpoint()
-    sampler = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3))
+    sampler = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3, overlap=0))
     plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "goto", "to": [1.6, 0.6]},
                                                            {"do": "act", "action": "drink", "seconds": 1.0}]})
     res = sample_plan(ck, sampler, scene, wm, plan, num_samples=2, seed=0)
@@ -77,45 +77,49 @@ def test_sample_plan_runs_to_the_end_and_keeps_bones(open_room):
     assert all(f == s + 15 for (f, b, j, p), s in zip(res.goals[::2], res.episode_starts) if j == "pelvis")
 
 
-def test_overlapping_episodes_commit_less_and_crossfade(open_room, monkeypatch):
+def test_overlapping_episodes_commit_less_and_follow_the_uncommitted_frames(open_room, monkeypatch):
     """SamplerConfig.overlap = D: every episode but the last commits L - k - D new frames, the next one
-    starts there, and the network's first D new frames are crossfaded with the frames the earlier
-    episode made without committing them, before the cleanup."""
+    starts there and is sampled following the D frames the earlier episode made (cleaned) without
+    committing them, with the crossfade's weights, and keeping the earlier episode's goals due on them."""
     import trumans.sample.rollout as rollout
-    from trumans.sample.cleanup.seam import crossfade
+    from trumans.sample.cleanup.seam import crossfade_weights
 
     scene, occ, wm = open_room
     ck = tiny_checkpoint()
     plan = plan_from_dict({"start": [0.6, 0.6], "steps": [{"do": "goto", "to": [1.6, 0.6]},
                                                            {"do": "act", "action": "drink", "seconds": 1.0}]})
-    raw, cleaned = [], []
+    calls, cleaned = [], []
     episode, cleanup = EpisodeSampler.episode, rollout.run_cleanup
-    def made(self, *a, **kw):
-        out = episode(self, *a, **kw)
-        raw.append(out.copy())
+    def made(self, context, labels, goals, **kw):
+        out = episode(self, context, labels, goals, **kw)
+        calls.append((goals, kw, out.copy()))
         return out
     monkeypatch.setattr(EpisodeSampler, "episode", made)
 
     def watched(bodies, config, observe=None):
-        assert config.seam.enabled is (not cleaned)  # the crossfade replaces the seam blend
-        cleaned.append((bodies.joints.copy(), cleanup(bodies, config, observe)))
-        return cleaned[-1][1]
+        assert config.seam.enabled is (not cleaned)  # the overlap replaces the seam blend
+        cleaned.append(cleanup(bodies, config, observe))
+        return cleaned[-1]
     monkeypatch.setattr(rollout, "run_cleanup", watched)
     D, k = 3, 2
     res = sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3, overlap=D)), scene, wm, plan, seed=0)
     n = 14 - D
-    assert res.episode_starts == [n * e for e in range(res.episodes)] and len(raw) == res.episodes >= 2
+    assert res.episode_starts == [n * e for e in range(res.episodes)] and len(calls) == res.episodes >= 2
     assert res.joints.shape[1] == k + n * (res.episodes - 1) + 14  # the last episode commits all 14
-    np.testing.assert_array_equal(cleaned[0][0], raw[0])  # the first episode: nothing to crossfade
+    assert "lead" not in calls[0][1]  # the first episode: nothing to follow
     for e in range(1, res.episodes):
-        kept = cleaned[e - 1][1][:, k + n:]  # the earlier episode's cleaned, uncommitted frames
-        np.testing.assert_allclose(cleaned[e][0][:, k:k + D], crossfade(kept, raw[e][:, k:k + D]), atol=1e-6)
-        np.testing.assert_array_equal(cleaned[e][0][:, k + D:], raw[e][:, k + D:])
+        goals, kw, raw = calls[e]
+        np.testing.assert_array_equal(kw["lead"], cleaned[e - 1][:, k + n:])  # the earlier one's uncommitted frames
+        np.testing.assert_allclose(kw["lead_weight"], 1.0 - crossfade_weights(D))
+        prev = calls[e - 1][0][0]
+        if prev.joint == "pelvis":  # its pelvis goal is due at its last frame: this episode's frame k + D - 1
+            (carried,), = kw["carried"]
+            assert carried.frame == k + D - 1 and carried.point == prev.point
         s = k + n * e  # what is committed: the cleaned episode
-        np.testing.assert_array_equal(res.joints[:, s:s + n], cleaned[e][1][:, k:k + n])
+        np.testing.assert_array_equal(res.joints[:, s:s + n], cleaned[e][:, k:k + n])
     assert all(f < res.joints.shape[1] for f, *_ in res.goals)
     cv = np.std(bone_lengths_of(res.joints[0].astype(np.float64))[:, 1:], 0)
-    assert cv.max() < 1e-4  # the crossfaded frames keep the body's bones too
+    assert cv.max() < 1e-4  # the overlapped frames keep the body's bones too
     with pytest.raises(ValueError, match="overlap 14 leaves no new frame"):
         sample_plan(ck, EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=3, overlap=14)), scene, wm, plan)
     with pytest.raises(ValueError, match="overlap must be >= 0"):
@@ -123,14 +127,37 @@ def test_overlapping_episodes_commit_less_and_crossfade(open_room, monkeypatch):
 
 
 def test_crossfade_weights():
-    from trumans.sample.cleanup.seam import crossfade
+    from trumans.sample.cleanup.seam import crossfade_weights
 
-    a, b = np.zeros((1, 3, 24, 3)), np.ones((1, 3, 24, 3))
-    w = crossfade(a, b)[0, :, 0, 0]
+    w = crossfade_weights(3)
     assert np.all(np.diff(w) > 0) and 0 < w[0] < 0.2 and 0.8 < w[-1] < 1 and w[1] == pytest.approx(0.5)
-    np.testing.assert_allclose(crossfade(b, b), b)
-    with pytest.raises(ValueError, match="one shape"):
-        crossfade(a, b[:, :2])
+    assert crossfade_weights(0).shape == (0,)
+    with pytest.raises(ValueError, match="D must be"):
+        crossfade_weights(-1)
+
+
+def test_an_episode_follows_its_lead_frames_by_their_weights(open_room):
+    """EpisodeSampler.episode(lead=...): weight 1 gives the lead frames exactly, weight 0 the episode
+    without a lead (the same seed), and the frames after a followed lead change."""
+    scene, occ, wm = open_room
+    ck = tiny_checkpoint()
+    s = EpisodeSampler(ck, SceneGrids(occ), SamplerConfig(steps=4, overlap=0))
+    ctx = np.repeat(standing_body(1)[:, :1], 2, 1).astype(np.float32)
+    ctx[..., :2] += 1.0
+    labels = np.zeros((1, 16, len(ck.vocabulary)), np.float32)
+    goal = [Goal((1.5, 1.0))]
+    run = lambda **kw: s.episode(ctx, labels, goal, generator=torch.Generator().manual_seed(0), **kw)  # noqa: E731
+    base = run()
+    lead = base[:, 2:5].copy()
+    lead[..., 1] += 0.3  # the lead: 30 cm to the side of what the network makes
+    np.testing.assert_allclose(run(lead=lead, lead_weight=np.zeros(3)), base, atol=1e-5)
+    hard = run(lead=lead, lead_weight=np.ones(3))
+    np.testing.assert_allclose(hard[:, 2:5], lead, atol=1e-4)
+    assert np.abs(hard[:, 5:] - base[:, 5:]).max() > 1e-3
+    with pytest.raises(ValueError, match="lead_weight"):
+        run(lead=lead, lead_weight=np.full(3, 2.0))
+    with pytest.raises(ValueError, match="lead must be"):
+        run(lead=lead[..., :2], lead_weight=np.ones(3))
 
 
 def test_stream_incremental_schedule_and_new_plans(open_room):

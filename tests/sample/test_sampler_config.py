@@ -45,8 +45,8 @@ def _switches() -> argparse.ArgumentParser:
 
 def test_the_default_config_is_what_the_commands_do():
     c = SamplerConfig()
-    assert (c.goal_guidance, c.goal_iters, c.guided_steps, c.scene_scale, c.action_scale, c.steps, c.eta) == \
-        (45.0, 2, 5, 1.0, 2.0, 10, 0.0)
+    assert (c.goal_guidance, c.goal_iters, c.guided_steps, c.scene_scale, c.action_scale, c.steps, c.eta, c.overlap) == \
+        (45.0, 2, 4, 1.0, 2.0, 8, 0.0, 5)
     assert c.guidance.goal.heading_weight == 6.0
     q = SamplerConfig(**QUALITY_SCHEDULE)  # the earlier default, kept for comparison (benchmarks/sampling_speed.py)
     assert (q.steps, q.goal_guidance, q.goal_iters, q.guided_steps, q.guidance.goal.heading_weight) == (20, 20.0, 3, 0, 3.0)

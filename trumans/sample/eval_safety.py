@@ -22,7 +22,8 @@ outside the room), ``penetration_max_cm`` (the larger of the mesh-exact contact-
 ``trumans.eval.synthesis_metrics.penetration_cm``, and the joints' core depth in the enclosed
 field, where a body past a wall is deep), ``floating_frames`` / ``sinking_frames``,
 ``feet_off_frames`` (both feet off the floor, not lying), ``seat_err_max_cm`` (every seated frame),
-``lying_leg_depth_max_cm``, and ``goal_err_cm`` for reference. ``worst`` is the worst of each over
+``lying_leg_depth_max_cm``, ``pelvis_speed_max_ms`` (the fastest one-frame pelvis move, m/s: a
+body thrown across a frame by a cleanup step; target <= 3), and ``goal_err_cm`` for reference. ``worst`` is the worst of each over
 the runs; ``targets`` says which of the issue's targets hold on every run.
 """
 from __future__ import annotations
@@ -46,7 +47,8 @@ PLAN_KINDS: tuple[str, ...] = ("default", "wall", "lie")
 MESH_ROOMS: tuple[str, ...] = ("l_room", "corridor", "partition")
 # (figure, largest value allowed on every run)
 TARGETS: tuple[tuple[str, float], ...] = (("crossings", 0), ("exits", 0), ("penetration_max_cm", 5.0),
-                                          ("seat_err_max_cm", 5.0), ("lying_leg_depth_max_cm", 3.0))
+                                          ("seat_err_max_cm", 5.0), ("lying_leg_depth_max_cm", 3.0),
+                                          ("pelvis_speed_max_ms", 3.0))
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -204,7 +206,7 @@ def run_figures(result, sc, sdf, contact_scene) -> dict:
     ``sc``; ``sdf``: the scene's field (``SceneSDF``, dynamic objects at their poses);
     ``contact_scene``: its ``trumans.contacts.rule.ContactScene`` (floor excluded)."""
     from trumans.eval import safety
-    from trumans.eval.synthesis_metrics import goal_errors_cm, penetration_cm
+    from trumans.eval.synthesis_metrics import goal_errors_cm, pelvis_speed_max, penetration_cm
     from trumans.sample.cleanup.support_lift import support_weights
     from trumans.skeleton import JOINT_INDEX
 
@@ -252,13 +254,14 @@ def run_figures(result, sc, sdf, contact_scene) -> dict:
         "seat_err_max_cm": round(float(seat.max()) * 100.0, 2) if seat.size else None,
         "lying_leg_depth_max_cm": round(float(legs.max()) * 100.0, 2) if legs.size else None,
         "goal_err_cm": round(float(ge.mean()), 2) if ge.size else None,
+        "pelvis_speed_max_ms": round(pelvis_speed_max(J, result.fps), 2),
     }
 
 
 def _worst(runs: list[dict]) -> dict:
     keys = ("crossings", "exits", "penetration_max_cm", "mesh_penetration_max_cm", "core_depth_max_cm",
             "floating_frames", "sinking_frames", "feet_off_frames", "seat_err_max_cm", "lying_leg_depth_max_cm",
-            "goal_err_cm")
+            "goal_err_cm", "pelvis_speed_max_ms")
     out = {}
     for k in keys:
         vals = [r[k] for r in runs if r.get(k) is not None]

@@ -2,13 +2,18 @@
 
 ``sample_plan`` runs the closed-loop controller (``trumans.sample.controller``), the episode sampler
 (``trumans.sample.sampler``) and the cleanup after it (``trumans.sample.cleanup.pipeline``) episode by
-episode until the plan is done and returns every frame. With ``SamplerConfig.overlap`` = D > 0,
-every episode but the last commits only its first L - k - D new frames (the controller is rewound
-to what they consumed, as ``stream`` does); the next episode starts from there and its first D new
-frames (the network's, before the cleanup) are crossfaded with the D frames the earlier episode made
-and did not commit (``cleanup.seam.crossfade``; the cleanup then puts them on the body's bones, out
-of the scene, feet down; its seam blend is off for these episodes: the crossfade joins them): no frame of the output comes from one network pass's edge alone, so
-the seam's jerk (k = 2 context frames carry no acceleration) is spread over D frames. ``stream`` is the real-time
+episode until the plan is done and returns every frame. With ``SamplerConfig.overlap`` = D > 0 (the
+default, 5), every episode but the last commits only its first L - k - D new frames (the controller
+is rewound to what they consumed, as ``stream`` does); the next episode starts from there and makes
+the D frames the earlier one made and did not commit again: while it denoises, its x0 on those
+frames is pulled onto the earlier frames with the crossfade's weights (``cleanup.seam.crossfade_weights``,
+``EpisodeSampler.episode(lead=...)``: replacement inpainting, as in MDM's in-betweening), so what
+it makes after them continues their motion, and its guidance keeps the earlier episode's goals
+due on them (``_carried_goals``; without them the goal error rose 6.9 -> 10.5 cm). The cleanup then
+puts them on the body's bones, out of the scene, feet down (its seam blend is off for these
+episodes). No frame of the output comes from one network pass's edge alone, so the seam's jerk
+(k = 2 context frames carry no acceleration) is spread over D frames (issue 35, docs/results.md).
+``stream`` is the real-time
 form: a Python generator that yields new frames as soon as they are made and accepts a new plan
 at any time through ``send``; after a new plan it commits 2, then 4, then 8 new frames per
 episode before going back to full episodes (the paper's incremental schedule, §5.4), so the body
@@ -30,7 +35,7 @@ from trumans.skeleton import JOINT_INDEX, heading as body_heading
 from trumans.sample.carry_plan import planned_object_poses
 from trumans.sample.cleanup.bones import bone_lengths_of
 from trumans.sample.cleanup.pipeline import EpisodeBodies, run_cleanup
-from trumans.sample.cleanup.seam import crossfade
+from trumans.sample.cleanup.seam import crossfade_weights
 from trumans.sample.controller import Controller, Phase, compile_plan
 from trumans.sample.guidance.seat import seated_heights
 from trumans.sample.plan import Plan
@@ -145,12 +150,14 @@ class _Episode:
 
 def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.ndarray, prev_labels: np.ndarray,
           lengths: np.ndarray, generator: torch.Generator | None, seat_offset: float,
-          pending: np.ndarray | None = None) -> _Episode:
+          pending: np.ndarray | None = None, carried: tuple[tuple[Goal, ...], ...] = ()) -> _Episode:
     """One episode for every sample: the controls, the network (with its guidance), then the
     cleanup pipeline (``trumans.sample.cleanup.pipeline``) on the body with bone ``lengths``;
     ``seat_offset``: the body's pelvis height above a seat surface (``sit_offset``), m; ``pending``
-    (B, D, 24, 3): the previous episode's uncommitted frames, crossfaded into the network's first D
-    new frames before the cleanup (so the blend, too, is put on the bones, out of the scene, feet down)."""
+    (B, D, 24, 3): the previous episode's uncommitted frames, which the network's first D new frames
+    follow with the crossfade's weights while it denoises (``EpisodeSampler.episode(lead=...)``; the
+    cleanup then puts the blend on the bones, out of the scene, feet down); ``carried``: the previous
+    episode's goals due in those frames, which this episode's guidance keeps (``_carried_goals``)."""
     config = sampler.config
     moved = planned_object_poses(controllers, sampler.grids)  # objects the plan has moved so far
     ctrls = [c.next(context[b, -1, PELVIS, :2], prev_labels[b]) for b, c in enumerate(controllers)]
@@ -164,10 +171,9 @@ def _step(sampler: EpisodeSampler, controllers: list[Controller], context: np.nd
         for f, z in frames:
             seat_z[b, f] = z
     labels = np.stack([c.labels for c in ctrls])
-    world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator)
-    if pending is not None:
-        k, D = sampler.k, pending.shape[1]
-        world[:, k:k + D] = crossfade(pending, world[:, k:k + D])
+    overlap = {} if pending is None else {  # the network crossfades into the pending frames as it denoises
+        "lead": pending, "lead_weight": 1.0 - crossfade_weights(pending.shape[1]), "carried": carried}
+    world = sampler.episode(context, labels, goals, object_poses=moved, generator=generator, **overlap)
     # dynamic objects count where they stand until the plan moves one (then the static scene only)
     sdf = None if sampler.scene_sdf is None else (sampler.scene_sdf_all if moved is None else sampler.scene_sdf)
     bodies = EpisodeBodies(world, context, lengths, labels, tuple(sampler.ckpt.vocabulary), sampler.ckpt.fps,
@@ -227,6 +233,7 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
     limit = int(np.ceil(max_seconds * ckpt.fps / (ckpt.L_epi - ckpt.k - overlap)))
     t0, episodes, starts, goals, cvs = 0.0, 0, [], [], []
     pending = None  # the last episode's uncommitted frames (B, overlap, 24, 3), to crossfade
+    carried: tuple[tuple[Goal, ...], ...] = ()  # its goals due in those frames, for the next episode
     bar = tqdm(desc="sampling", unit="episode", disable=not progress, leave=False)
     while not all(c.done for c in controllers) and (max_episodes is None or episodes < max_episodes):
         if episodes >= limit:
@@ -236,11 +243,13 @@ def sample_plan(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan:
         starts.append(sum(f.shape[1] for f in frames) - ckpt.k)
         context = frames[-1][:, -ckpt.k:]
         snapshots = [_snapshot(c) for c in controllers]
-        ep = _step(sampler, controllers, context, labels[-1][:, -ckpt.k:], lengths, g, seat, pending)
+        ep = _step(sampler, controllers, context, labels[-1][:, -ckpt.k:], lengths, g, seat, pending, carried)
         new = ep.new
         n = new.shape[1]
+        carried = ()
         if overlap and not all(c.done for c in controllers):  # commit all but the last `overlap` frames
             n -= overlap
+            carried = _carried_goals(ep.goals, n, ckpt.L_epi, ckpt.k, overlap)
             for b, (c, snap) in enumerate(zip(controllers, snapshots)):
                 _restore(c, snap)
                 _advance(c, n, context[b, -1, PELVIS, :2])
@@ -309,6 +318,18 @@ def stream(ckpt: Checkpoint, sampler: EpisodeSampler, scene, walkmap, plan: Plan
         if sent is not None:
             ctrl = controller_for(sent, context[0, -1, PELVIS, :2].astype(np.float64), float(body_heading(context[0, -1])))
             todo = list(schedule)
+
+
+def _carried_goals(goals: list[Goal], committed: int, L: int, k: int, overlap: int) -> tuple[tuple[Goal, ...], ...]:
+    """Per sample, the episode's goals due in its ``overlap`` uncommitted frames, re-timed to the next
+    episode (which starts ``committed`` new frames later and makes those frames again): its guidance
+    keeps them (an overlapped episode's last frame, where its pelvis goal is due, is the next one's)."""
+    out = []
+    for g in goals:
+        frame = (L - 1 if g.joint == "pelvis" else g.frame % L) - committed
+        keep = k <= frame < k + overlap
+        out.append((replace(g, frame=frame),) if keep else ())
+    return tuple(out)
 
 
 def _snapshot(ctrl: Controller) -> tuple:

@@ -57,33 +57,35 @@ class SamplerConfig:
     pass per update) or 'x0' (the costs' gradient w.r.t. the predicted x0 itself, no backward pass
     through the network: one forward per step, ``goal_iters`` cheap updates of size
     ``goal_guidance * x0_guidance`` on x0 before the DDIM step).
-    The default schedule (10 steps, the last 5 guided, 2 updates of size 45 each: 15 network passes,
-    9 of them backward, as the last step's last update would move nothing; goal heading weight 6) is
-    ~4x cheaper than the earlier 20 steps x 3 updates of size 20 every step (``QUALITY_SCHEDULE``) and a little farther from the goals (docs/results.md,
-    "Sampling speed"); guiding only the last 3 steps was ~1.5x faster again but left bodies short of
+    The default schedule (8 steps, the last 4 guided, 2 updates of size 45 each, with episodes
+    overlapping by 5 frames: 12 network passes an episode, 7 of them backward, at 1.56x the
+    episodes) runs at about the speed of the earlier 10 steps / 5 guided without overlap, which was
+    ~4x cheaper than 20 steps x 3 updates of size 20 every step (``QUALITY_SCHEDULE``; docs/results.md,
+    "Sampling speed"); guiding only the last 3 of 10 steps was ~1.5x faster again but left bodies short of
     the 1 m gap of the safety benchmark's partition room (8 of 12 runs never finished their plan);
     guidance: the guidance terms (goal, seat, penetration; ``trumans.sample.guidance.terms``);
     cleanup: the steps after the network, in their order (``trumans.sample.cleanup.pipeline``);
     overlap: the last ``overlap`` new frames of every episode but the plan's last are not committed:
-    the next episode makes them again and the two are crossfaded (``trumans.sample.rollout``,
-    issue 35: the seams). 0 (the default) commits every new frame; 5 brings the folded seam peak from
-    ~1.6 to ~1.25 at 1.56x the episodes (docs/results.md, "The seams at their peak").
+    the next episode makes them again, following them while it denoises and keeping their goals
+    (``trumans.sample.rollout``, issue 35: the seams). 0 commits every new frame; 5 (the default)
+    brings the folded seam peak from ~1.7 to ~1.2 and is no worse on any figure of 3 plan seeds
+    (docs/results.md, "The seams at their peak").
     ``to_dict`` / ``from_dict`` give and take the whole config as plain data (unknown keys are
     errors); ``trumans sample`` saves it with every sequence (``extra/sampler_config``)."""
 
-    steps: int = 10
+    steps: int = 8
     eta: float = 0.0
     scene_scale: float = 1.0
     action_scale: float = 2.0
     naive: bool = False
     goal_guidance: float = 45.0
     goal_iters: int = 2
-    guided_steps: int = 5
+    guided_steps: int = 4
     guidance_space: Literal["xt", "x0"] = "xt"
     x0_guidance: float = 1.0
     guidance: GuidanceConfig = field(default_factory=GuidanceConfig)
     cleanup: CleanupConfig = field(default_factory=CleanupConfig)
-    overlap: int = 0
+    overlap: int = 5
 
     def __post_init__(self) -> None:
         if self.overlap < 0:
@@ -189,10 +191,17 @@ class EpisodeSampler:
 
     @torch.no_grad()
     def episode(self, context: np.ndarray, labels: np.ndarray, goals: list[Goal],
-                object_poses: dict | None = None, generator: torch.Generator | None = None) -> np.ndarray:
+                object_poses: dict | None = None, generator: torch.Generator | None = None,
+                lead: np.ndarray | None = None, lead_weight: np.ndarray | None = None,
+                carried: tuple[tuple[Goal, ...], ...] = ()) -> np.ndarray:
         """context: (B, k, 24, 3) world m, the last k frames so far; labels: (B, L, N_A) action
         labels; goals: one ``Goal`` per sample -> (B, L, 24, 3) float32 world joints (first k =
-        context): the network's output, before the cleanup (``trumans.sample.cleanup.pipeline``)."""
+        context): the network's output, before the cleanup (``trumans.sample.cleanup.pipeline``).
+        lead (B, D, 24, 3) world m, lead_weight (D,) in [0, 1]: frames the first D new frames should
+        follow (the previous episode's uncommitted end, ``SamplerConfig.overlap``); after every
+        denoising step x0's lead joints move that share of the way to them (``_follow_lead``);
+        carried: per sample, the earlier episode's goals due in this episode's frames (guided only,
+        ``GuidanceInputs.carried``)."""
         B = context.shape[0]
         if context.ndim != 4 or context.shape[1:] != (self.k, NUM_JOINTS, 3):
             raise ValueError(f"context must be (B, {self.k}, 24, 3), got {context.shape}")
@@ -200,6 +209,7 @@ class EpisodeSampler:
             raise ValueError(f"need {B} goals and labels (B, {self.L}, N_A), got {len(goals)} and {labels.shape}")
         cond = self.condition(context, labels, goals)
         x_given, mask = self._given(context, cond, goals)
+        follow = None if lead is None else self._lead(lead, lead_weight, cond)
         if self.grids is None:
             grid = np.zeros((B, self.n, self.n, self.n), dtype=bool)
         else:
@@ -207,8 +217,9 @@ class EpisodeSampler:
         scene = torch.from_numpy(grid).to(self.device)
         acts = torch.as_tensor(cond.actions, dtype=torch.float32, device=self.device)
         emb = self._conditions(scene, acts)
-        if self.config.goal_guidance > 0:
-            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, self._terms(cond, goals), generator, cond)
+        if self.config.goal_guidance > 0 or follow is not None:
+            terms = self._terms(cond, goals, carried) if self.config.goal_guidance > 0 else []
+            x0 = self._guided_sample(self._model_fn(emb), mask, x_given, terms, generator, cond, follow)
         else:
             x0 = self.diffusion.sample(self._model_fn(emb), (B, self.L, self.layout.dim), mask=mask, given=x_given,
                                        num_steps=self.config.steps, eta=self.config.eta, generator=generator,
@@ -219,18 +230,47 @@ class EpisodeSampler:
         world[:, : self.k] = context
         return world
 
-    def _terms(self, cond: EpisodeCondition, goals: list[Goal]) -> list[GuidanceTerm]:
+    def _lead(self, lead: np.ndarray, weight: np.ndarray, cond: EpisodeCondition) -> tuple[torch.Tensor, torch.Tensor]:
+        """Normalised lead frames and per-entry weights, both (B, L, F): frames k..k+D-1, joint positions."""
+        lead = np.asarray(lead, np.float64)
+        B, D = lead.shape[:2]
+        if lead.shape != (B, D, NUM_JOINTS, 3) or D > self.L - self.k or B != len(cond.origin):
+            raise ValueError(f"lead must be (B={len(cond.origin)}, D <= {self.L - self.k}, 24, 3), got {lead.shape}")
+        weight = np.asarray(weight if weight is not None else np.ones(D), np.float32)
+        if weight.shape != (D,) or not ((weight >= 0) & (weight <= 1)).all():
+            raise ValueError(f"lead_weight must be (D={D},) in [0, 1], got {weight}")
+        feats = np.zeros((B, self.L, self.layout.dim), np.float32)
+        feats[:, self.k:self.k + D, :NUM_JOINTS * 3] = canonicalize(lead, cond.origin, cond.yaw).reshape(B, D, -1)
+        w = np.zeros((B, self.L, self.layout.dim), np.float32)
+        w[:, self.k:self.k + D, :NUM_JOINTS * 3] = weight[None, :, None]
+        return (torch.from_numpy(self.norm.normalize(feats)).to(self.device), torch.from_numpy(w).to(self.device))
+
+    def _follow_lead(self, x_prev: torch.Tensor, x0_hat: torch.Tensor, t_prev: int,
+                     follow: tuple[torch.Tensor, torch.Tensor] | None) -> torch.Tensor:
+        """x_{t-1} with x0's lead entries moved w of the way to the lead (DDIM's x_{t-1} =
+        sqrt(abar_{t-1}) x0 + c eps, the network's eps kept): replacement inpainting of the overlap
+        (as in MDM's in-betweening), so the new frames after it continue the lead's motion."""
+        if follow is None:
+            return x_prev
+        given, w = follow
+        ab_prev = float(self.diffusion.alphas_cumprod[t_prev]) if t_prev >= 0 else 1.0
+        return x_prev + ab_prev ** 0.5 * w * (given - x0_hat)
+
+    def _terms(self, cond: EpisodeCondition, goals: list[Goal],
+               carried: tuple[tuple[Goal, ...], ...] = ()) -> list[GuidanceTerm]:
         """The configured guidance terms (``SamplerConfig.guidance``) that act in this episode."""
         return build_terms(self.config.guidance, GuidanceInputs(cond, tuple(goals), self.layout, self.L, self.k,
-                                                                self.hip_width, self.sdf))
+                                                                self.hip_width, self.sdf, tuple(carried)))
 
     def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, terms: list[GuidanceTerm],
-                       generator, cond: EpisodeCondition) -> torch.Tensor:
+                       generator, cond: EpisodeCondition,
+                       follow: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
         """Respaced DDIM (``GaussianDiffusion.step``) with spatial guidance (OmniControl, Xie et al.
         2024, "spatial guidance"): a sparse inpainted goal (2 of L x F entries) is weakly followed, so
         after each step x_{t-1} moves against the gradient of the summed costs (m^2) of the
         guidance ``terms`` on the body's predicted x0: x_{t-1} <- x_{t-1} - s grad_{x_t}, ``goal_iters``
-        updates of step size s = ``goal_guidance`` per step."""
+        updates of step size s = ``goal_guidance`` per step. ``follow``: the lead (``_follow_lead``);
+        with no ``terms`` no step is guided."""
         d = self.diffusion
         B, L, F = given.shape
         mean = torch.as_tensor(self.norm.mean, dtype=torch.float32)
@@ -239,16 +279,20 @@ class EpisodeSampler:
         rotation, origin = canonical_to_world(cond)
         ts = respaced_timesteps(d.steps, self.config.steps).tolist()
         first_guided = len(ts) - self.config.guided_steps if self.config.guided_steps else 0
+        if not terms:
+            first_guided = len(ts)
         for i, t_i in enumerate(ts):
             x = torch.where(mask, given, x)
             t = torch.full((B,), t_i, dtype=torch.long, device=x.device)
+            t_prev = ts[i + 1] if i + 1 < len(ts) else -1
             if i < first_guided:  # an unguided step: the network once, no backward pass
                 out = model_fn(x, t, mask=mask)
-                x, _ = d.step(out, t, x, t_prev=ts[i + 1], eta=self.config.eta, generator=generator)
+                x, x0_hat = d.step(out, t, x, t_prev=t_prev, eta=self.config.eta, generator=generator)
+                x = self._follow_lead(x, x0_hat, t_prev, follow)
                 continue
             if self.config.guidance_space == "x0":
                 x = self._x0_guided_step(model_fn, x, t, mask, terms, mean, std, rotation, origin,
-                                         ts[i + 1] if i + 1 < len(ts) else -1, generator)
+                                         t_prev, generator, follow)
                 continue
             grad = torch.zeros_like(x)
             last = i + 1 == len(ts)
@@ -269,14 +313,15 @@ class EpisodeSampler:
                     if g is None:
                         break
                     grad = grad + self.config.goal_guidance * g
-            x, _ = d.step(out.detach(), t, xg.detach(), t_prev=ts[i + 1] if i + 1 < len(ts) else -1,
-                          eta=self.config.eta, generator=generator)
+            x, x0_hat = d.step(out.detach(), t, xg.detach(), t_prev=t_prev, eta=self.config.eta, generator=generator)
+            x = self._follow_lead(x, x0_hat, t_prev, follow)
             if i + 1 < len(ts):
                 x = x - grad
         return torch.where(mask, given, x)
 
     def _x0_guided_step(self, model_fn, x: torch.Tensor, t: torch.Tensor, mask: torch.Tensor,
-                        terms: list[GuidanceTerm], mean, std, rotation, origin, t_prev: int, generator) -> torch.Tensor:
+                        terms: list[GuidanceTerm], mean, std, rotation, origin, t_prev: int, generator,
+                        follow: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
         """One DDIM step guided in x0 space: the network once (no gradient), then ``goal_iters``
         updates x0 <- x0 - s grad_x0(sum of the terms' costs) with s = goal_guidance * x0_guidance, then
         the DDIM step from the updated x0 (its epsilon recomputed from x_t, DDIM eq. 12)."""
@@ -298,8 +343,8 @@ class EpisodeSampler:
                     break
                 x0 = x0.detach() - step * g
         eps = d.predict_eps(x, t, x0)
-        x_prev, _ = d.step(d.target(x0, eps, t), t, x, t_prev=t_prev, eta=self.config.eta, generator=generator)
-        return x_prev
+        x_prev, x0_hat = d.step(d.target(x0, eps, t), t, x, t_prev=t_prev, eta=self.config.eta, generator=generator)
+        return self._follow_lead(x_prev, x0_hat, t_prev, follow)
 
     def _conditions(self, scene: torch.Tensor, actions: torch.Tensor) -> dict:
         """Condition embeddings once per episode (or the raw conditions for the naive sampler)."""

@@ -154,7 +154,7 @@ def _containment(ep: EpisodeBodies, config: ContainmentConfig) -> np.ndarray:
     if ep.sdf is None:
         return ep.joints
     weight = support_weights(ep.labels, ep.vocabulary)
-    return contain(ep.joints, ep.sdf, weight, ep.k, config)
+    return contain(ep.joints, ep.sdf, weight, ep.k, config, fps=ep.fps)
 
 
 def _seat_settle(ep: EpisodeBodies, config: SeatSettleConfig) -> np.ndarray:

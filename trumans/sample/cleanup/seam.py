@@ -16,7 +16,7 @@ import numpy as np
 
 from trumans.easing import smoothstep
 
-__all__ = ["SeamConfig", "blend_seam", "seam_weights", "crossfade"]
+__all__ = ["SeamConfig", "blend_seam", "seam_weights", "crossfade_weights"]
 
 
 @dataclass(frozen=True)
@@ -53,13 +53,10 @@ def blend_seam(context: np.ndarray, new: np.ndarray, frames: int = 4) -> np.ndar
     return (new + w[None, :, None, None] * offset[:, None]).astype(new.dtype)
 
 
-def crossfade(old: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """old, new (B, D, J, 3): the same D frames from two episodes (the earlier one's uncommitted end,
-    the next one's first new frames) -> (B, D, J, 3) ``(1 - w) old + w new``, w rising from
-    smoothstep(1 / (D + 1)) to smoothstep(D / (D + 1)): the motion leaves the earlier episode's
-    prediction with its velocity and joins the next one's without a kink (``SamplerConfig.overlap``)."""
-    old, new = np.asarray(old), np.asarray(new)
-    if old.shape != new.shape or old.ndim != 4:
-        raise ValueError(f"need old and new of one shape (B, D, J, 3), got {old.shape} and {new.shape}")
-    w = smoothstep(np.arange(1, old.shape[1] + 1) / (old.shape[1] + 1))[None, :, None, None]
-    return ((1.0 - w) * old + w * new).astype(new.dtype)
+def crossfade_weights(D: int) -> np.ndarray:
+    """(D,) the later episode's weight on the D frames two overlapping episodes both make
+    (``SamplerConfig.overlap``): smoothstep(i / (D + 1)), i = 1..D, rising from near 0 to near 1, so
+    the motion leaves the earlier episode with its velocity and joins the later one without a kink."""
+    if D < 0:
+        raise ValueError(f"D must be >= 0 frames, got {D}")
+    return smoothstep(np.arange(1, D + 1) / (D + 1))

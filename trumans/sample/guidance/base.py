@@ -70,7 +70,8 @@ class GuidanceInputs:
     """What the terms of one episode are built from. cond: the episode condition (canonical
     frames); goals: one ``Goal`` per sample; layout: the feature layout; L, k: episode and context
     frames; hip_width: m, the body's hip line length (heading term); sdf: the scene's field for the
-    penetration term, or None."""
+    penetration term, or None; carried: per sample, goals of the earlier episode whose frame this
+    episode makes again (``SamplerConfig.overlap``), ``frame`` counted in this episode (pelvis too)."""
 
     cond: EpisodeCondition
     goals: tuple[Goal, ...]
@@ -79,6 +80,7 @@ class GuidanceInputs:
     k: int
     hip_width: float
     sdf: SceneSDF | None
+    carried: tuple[tuple[Goal, ...], ...] = ()  # per sample: the earlier episode's goals due in this one's frames
 
 
 class GuidanceTerm(Protocol):

@@ -61,6 +61,19 @@ class GoalTerm:
                 local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
                 targets.append((b, g.frame % L, lay.position_index(g.joint), torch.eye(3),
                                 torch.as_tensor(local, dtype=torch.float32)))
+        for b, goals in enumerate(inputs.carried):  # the earlier episode's goals on the frames made again
+            for g in (g for g in goals if g.guide):
+                point = np.zeros(3)
+                point[:len(g.point)] = g.point
+                local = torch.as_tensor(subgoal_to_canonical(point, cond.origin[b], cond.yaw[b]), dtype=torch.float32)
+                if g.joint == "pelvis":
+                    targets.append((b, g.frame % L, hips, mean_w, local[:2]))
+                    if g.heading is not None:
+                        h = g.heading - float(cond.yaw[b])
+                        left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * inputs.hip_width
+                        targets.append((b, g.frame % L, hips, config.heading_weight * diff_w, config.heading_weight * left))
+                else:
+                    targets.append((b, g.frame % L, lay.position_index(g.joint), torch.eye(3), local))
         return cls(targets) if targets else None
 
     def loss(self, prediction: Prediction) -> torch.Tensor:

@@ -151,6 +151,30 @@ def test_term_weights_come_from_the_config():
     assert heavy[GoalTerm] < one[GoalTerm]  # without the heading term only the position is left
 
 
+def test_carried_goals_are_guided_at_their_frames():
+    """GuidanceInputs.carried (the earlier episode's goals on the frames an overlap makes again): a
+    carried pelvis goal pulls the hips at its frame, with its heading; a hand goal its joint there."""
+    ck = tiny_checkpoint(2)
+    s = EpisodeSampler(ck, None, SamplerConfig(steps=2))
+    ctx = start_context(ck, np.array([0.9, 1.0]), 0.2)
+    labels = np.zeros((1, 16, len(SAMPLE_VOCAB)), np.float32)
+    goals = (Goal((1.5, 1.0)),)
+    cond = s.condition(ctx, labels, list(goals))
+    plain = GoalTerm.build(GoalTermConfig(), GuidanceInputs(cond, goals, s.layout, s.L, s.k, 0.12, None))
+    carried = ((Goal((1.2, 1.1), frame=6, heading=0.5), Goal((1.3, 1.0, 1.1), joint="right_wrist", frame=5)),)
+    term = GoalTerm.build(GoalTermConfig(), GuidanceInputs(cond, goals, s.layout, s.L, s.k, 0.12, None, carried))
+    assert [t[1] for t in plain.targets] == [15]
+    assert [t[1] for t in term.targets] == [15, 6, 6, 5]  # pelvis position + heading at 6, the wrist at 5
+    x0 = torch.zeros((1, s.L, s.layout.dim), requires_grad=True)
+    mean, std = (torch.as_tensor(v, dtype=torch.float32) for v in (s.norm.mean, s.norm.std))
+    g, = torch.autograd.grad(term.loss(Prediction(x0, mean, std, s.k, *canonical_to_world(cond))), x0)
+    moved = torch.nonzero(g[0].abs().sum(-1) > 0).flatten().tolist()
+    assert moved == [5, 6, 15]
+    skipped = ((Goal((1.2, 1.1), frame=6, guide=False),),)
+    assert len(GoalTerm.build(GoalTermConfig(), GuidanceInputs(cond, goals, s.layout, s.L, s.k, 0.12, None,
+                                                                skipped)).targets) == 1
+
+
 def test_the_sampled_npz_records_the_config_used(tmp_path, capsys):
     ck = tmp_path / "gen.pt"
     save_checkpoint(ck, tiny_checkpoint())

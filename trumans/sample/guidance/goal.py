@@ -43,37 +43,42 @@ class GoalTerm:
 
     @classmethod
     def build(cls, config: GoalTermConfig, inputs: GuidanceInputs) -> GoalTerm | None:
-        """The term for ``inputs``' guided goals, or None when none is guided."""
+        """The term for ``inputs``' guided goals (and the earlier episode's ``carried`` ones, at
+        their frames), or None when none is guided."""
         lay, L, cond = inputs.layout, inputs.L, inputs.cond
         hips = lay.position_index("left_hip", (0, 1)) + lay.position_index("right_hip", (0, 1))
         mean_w = torch.tensor([[0.5, 0, 0.5, 0], [0, 0.5, 0, 0.5]])
         diff_w = torch.tensor([[1.0, 0, -1.0, 0], [0, 1.0, 0, -1.0]])
         targets = []
+
+        def add(b: int, g, frame: int, local: np.ndarray) -> None:
+            """Targets of goal g of sample b at episode ``frame``, its point in canonical metres."""
+            local = torch.as_tensor(local, dtype=torch.float32)
+            if g.joint != "pelvis":
+                targets.append((b, frame, lay.position_index(g.joint), torch.eye(3), local))
+                return
+            targets.append((b, frame, hips, mean_w, local[:2]))
+            if g.heading is not None:
+                h = g.heading - float(cond.yaw[b])  # canonical heading
+                left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * inputs.hip_width
+                targets.append((b, frame, hips, config.heading_weight * diff_w, config.heading_weight * left))
+
+        def canonical(b: int, point) -> np.ndarray:
+            p = np.zeros(3)
+            p[:len(point)] = point
+            return subgoal_to_canonical(p, cond.origin[b], cond.yaw[b])
+
         for b, g in enumerate(inputs.goals):
-            if g.guide and g.joint == "pelvis":
-                goal = torch.as_tensor(cond.subgoal_canonical()[b, :2], dtype=torch.float32)
-                targets.append((b, L - 1, hips, mean_w, goal))
-                if g.heading is not None:
-                    h = g.heading - float(cond.yaw[b])  # canonical heading
-                    left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * inputs.hip_width
-                    targets.append((b, L - 1, hips, config.heading_weight * diff_w, config.heading_weight * left))
-            elif g.guide:
-                local = subgoal_to_canonical(np.asarray(g.point, np.float64), cond.origin[b], cond.yaw[b])
-                targets.append((b, g.frame % L, lay.position_index(g.joint), torch.eye(3),
-                                torch.as_tensor(local, dtype=torch.float32)))
+            if not g.guide:
+                continue
+            if g.joint == "pelvis":  # the episode's subgoal, at its last frame
+                add(b, g, L - 1, cond.subgoal_canonical()[b, :2])
+            else:
+                add(b, g, g.frame % L, canonical(b, g.point))
         for b, goals in enumerate(inputs.carried):  # the earlier episode's goals on the frames made again
-            for g in (g for g in goals if g.guide):
-                point = np.zeros(3)
-                point[:len(g.point)] = g.point
-                local = torch.as_tensor(subgoal_to_canonical(point, cond.origin[b], cond.yaw[b]), dtype=torch.float32)
-                if g.joint == "pelvis":
-                    targets.append((b, g.frame % L, hips, mean_w, local[:2]))
-                    if g.heading is not None:
-                        h = g.heading - float(cond.yaw[b])
-                        left = torch.tensor([-np.sin(h), np.cos(h)], dtype=torch.float32) * inputs.hip_width
-                        targets.append((b, g.frame % L, hips, config.heading_weight * diff_w, config.heading_weight * left))
-                else:
-                    targets.append((b, g.frame % L, lay.position_index(g.joint), torch.eye(3), local))
+            for g in goals:
+                if g.guide:
+                    add(b, g, g.frame % L, canonical(b, g.point))
         return cls(targets) if targets else None
 
     def loss(self, prediction: Prediction) -> torch.Tensor:

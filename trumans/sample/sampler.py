@@ -58,9 +58,10 @@ class SamplerConfig:
     through the network: one forward per step, ``goal_iters`` cheap updates of size
     ``goal_guidance * x0_guidance`` on x0 before the DDIM step).
     The default schedule (8 steps, the last 4 guided, 2 updates of size 45 each, with episodes
-    overlapping by 5 frames: 12 network passes an episode, 7 of them backward, at 1.56x the
-    episodes) runs at about the speed of the earlier 10 steps / 5 guided without overlap, which was
-    ~4x cheaper than 20 steps x 3 updates of size 20 every step (``QUALITY_SCHEDULE``; docs/results.md,
+    overlapping by 5 frames: 12 network passes an episode, 7 of them backward, at 1.52x the
+    episodes) makes motion at 0.85x the real-time factor of the earlier 10 steps / 5 guided without
+    overlap (measured alternately: 7.6 / 8.5x against 9.0 / 9.7x real time), which was ~4x cheaper
+    than 20 steps x 3 updates of size 20 every step (``QUALITY_SCHEDULE``; docs/results.md,
     "Sampling speed"); guiding only the last 3 of 10 steps was ~1.5x faster again but left bodies short of
     the 1 m gap of the safety benchmark's partition room (8 of 12 runs never finished their plan);
     guidance: the guidance terms (goal, seat, penetration; ``trumans.sample.guidance.terms``);
@@ -68,8 +69,8 @@ class SamplerConfig:
     overlap: the last ``overlap`` new frames of every episode but the plan's last are not committed:
     the next episode makes them again, following them while it denoises and keeping their goals
     (``trumans.sample.rollout``, issue 35: the seams). 0 commits every new frame; 5 (the default)
-    brings the folded seam peak from ~1.7 to ~1.2 and is no worse on any figure of 3 plan seeds
-    (docs/results.md, "The seams at their peak").
+    brings the folded seam peak from ~1.7 to ~1.2 and is no worse on any quality figure of 5 plan
+    seeds, at 0.85x the speed (docs/results.md, "The default sampler since 2026-11-29").
     ``to_dict`` / ``from_dict`` give and take the whole config as plain data (unknown keys are
     errors); ``trumans sample`` saves it with every sequence (``extra/sampler_config``)."""
 

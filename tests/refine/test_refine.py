@@ -120,7 +120,7 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     assert set(r.objects) == {"box_0", "lamp"}
     printed = capsys.readouterr().out
     assert '"object": "box_0"' in printed
-    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["body_drift", "foot_lock", "rest_pooling", "hand_link",
+    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["residual", "foot_lock", "rest_pooling", "hand_link",
                                                                             "gate", "bones", "floor"]
     # same seed, same output
     filt = HOIFilter.load(ck)
@@ -386,13 +386,15 @@ def test_post_steps_follow_the_options_and_the_category():
     d = PostStepsConfig()
     hinge_any = replace(d, hinge=replace(d.hinge, any_category=True))
     guards = ["gate", "bones", "floor"]
-    assert RefineOptions().post_steps("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge"] + guards
-    assert RefineOptions().post_steps("cup") == ["body_drift", "foot_lock", "rest_pooling", "hand_link"] + guards
+    assert RefineOptions().post_steps("door") == ["residual", "foot_lock", "rest_pooling", "hand_link", "hinge"] + guards
+    assert RefineOptions().post_steps("cup") == ["residual", "foot_lock", "rest_pooling", "hand_link"] + guards
+    assert RefineOptions(post=d.switched(body_drift=True)).post_steps("cup") == [
+        "residual", "body_drift", "foot_lock", "rest_pooling", "hand_link"] + guards
     assert "hinge" in RefineOptions(post=hinge_any).post_steps("cup")
     assert RefineOptions(post=replace(d.switched(hinge=False), rest_pooling=replace(d.rest_pooling, hand_link=False))
-                         ).post_steps("door") == ["body_drift", "foot_lock", "rest_pooling"] + guards
-    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == ["body_drift", "foot_lock"] + guards  # the hinge needs pooled rests
-    assert RefineOptions(post=d.switched(body_drift=False, foot_lock=False, rest_pooling=False, gate=False, bones=False,
+                         ).post_steps("door") == ["residual", "foot_lock", "rest_pooling"] + guards
+    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == ["residual", "foot_lock"] + guards  # the hinge needs pooled rests
+    assert RefineOptions(post=d.switched(residual=False, foot_lock=False, rest_pooling=False, gate=False, bones=False,
                                          floor=False)).post_steps("door") == []
 
 

@@ -17,6 +17,7 @@ from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
 from trumans.refine.post_args import add_post_step_arguments, post_steps_config
 from trumans.refine.post_steps import STEPS, PostStepsConfig, RefinedClip, run_post_steps
+from trumans.refine.residual import keep_low_frequencies
 
 from helpers import carried_box_clip
 
@@ -46,28 +47,33 @@ def test_the_documented_order_and_reported_names():
     import trumans.refine.post_steps as mod
 
     names = [s.name for s in STEPS]
-    assert names == ["body_drift", "foot_lock", "rest_pooling", "hinge", "gate", "bones", "floor"] == [
+    assert names == ["residual", "body_drift", "foot_lock", "rest_pooling", "hinge", "gate", "bones", "floor"] == [
         f.name for f in fields(PostStepsConfig)]
     doc = mod.__doc__
-    assert [doc.index(f"``{n}`` - ") for n in names] == sorted(doc.index(f"``{n}`` - ") for n in names)
+    assert [doc.index(f"``{n}``") for n in names] == sorted(doc.index(f"``{n}``") for n in names)
     d = PostStepsConfig()
-    no_hinge = [n for n in names if n != "hinge"]
-    assert d.runs("door") == names and d.runs("cup") == no_hinge
-    assert d.steps_for("door") == ["body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge", "gate", "bones", "floor"]
-    assert replace(d, hinge=replace(d.hinge, any_category=True)).runs("cup") == names
+    assert not d.body_drift.enabled  # off by default (biased on real feet); every other step on
+    on = [n for n in names if n != "body_drift"]
+    no_hinge = [n for n in on if n != "hinge"]
+    assert d.runs("door") == on and d.runs("cup") == no_hinge
+    assert d.steps_for("door") == ["residual", "foot_lock", "rest_pooling", "hand_link", "hinge", "gate", "bones", "floor"]
+    assert replace(d, hinge=replace(d.hinge, any_category=True)).runs("cup") == on
     assert replace(d, hinge=replace(d.hinge, categories=("cup",))).runs("door") == no_hinge
-    assert d.switched(rest_pooling=False).runs("door") == ["body_drift", "foot_lock", "gate", "bones", "floor"]  # the hinge needs pooled rests
+    assert d.switched(body_drift=True).runs("door") == names
+    assert d.switched(rest_pooling=False).runs("door") == ["residual", "foot_lock", "gate", "bones", "floor"]  # the hinge needs pooled rests
 
 
 def test_run_applies_the_steps_in_order_with_their_configs():
     clip = _clip("door")
-    cfg = PostStepsConfig()
-    want = remove_body_drift(clip.frames, FPS, cfg.body_drift)
+    cfg = PostStepsConfig().switched(body_drift=True)
+    body = lambda f: np.asarray(f, np.float64)[:, :72].reshape(len(f), 24, 3)
+    tracked = body(clip.tracked)
+    want = np.array(clip.frames, np.float32)
+    want[:, :72] = keep_low_frequencies(body(clip.frames), tracked, FPS, cfg.residual).reshape(len(want), -1)
+    want = remove_body_drift(want, FPS, cfg.body_drift)
     want = lock_feet(want, FPS, cfg.foot_lock)
     want = pool_rest(want, clip.tracked, FPS, cfg.rest_pooling)
     want = fit_hinge(want, clip.tracked, cfg.hinge)
-    body = lambda f: np.asarray(f, np.float64)[:, :72].reshape(len(f), 24, 3)
-    tracked = body(clip.tracked)
     J = gate_joints(body(want), tracked, FPS, cfg.gate)
     J = project_bone_lengths(J, input_bone_lengths(tracked, noise_level(tracked), cfg.bones))
     J = keep_above_floor(J, FPS, floor_offset(tracked, cfg.floor), cfg.floor)
@@ -92,14 +98,14 @@ def test_a_disabled_step_changes_nothing(name):
 
 def test_a_parameter_reaches_its_step():
     clip = _clip()
-    only_drift = PostStepsConfig().switched(foot_lock=False, rest_pooling=False, hinge=False, gate=False, bones=False,
-                                            floor=False)
+    only_drift = PostStepsConfig().switched(residual=False, body_drift=True, foot_lock=False, rest_pooling=False,
+                                            hinge=False, gate=False, bones=False, floor=False)
     slow = replace(only_drift, body_drift=replace(only_drift.body_drift, speed_m_s=1.0))  # the clip walks: only a fast threshold finds stances
     np.testing.assert_array_equal(run_post_steps(clip, slow), remove_body_drift(clip.frames, FPS, slow.body_drift))
     assert not np.array_equal(run_post_steps(clip, slow), run_post_steps(clip, only_drift))
     # the hinge's turn threshold: above any turn, the hinge step leaves the object as it is
     door = _clip("door")
-    only_hinge = PostStepsConfig().switched(body_drift=False, foot_lock=False, gate=False, bones=False, floor=False)
+    only_hinge = PostStepsConfig().switched(residual=False, foot_lock=False, gate=False, bones=False, floor=False)
     stiff = replace(only_hinge, hinge=replace(only_hinge.hinge, min_turn_deg=180.0))
     no_hinge = only_hinge.switched(hinge=False)
     np.testing.assert_array_equal(run_post_steps(door, stiff), run_post_steps(door, no_hinge))
@@ -132,10 +138,12 @@ def test_config_round_trip_and_unknown_keys_refused():
 def test_generated_switches_map_onto_the_config():
     d = PostStepsConfig()
     assert _parse([]) == d
-    for flag, name in [("--no-drift-correction", "body_drift"), ("--no-foot-lock", "foot_lock"),
+    for flag, name in [("--no-residual", "residual"), ("--no-foot-lock", "foot_lock"),
                        ("--no-rest-pooling", "rest_pooling"), ("--no-hinge", "hinge"), ("--no-gate", "gate"),
                        ("--no-input-bones", "bones"), ("--no-floor", "floor")]:
         assert _parse([flag]) == d.switched(**{name: False}), flag
+    assert _parse(["--drift-correction"]) == d.switched(body_drift=True)  # a step off by default: --<flag> turns it on
+    assert _parse(["--no-drift-correction"]) == d
     assert _parse(["--no-hand-link"]) == replace(d, rest_pooling=replace(d.rest_pooling, hand_link=False))
     assert _parse(["--hinge"]) == replace(d, hinge=replace(d.hinge, any_category=True))
     assert "hinge" in _parse(["--hinge"]).runs("cup") and "hinge" not in _parse(["--no-hinge"]).runs("door")
@@ -143,7 +151,7 @@ def test_generated_switches_map_onto_the_config():
         _parse(["--hinge", "--no-hinge"])
     got = _parse(["--set", "post.body_drift.speed_m_s=0.25", "--set", 'post.hinge.categories=["door", "drawer"]',
                   "--set", "post.foot_lock.stance.knot_s=1", "--no-foot-lock"])
-    assert got.body_drift == DriftConfig(speed_m_s=0.25) and got.hinge == HingeConfig(categories=("door", "drawer"))
+    assert got.body_drift == DriftConfig(enabled=False, speed_m_s=0.25) and got.hinge == HingeConfig(categories=("door", "drawer"))
     assert got.foot_lock == LockConfig(enabled=False, stance=DriftConfig(knot_s=1.0))
     assert got.rest_pooling == RestConfig()
     assert _parse(["--no-hand-link", "--set", "post.rest_pooling.hand_link=true"]) == d  # --set comes last

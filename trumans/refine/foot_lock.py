@@ -27,7 +27,7 @@ from trumans.skeleton import FOOT_JOINTS, LEG_CHAINS, NUM_JOINTS, PARENTS
 from trumans.refine.body_drift import DriftConfig, stance_mask
 from trumans.refine.frame import FRAME_DIM, JOINTS, ROTATIONS
 
-__all__ = ["LockConfig", "lock_feet"]
+__all__ = ["LockConfig", "lock_feet", "stance_corrections"]
 
 assert all(PARENTS[hip] == 0 for hip, *_ in LEG_CHAINS), "the legs' hips hang from the root (_turn_leg_rotations)"
 
@@ -53,7 +53,7 @@ class LockConfig:
                              "foot lock off with the lock's own enabled, the drift fit with body_drift.enabled)")
 
 
-def _corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
+def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
     """(T, 4, 3): per foot joint of FOOT_JOINTS, the move that puts it on its stance's mean, faded
     linearly to 0 over ``fade`` frames on either side of the stance (where fades of neighbouring
     stances overlap, the one with the larger weight wins)."""
@@ -89,7 +89,7 @@ def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig())
     planted = stance_mask(J, fps, config.stance)
     if not planted.any():
         return f.astype(frames.dtype)
-    delta = _corrections(J, planted, config.fade_s * fps)
+    delta = stance_corrections(J, planted, config.fade_s * fps)
     new = J.copy()
     for side, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
         d_ankle, d_toe = delta[:, side], delta[:, 2 + side]  # FOOT_JOINTS: left/right ankle, left/right foot

@@ -3,26 +3,32 @@
 After the network's windows are blended (``HOIFilter.refine_many``), the refined clip at the
 filter's rate goes through ``STEPS`` in this order (``run_post_steps``):
 
-1. ``body_drift`` - the whole-body drift's changes seen by the planted feet are removed
-   (``body_drift.py``). First: it moves every joint, and the steps after it read the corrected body.
-2. ``foot_lock`` - each planted foot joint is held at one point per stance, the legs following by
+1. ``residual`` - the tracked input's low frequencies come back: the output is the filter's plus
+   the low-passed difference to the input, planted feet held (``residual.py``). First: the
+   network's slow error goes before the steps that read the body (stances, rests) do.
+2. ``body_drift`` (off by default) - the whole-body drift's changes seen by the planted feet are
+   removed (``body_drift.py``). It moves every joint, and the steps after it read the corrected
+   body. Off: on real motion (corpus clips) it reads a drift of 4-14 mm rms from clean feet that
+   roll and pivot, and costs more than it corrects (docs/refine.md); on procedural motion, whose
+   feet stand still, it removes most of the training corruption's drift.
+3. ``foot_lock`` - each planted foot joint is held at one point per stance, the legs following by
    IK (``foot_lock.py``). After the drift fit, which reads the same stances: the lock pins the
    feet where the drift-corrected body stands.
-3. ``rest_pooling`` - one object pose per rest, pooled over the whole rest; with ``hand_link``,
+4. ``rest_pooling`` - one object pose per rest, pooled over the whole rest; with ``hand_link``,
    moves held rigidly by a wrist follow it and tie the rests on either side (``object_rest.py``).
    After the body drift: the moves follow the corrected wrists.
-4. ``hinge`` - the object turns about one hinge fitted to the whole sequence, for the hinged
+5. ``hinge`` - the object turns about one hinge fitted to the whole sequence, for the hinged
    categories (``object_hinge.py``; ``HingeConfig.categories``, or every object with
    ``any_category``). Only after rest pooling (``needs``): it reduces the pooled rotations to one
    degree of freedom.
-5. ``gate`` - do no harm: the body's joints are blended with the tracked input by how noisy the
+6. ``gate`` - do no harm: the body's joints are blended with the tracked input by how noisy the
    input is there, joint by joint (``gate.py``: clean input comes back as it came; missing, frozen
    and spiking entries are the filter's). After the steps that change the body: it judges their
    result against the input.
-6. ``bones`` - every bone gets the input's own length, measured robustly over the tracked frames
+7. ``bones`` - every bone gets the input's own length, measured robustly over the tracked frames
    (``bones.py``): any skeleton's proportions come back as they went in. After the gate: the
    blend of two bodies does not keep lengths.
-7. ``floor`` - the body's height from its planted feet on z = 0, and no foot joint under the floor
+8. ``floor`` - the body's height from its planted feet on z = 0, and no foot joint under the floor
    (``floor.py``). Last: it moves the body as one piece, so the lengths stay.
 
 Every step has one signature, ``apply(clip: RefinedClip, config) -> frames (T, 235)``, and its own
@@ -31,7 +37,8 @@ every parameter of every step is set in one place (``RefineOptions.post``), and 
 ``trumans eval refine`` generate their ``--no-<flag>`` switches from ``STEPS``
 (``trumans.refine.post_args``). The names a clip's run reports (``PostStepsConfig.steps_for``, what
 ``trumans refine --json`` prints as ``post_steps``) are the steps that run, each followed by its
-sub-switches that are on (``rest_pooling``, ``hand_link``). No step imports another.
+sub-switches that are on (``rest_pooling``, ``hand_link``). No step imports another but for the
+stance detection and the stance corrections (``body_drift.stance_mask``, ``foot_lock.stance_corrections``).
 """
 from __future__ import annotations
 
@@ -49,6 +56,7 @@ from trumans.refine.frame import FRAME_DIM, JOINTS
 from trumans.refine.gate import GateConfig, gate_joints, noise_level
 from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
+from trumans.refine.residual import ResidualConfig, keep_low_frequencies
 from trumans.refine.tracked import TrackedBody
 from trumans.skeleton import NUM_JOINTS
 
@@ -117,6 +125,10 @@ class PostStep:
     force_help: str = ""
 
 
+def _residual(clip: RefinedClip, config: ResidualConfig) -> np.ndarray:
+    return _with_body(clip.frames, keep_low_frequencies(_body(clip.frames), clip.tracked_body.joints, clip.fps, config))
+
+
 def _body_drift(clip: RefinedClip, config: DriftConfig) -> np.ndarray:
     return remove_body_drift(clip.frames, clip.fps, config)
 
@@ -159,8 +171,12 @@ def _floor(clip: RefinedClip, config: FloorConfig) -> np.ndarray:
 
 
 STEPS: tuple[PostStep, ...] = (
+    PostStep("residual", "residual", ResidualConfig, _residual,
+             "keep the tracked input's low frequencies: add the low-passed difference between input and filter "
+             "(trumans.refine.residual)"),
     PostStep("body_drift", "drift-correction", DriftConfig, _body_drift,
-             "remove the whole-body drift's changes seen by the planted feet (trumans.refine.body_drift)"),
+             "remove the whole-body drift's changes seen by the planted feet (trumans.refine.body_drift; off by "
+             "default: on real motion, whose planted feet roll and pivot, it reads a drift that is not there)"),
     PostStep("foot_lock", "foot-lock", LockConfig, _foot_lock,
              "hold each planted foot joint at one point per stance, the legs following by IK "
              "(trumans.refine.foot_lock)"),
@@ -189,7 +205,8 @@ STEPS: tuple[PostStep, ...] = (
 class PostStepsConfig:
     """One config per post-step (``STEPS``, in their order), each with ``enabled``."""
 
-    body_drift: DriftConfig = field(default_factory=DriftConfig)
+    residual: ResidualConfig = field(default_factory=ResidualConfig)
+    body_drift: DriftConfig = field(default_factory=lambda: DriftConfig(enabled=False))  # off: biased on real feet
     foot_lock: LockConfig = field(default_factory=LockConfig)
     rest_pooling: RestConfig = field(default_factory=RestConfig)
     hinge: HingeConfig = field(default_factory=HingeConfig)

@@ -223,3 +223,36 @@ def test_a_carry_under_way_from_the_first_frame():
     j[:, J["left_wrist"], 2] -= 0.3  # one hand hanging: no box
     j[:, J["left_index1"], 2] -= 0.3
     assert fit_handled_objects(j, R, "Walk and carry").objects == []
+
+
+
+def _pick_then_widen(drop_after: bool) -> np.ndarray:
+    """(T, 24, 3): both palms (0.4 m apart) reach down to 0.3 m at PICK and carry the box at 1.05 m
+    from frame 60; at frame 80 they open 0.15 m wider (over 5 frames) and hold so; with
+    ``drop_after`` the hands then fall to hanging height (0.80 m) over frames 90-95."""
+    t = np.arange(T, dtype=np.float64)
+    j = np.repeat(REST_JOINTS[None].astype(np.float64), T, 0)
+    z = np.where(t < 60, _dip(t, PICK, 1.05, 0.30, half=30), 1.05)
+    if drop_after:
+        z = z - 0.25 * np.clip((t - 90) / 5, 0, 1)
+    wider = 0.15 * np.clip((t - 80) / 5, 0, 1)
+    for side, y, sign in (("left", 0.2, 1), ("right", -0.2, -1)):
+        p = np.stack([np.full(T, 0.35), y + sign * wider / 2, z], -1)
+        j[:, J[f"{side}_wrist"]] = p + [0, 0, 0.04]
+        j[:, J[f"{side}_index1"]] = p - [0, 0, 0.04]
+    return j
+
+
+def test_a_wider_grip_held_at_carry_height_is_not_a_release():
+    """Palms that open 0.15 m after a two-hand pick-up and then hold steadily apart at carry height
+    have taken a new grip (CMU 111_36, "walk and carry"): the box is carried to the end. The same
+    opening followed by the hands falling to hanging height is a release there (the control)."""
+    R = wrist_rotations()
+    kept = fit_handled_objects(_pick_then_widen(False), R, "pick up box and carry", fps=30.0)
+    (obj,) = kept.objects
+    assert [iv.name for iv in kept.intervals] == ["pick_up", "carry"] and kept.intervals[1].end == T
+    assert kept.grasp[PICK:].all()
+    let_go = fit_handled_objects(_pick_then_widen(True), R, "pick up box and carry", fps=30.0)
+    assert [iv.name for iv in let_go.intervals] == ["pick_up", "carry", "put_down"]
+    release = int(np.flatnonzero(let_go.grasp.any(1))[-1]) + 1
+    assert 80 < release < 86 and not let_go.grasp[release:].any()

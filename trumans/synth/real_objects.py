@@ -8,7 +8,9 @@ when that one is within ``BOTH_HANDS_DZ_M`` of it and ``BOX_MIN_SPAN_M`` or more
 lift a box between them. Reaches alternate: the first picks an object up, the next puts it down,
 the next picks up (the same object when the hand comes within ``SAME_OBJECT_M`` of it, else a new
 one), ...; two hands also put a box down where they open (palms ``RELEASE_SPREAD_M`` farther
-apart than at the grasp: set on a support at that height); an object never put down is carried
+apart than at the grasp: set on a support at that height) - unless the palms then stay steadily
+apart at carry height for a second (a new grip on the box: a carry that walks off with the box held
+wider, CMU 111_36); an object never put down is carried
 to the clip's end. A clip described as carrying with no reach down whose palms stay
 ``BOX_MIN_SPAN_M`` or more and steadily (``STEADY_SPAN_M``) apart, above ``CARRY_ABOVE_M``, on
 ``CARRY_SHARE`` of its frames carries a box from its first frame (``carried_from_start``).
@@ -262,12 +264,30 @@ def _carry(track: np.ndarray, joints: np.ndarray, wrist_rot: np.ndarray, pick: R
     return held
 
 
-def _spread_release(joints: np.ndarray, a: int, b: int) -> int | None:
-    """First frame in (a, b) where the palms are RELEASE_SPREAD_M farther apart than at frame a."""
+def _spread_release(joints: np.ndarray, a: int, b: int, fps: float = 30.0) -> int | None:
+    """First frame in (a, b) where the palms are RELEASE_SPREAD_M farther apart than they held the box,
+    unless they then hold steadily (``_steady_carry``) at carry height: that is a new grip on the box,
+    whose width the next release is measured from."""
     palms = palm_points(joints[a:b])
     d = np.linalg.norm(palms[:, 0] - palms[:, 1], axis=-1)
-    far = np.flatnonzero(d > d[0] + RELEASE_SPREAD_M)
-    return a + int(far[0]) if len(far) else None
+    low = palms[:, :, 2].min(axis=1)
+    n = max(2, int(round(2 * RELEASE_HALF_S * fps)))  # frames after a spread that tell a re-grip
+    ref, k = d[0], 1
+    while True:
+        far = np.flatnonzero(d[k:] > ref + RELEASE_SPREAD_M)
+        if not len(far):
+            return None
+        f = k + int(far[0])
+        if not _steady_carry(d[f:f + n], low[f:f + n], n):
+            return a + f
+        ref, k = float(np.median(d[f:f + n])), f + n
+
+
+def _steady_carry(width: np.ndarray, low: np.ndarray, n: int) -> bool:
+    """Palm distances (k,) and the lower palm's height (k,) m over the n frames after a spread: the
+    palms stay steadily apart (std under STEADY_SPAN_M) and up (above CARRY_ABOVE_M on CARRY_SHARE
+    of the frames) for all n frames (a clip that ends sooner decides nothing: a release)."""
+    return len(width) >= n and float(np.std(width)) < STEADY_SPAN_M and float(np.mean(low > CARRY_ABOVE_M)) >= CARRY_SHARE
 
 
 def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: str,
@@ -295,7 +315,7 @@ def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: 
         put = reaches[k + 1] if k + 1 < len(reaches) else None
         k += 2
         if len(pick.hands) == 2:  # two hands may let a box go without reaching down: they open
-            f = _spread_release(j, pick.frame, put.frame if put is not None else T)
+            f = _spread_release(j, pick.frame, put.frame if put is not None else T, fps)
             if f is not None:
                 k -= put is not None  # the next reach down is not this put-down
                 n = int(round(RELEASE_HALF_S * fps))

@@ -120,8 +120,8 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     assert set(r.objects) == {"box_0", "lamp"}
     printed = capsys.readouterr().out
     assert '"object": "box_0"' in printed
-    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["residual", "foot_lock", "rest_pooling", "hand_link",
-                                                                            "gate", "bones", "floor"]
+    assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["residual", "body_drift", "foot_lock", "rest_pooling",
+                                                                            "hand_link", "gate", "bones", "floor"]
     # same seed, same output
     filt = HOIFilter.load(ck)
     a, _ = filt.refine_sequence(s, options=RefineOptions(num_steps=2, eta=1.0, seed=3))
@@ -340,8 +340,21 @@ def test_root_aligned_mpjpe_ignores_a_body_translation_and_real_clips_are_body_o
     assert np.allclose(np.delete(e, 5, axis=1), 0.0)
     clips = real_clips(64, 3, seed=0)
     assert clips.shape == (3, 64, 235) and np.isfinite(clips[..., JOINTS]).all()
-    assert np.isnan(clips[..., 72:216]).all() and np.isnan(clips[..., OBJ_T]).all()  # no rotations, no object
+    assert np.isnan(clips[..., 72:216]).all() and (clips[..., OBJ_T] == 0).all()  # no rotations, a still placeholder
     assert (clips[..., 234] == 0).all()  # no IMU
+
+
+def test_the_real_motion_block_runs_end_to_end(tmp_path):
+    """``eval refine --real``'s block refines corrupted corpus clips (body only) through the whole
+    pipeline: the figures come back finite, the output moved off the corrupted input."""
+    from trumans.refine.evaluate import evaluate_real
+
+    filt = HOIFilter.load(_ckpt(tmp_path / "f.pt", zero=False))
+    res = evaluate_real(filt, 64, 2, savgol_window=9, seed=0, options=RefineOptions(num_steps=1))
+    assert set(res) == {"default", "drift"}
+    for block in res.values():
+        assert block["clips"] == 2 and all(np.isfinite(block[k]) for k in ("mpjpe_in_mm", "mpjpe_out_mm", "accel_err_out"))
+        assert block["mpjpe_out_mm"] != block["mpjpe_in_mm"]
 
 
 def test_flips_are_turned_back_before_resampling(tmp_path):
@@ -386,16 +399,15 @@ def test_post_steps_follow_the_options_and_the_category():
     d = PostStepsConfig()
     hinge_any = replace(d, hinge=replace(d.hinge, any_category=True))
     guards = ["gate", "bones", "floor"]
-    assert RefineOptions().post_steps("door") == ["residual", "foot_lock", "rest_pooling", "hand_link", "hinge"] + guards
-    assert RefineOptions().post_steps("cup") == ["residual", "foot_lock", "rest_pooling", "hand_link"] + guards
-    assert RefineOptions(post=d.switched(body_drift=True)).post_steps("cup") == [
-        "residual", "body_drift", "foot_lock", "rest_pooling", "hand_link"] + guards
+    first = ["residual", "body_drift", "foot_lock"]
+    assert RefineOptions().post_steps("door") == first + ["rest_pooling", "hand_link", "hinge"] + guards
+    assert RefineOptions().post_steps("cup") == first + ["rest_pooling", "hand_link"] + guards
     assert "hinge" in RefineOptions(post=hinge_any).post_steps("cup")
     assert RefineOptions(post=replace(d.switched(hinge=False), rest_pooling=replace(d.rest_pooling, hand_link=False))
-                         ).post_steps("door") == ["residual", "foot_lock", "rest_pooling"] + guards
-    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == ["residual", "foot_lock"] + guards  # the hinge needs pooled rests
-    assert RefineOptions(post=d.switched(residual=False, foot_lock=False, rest_pooling=False, gate=False, bones=False,
-                                         floor=False)).post_steps("door") == []
+                         ).post_steps("door") == first + ["rest_pooling"] + guards
+    assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == first + guards  # the hinge needs pooled rests
+    assert RefineOptions(post=d.switched(residual=False, body_drift=False, foot_lock=False, rest_pooling=False, gate=False,
+                                         bones=False, floor=False)).post_steps("door") == []
 
 
 def test_a_track_never_observed_is_refused_not_invented(tmp_path):

@@ -53,7 +53,7 @@ def test_stance_mask_drops_stances_shorter_than_the_minimum():
 def test_drift_of_a_noise_free_walk_is_recovered_from_the_stances():
     J = _walk()
     d = _drift(len(J))
-    exact = DriftConfig(ridge=1e-3, robust_iters=0)  # no noise: a weak prior
+    exact = DriftConfig(ridge=1e-3, robust_iters=0, min_rms_m=0.0)  # no noise: a weak prior, any drift trusted
     fixed = remove_body_drift(_pack(J + d[:, None]), FPS, exact)[:, JOINTS].reshape(-1, 24, 3)
     before, after = np.linalg.norm(d, axis=-1).mean(), np.linalg.norm(fixed - J, axis=-1).mean()
     assert after < 0.1 * before
@@ -108,11 +108,28 @@ def test_no_stance_means_no_correction():
 def test_remove_body_drift_moves_only_the_joints():
     f = _pack(_walk() + _drift(300)[:, None])
     f[:, JOINTS.stop:] = np.random.default_rng(0).normal(size=(300, FRAME_DIM - JOINTS.stop))
-    out = remove_body_drift(f, FPS)
+    out = remove_body_drift(f, FPS, DriftConfig(min_rms_m=0.0))
     assert out.dtype == np.float32 and out.shape == f.shape
     assert np.array_equal(out[:, JOINTS.stop:], f[:, JOINTS.stop:])
     moved = (out[:, JOINTS] - f[:, JOINTS]).reshape(300, 24, 3)
     np.testing.assert_allclose(moved, moved[:, :1].repeat(24, 1), atol=1e-6)  # one translation per frame
+
+
+def test_a_drift_smaller_than_real_feet_read_is_left_alone():
+    """min_rms_m: a fitted drift whose rms (its mean removed) is under it is not trusted - real planted
+    feet that roll and pivot read 4-14 mm - and the body comes back as it went in; over it, every
+    joint moves by minus the fitted drift."""
+    J = _walk()
+    f = _pack(J + _drift(len(J))[:, None])  # ~1.5 cm per axis
+    assert np.array_equal(remove_body_drift(f, FPS), f)  # the default threshold: 5 cm
+    est = estimate_body_drift(f[:, JOINTS].reshape(-1, 24, 3).astype(np.float64), FPS)
+    rms = float(np.sqrt(((est - est.mean(0)) ** 2).sum(-1).mean()))
+    assert rms > 0.003
+    assert np.array_equal(remove_body_drift(f, FPS, DriftConfig(min_rms_m=1.1 * rms)), f)
+    moved = (remove_body_drift(f, FPS, DriftConfig(min_rms_m=0.9 * rms)) - f)[:, JOINTS].reshape(-1, 24, 3)
+    np.testing.assert_allclose(moved, np.broadcast_to(-est[:, None], moved.shape), atol=1e-5)
+    with pytest.raises(ValueError, match="min_rms_m"):
+        DriftConfig(min_rms_m=-0.01)
 
 
 def test_bad_inputs_are_refused():

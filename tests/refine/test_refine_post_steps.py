@@ -52,20 +52,18 @@ def test_the_documented_order_and_reported_names():
     doc = mod.__doc__
     assert [doc.index(f"``{n}``") for n in names] == sorted(doc.index(f"``{n}``") for n in names)
     d = PostStepsConfig()
-    assert not d.body_drift.enabled  # off by default (biased on real feet); every other step on
-    on = [n for n in names if n != "body_drift"]
-    no_hinge = [n for n in on if n != "hinge"]
-    assert d.runs("door") == on and d.runs("cup") == no_hinge
-    assert d.steps_for("door") == ["residual", "foot_lock", "rest_pooling", "hand_link", "hinge", "gate", "bones", "floor"]
-    assert replace(d, hinge=replace(d.hinge, any_category=True)).runs("cup") == on
+    no_hinge = [n for n in names if n != "hinge"]
+    assert d.runs("door") == names and d.runs("cup") == no_hinge
+    assert d.steps_for("door") == ["residual", "body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge", "gate",
+                                   "bones", "floor"]
+    assert replace(d, hinge=replace(d.hinge, any_category=True)).runs("cup") == names
     assert replace(d, hinge=replace(d.hinge, categories=("cup",))).runs("door") == no_hinge
-    assert d.switched(body_drift=True).runs("door") == names
-    assert d.switched(rest_pooling=False).runs("door") == ["residual", "foot_lock", "gate", "bones", "floor"]  # the hinge needs pooled rests
+    assert d.switched(rest_pooling=False).runs("door") == ["residual", "body_drift", "foot_lock", "gate", "bones", "floor"]  # the hinge needs pooled rests
 
 
 def test_run_applies_the_steps_in_order_with_their_configs():
     clip = _clip("door")
-    cfg = PostStepsConfig().switched(body_drift=True)
+    cfg = PostStepsConfig()
     body = lambda f: np.asarray(f, np.float64)[:, :72].reshape(len(f), 24, 3)
     tracked = body(clip.tracked)
     want = np.array(clip.frames, np.float32)
@@ -98,8 +96,9 @@ def test_a_disabled_step_changes_nothing(name):
 
 def test_a_parameter_reaches_its_step():
     clip = _clip()
-    only_drift = PostStepsConfig().switched(residual=False, body_drift=True, foot_lock=False, rest_pooling=False,
-                                            hinge=False, gate=False, bones=False, floor=False)
+    only_drift = PostStepsConfig().switched(residual=False, foot_lock=False, rest_pooling=False, hinge=False, gate=False,
+                                            bones=False, floor=False)
+    only_drift = replace(only_drift, body_drift=replace(only_drift.body_drift, min_rms_m=0.0))  # any drift it fits
     slow = replace(only_drift, body_drift=replace(only_drift.body_drift, speed_m_s=1.0))  # the clip walks: only a fast threshold finds stances
     np.testing.assert_array_equal(run_post_steps(clip, slow), remove_body_drift(clip.frames, FPS, slow.body_drift))
     assert not np.array_equal(run_post_steps(clip, slow), run_post_steps(clip, only_drift))
@@ -138,12 +137,10 @@ def test_config_round_trip_and_unknown_keys_refused():
 def test_generated_switches_map_onto_the_config():
     d = PostStepsConfig()
     assert _parse([]) == d
-    for flag, name in [("--no-residual", "residual"), ("--no-foot-lock", "foot_lock"),
+    for flag, name in [("--no-residual", "residual"), ("--no-drift-correction", "body_drift"), ("--no-foot-lock", "foot_lock"),
                        ("--no-rest-pooling", "rest_pooling"), ("--no-hinge", "hinge"), ("--no-gate", "gate"),
                        ("--no-input-bones", "bones"), ("--no-floor", "floor")]:
         assert _parse([flag]) == d.switched(**{name: False}), flag
-    assert _parse(["--drift-correction"]) == d.switched(body_drift=True)  # a step off by default: --<flag> turns it on
-    assert _parse(["--no-drift-correction"]) == d
     assert _parse(["--no-hand-link"]) == replace(d, rest_pooling=replace(d.rest_pooling, hand_link=False))
     assert _parse(["--hinge"]) == replace(d, hinge=replace(d.hinge, any_category=True))
     assert "hinge" in _parse(["--hinge"]).runs("cup") and "hinge" not in _parse(["--no-hinge"]).runs("door")
@@ -151,7 +148,7 @@ def test_generated_switches_map_onto_the_config():
         _parse(["--hinge", "--no-hinge"])
     got = _parse(["--set", "post.body_drift.speed_m_s=0.25", "--set", 'post.hinge.categories=["door", "drawer"]',
                   "--set", "post.foot_lock.stance.knot_s=1", "--no-foot-lock"])
-    assert got.body_drift == DriftConfig(enabled=False, speed_m_s=0.25) and got.hinge == HingeConfig(categories=("door", "drawer"))
+    assert got.body_drift == DriftConfig(speed_m_s=0.25) and got.hinge == HingeConfig(categories=("door", "drawer"))
     assert got.foot_lock == LockConfig(enabled=False, stance=DriftConfig(knot_s=1.0))
     assert got.rest_pooling == RestConfig()
     assert _parse(["--no-hand-link", "--set", "post.rest_pooling.hand_link=true"]) == d  # --set comes last

@@ -250,7 +250,8 @@ def _clips(data: str, split: str, clip: int, fps: float, categories: list[str], 
 def real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
     """Held-out real-motion clips (N, clip, 235) at 30 fps: the mocap corpus's test split
     (``trumans.mocap_corpus``, subjects never trained on) cut into ``clip``-frame pieces; joints
-    only (rotations, object and IMU missing: NaN / no IMU)."""
+    only: rotations missing (NaN), no IMU, and the object a still placeholder at the origin (the
+    filter needs an observed object; the body figures do not read it), as ``benchmark`` does."""
     from trumans.refine.frame import pack_frames
     from trumans.mocap_corpus import load_corpus
 
@@ -260,7 +261,7 @@ def real_clips(clip: int, max_clips: int, seed: int) -> np.ndarray:
             raise ValueError(f"corpus clip {c.name} is at {c.fps} fps; the real-motion evaluation expects 30")
         for s in range(0, len(c.joints) - clip + 1, clip):
             J = c.joints[s:s + clip]
-            pieces.append(pack_frames(J, None, np.full((clip, 4, 4), np.nan)))
+            pieces.append(pack_frames(J, None, np.broadcast_to(np.eye(4), (clip, 4, 4))))
     idx = np.arange(len(pieces))
     if len(idx) > max_clips:
         idx = np.sort(np.random.default_rng(seed).choice(idx, max_clips, replace=False))

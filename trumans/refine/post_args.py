@@ -2,8 +2,7 @@
 eval refine``.
 
 Generated from the step table (``trumans.refine.post_steps.STEPS``): ``--no-<flag>`` turns a step
-off (``--no-residual``, ``--no-foot-lock``, ``--no-rest-pooling``, ``--no-hinge``), a step that is off
-by default has ``--<flag>`` / ``--no-<flag>`` (``--drift-correction``), a
+off (``--no-drift-correction``, ``--no-foot-lock``, ``--no-rest-pooling``, ``--no-hinge``), a
 sub-switch of a step's config has its own (``--no-hand-link``), a step's ``force`` field is
 ``--<flag>`` (``--hinge``: whatever the category), and ``--set PATH=VALUE`` reaches any other
 parameter (``--set post.body_drift.speed_m_s=0.25``). Every default comes from ``PostStepsConfig``.
@@ -21,18 +20,11 @@ SET_ROOTS = ("post",)  # the section --set reaches: the post-steps' config (Refi
 
 
 def add_post_step_arguments(p: argparse.ArgumentParser) -> None:
-    """One ``--no-<flag>`` per post-step and sub-switch (``--<flag>`` / ``--no-<flag>`` for a step off by
-    default), ``--<flag>`` for a step's ``force`` and ``--set``."""
-    g = p.add_argument_group("post-steps after the filter (on by default unless said; trumans/refine/post_steps.py)")
-    defaults = PostStepsConfig()
+    """One ``--no-<flag>`` per post-step and sub-switch, ``--<flag>`` for a step's ``force`` and ``--set``."""
+    g = p.add_argument_group("post-steps after the filter (all on by default; trumans/refine/post_steps.py)")
     for step in STEPS:
         off = dict(dest=f"post_{step.name}", action="store_false", help=f"post-step '{step.name}' off: do not {step.does}")
-        if not getattr(defaults, step.name).enabled:
-            if step.force is not None:
-                raise AssertionError(f"post-step {step.name!r} is off by default and has a force switch: give it one flag")
-            g.add_argument(f"--{step.flag}", dest=f"post_{step.name}", action=argparse.BooleanOptionalAction,
-                           default=False, help=f"post-step '{step.name}' on (off by default): {step.does}")
-        elif step.force is None:
+        if step.force is None:
             g.add_argument(f"--no-{step.flag}", **off)
         else:
             both = g.add_mutually_exclusive_group()

@@ -6,11 +6,10 @@ filter's rate goes through ``STEPS`` in this order (``run_post_steps``):
 1. ``residual`` - the tracked input's low frequencies come back: the output is the filter's plus
    the low-passed difference to the input, planted feet held (``residual.py``). First: the
    network's slow error goes before the steps that read the body (stances, rests) do.
-2. ``body_drift`` (off by default) - the whole-body drift's changes seen by the planted feet are
-   removed (``body_drift.py``). It moves every joint, and the steps after it read the corrected
-   body. Off: on real motion (corpus clips) it reads a drift of 4-14 mm rms from clean feet that
-   roll and pivot, and costs more than it corrects (docs/refine.md); on procedural motion, whose
-   feet stand still, it removes most of the training corruption's drift.
+2. ``body_drift`` - the whole-body drift's changes seen by the planted feet are removed
+   (``body_drift.py``), only where the fitted drift is over ``min_rms_m`` (5 cm rms): on real
+   motion it reads 4-14 mm from clean feet that roll and pivot, and a smaller fit costs more than it
+   corrects (docs/refine.md). It moves every joint, and the steps after it read the corrected body.
 3. ``foot_lock`` - each planted foot joint is held at one point per stance, the legs following by
    IK (``foot_lock.py``). After the drift fit, which reads the same stances: the lock pins the
    feet where the drift-corrected body stands.
@@ -175,8 +174,8 @@ STEPS: tuple[PostStep, ...] = (
              "keep the tracked input's low frequencies: add the low-passed difference between input and filter "
              "(trumans.refine.residual)"),
     PostStep("body_drift", "drift-correction", DriftConfig, _body_drift,
-             "remove the whole-body drift's changes seen by the planted feet (trumans.refine.body_drift; off by "
-             "default: on real motion, whose planted feet roll and pivot, it reads a drift that is not there)"),
+             "remove the whole-body drift's changes seen by the planted feet, where they are larger than real "
+             "feet's own roll and pivot (trumans.refine.body_drift)"),
     PostStep("foot_lock", "foot-lock", LockConfig, _foot_lock,
              "hold each planted foot joint at one point per stance, the legs following by IK "
              "(trumans.refine.foot_lock)"),
@@ -206,7 +205,7 @@ class PostStepsConfig:
     """One config per post-step (``STEPS``, in their order), each with ``enabled``."""
 
     residual: ResidualConfig = field(default_factory=ResidualConfig)
-    body_drift: DriftConfig = field(default_factory=lambda: DriftConfig(enabled=False))  # off: biased on real feet
+    body_drift: DriftConfig = field(default_factory=DriftConfig)
     foot_lock: LockConfig = field(default_factory=LockConfig)
     rest_pooling: RestConfig = field(default_factory=RestConfig)
     hinge: HingeConfig = field(default_factory=HingeConfig)

@@ -210,7 +210,7 @@ def test_filter_task_trains_through_the_loop(tmp_path):
                                         "train": {"batch_size": 2, "checkpoint_every": 10, "val_every": 10},
                                         "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 8,
                                                    "wiener_windows": 8, "wiener_real_windows": 8,
-                                                   "categories": ["box"]}})
+                                                   "categories": ["box"], "w_residual": 1.0}})
     res0 = train(ft, data, tmp_path / "ft0", steps=0, progress=False, init=tmp_path / "run" / "checkpoint.pt")
     f0 = HOIFilter.load(res0.checkpoint)
     for k, v in filt.model.state_dict().items():
@@ -218,6 +218,8 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     torch.testing.assert_close(f0.model.wiener.weight, filt.model.wiener.weight)
     assert f0.ckpt.meta["init"] == str(tmp_path / "run" / "checkpoint.pt")
     assert train(ft, data, tmp_path / "ft2", steps=2, progress=False, init=tmp_path / "run" / "checkpoint.pt").steps == 2
+    ft_loss = ft.loss(ft.build_model(), ft.batch(0, 0, 1), torch.Generator().manual_seed(0), "cpu")
+    assert "residual" in ft_loss.terms and torch.isfinite(ft_loss.terms["residual"])  # the residual step in the loop
     with pytest.raises(ValueError, match="not in this data's vocabulary"):
         ft.train_data.only(["chair"])
     from trumans.train.tasks.filter import real_motion_windows
@@ -231,7 +233,7 @@ def test_filter_task_trains_through_the_loop(tmp_path):
     w0, w1, w2 = (phase_weights(task.config.filter, k) for k in (0.0, 0.4, 0.9))
     assert sum(w0.values()) == w0["pose"] > 0 and w1["off"] > 0 and w1["imu"] == 0 and w2["imu"] > 0
     abl = make_task("filter", ablate=["regularisers"])
-    assert abl.config.filter.w_off == 0 and abl.config.filter.w_imu == 0
+    assert abl.config.filter.w_off == 0 and abl.config.filter.w_imu == 0 and abl.config.filter.w_residual == 0
     with pytest.raises(ValueError, match="unknown ablation 'scene'"):
         make_task("filter", ablate=["scene"])
     with pytest.raises(ValueError, match="unknown key"):

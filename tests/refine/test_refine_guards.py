@@ -73,8 +73,13 @@ def test_the_gate_keeps_clean_input_and_hands_noise_and_failures_to_the_filter(w
     failed[200, 20] += 0.2  # a spike
     w = gate_weights(failed, FPS)
     assert (w[100:103, 7] == 1).all() and w[200, 20] == 1
-    assert w[98:106, 7].min() > 0 and w[150, 7] == 0 and w[250, 20] == 0  # ramped around, zero far away
+    reach = GateConfig().fail_pad + GateConfig().feather  # ramped around, zero beyond
+    assert w[100 - reach:103 + reach, 7].min() > 0 and w[100 - reach - 1, 7] == 0 and w[103 + reach, 7] == 0
+    assert w[150, 7] == 0 and w[250, 20] == 0
     assert np.abs(np.diff(w[:, 7])).max() <= 1 / (GateConfig().feather + 1) + 1e-9  # no jump
+    wide = gate_weights(failed, FPS, GateConfig(fail_pad=1, feather=4))
+    assert (wide[98:106, 7] > 0).all() and (wide[[96, 97, 98, 104, 105, 106], 7] < 1).all()
+    assert np.abs(np.diff(wide[:, 7])).max() <= 1 / 5 + 1e-9
     with pytest.raises(ValueError, match="keep_below_m < filter_above_m"):
         GateConfig(keep_below_m=0.01, filter_above_m=0.005)
 

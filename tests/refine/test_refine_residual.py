@@ -79,3 +79,38 @@ def test_bad_inputs_are_refused():
     for bad, msg in [(dict(sigma_frames=0.0), "sigma_frames must be > 0"), (dict(fade_s=-1.0), "fade_s must be >= 0")]:
         with pytest.raises(ValueError, match=msg):
             ResidualConfig(**bad)
+
+
+def test_the_training_loss_sees_the_filter_as_the_residual_step_returns_it():
+    """``loss_residual`` (training with the residual step in the loop): a slow error of the estimate
+    (a constant offset) costs nothing and gets no gradient - the step takes the low frequencies from
+    the input -, a fast one (white noise) costs about what it is; and the loss is the post-step's
+    output error (same Gaussian, no gaps, feet not held)."""
+    import torch
+
+    from trumans.refine.frame import FRAME_DIM, JOINTS
+    from trumans.refine.losses import loss_residual
+
+    G = _smooth_motion(64)
+    rng = np.random.default_rng(2)
+    tracked = G + rng.normal(0.0, 0.01, G.shape)
+
+    def frames(J):
+        f = torch.zeros(1, len(J), FRAME_DIM, dtype=torch.float64)
+        f[0, :, JOINTS] = torch.as_tensor(J.reshape(len(J), -1))
+        return f
+
+    x, filled = frames(G), frames(tracked)
+    offset = frames(G + 0.05).requires_grad_(True)
+    slow = loss_residual(offset, x, filled, 3.0)
+    slow.backward()
+    exact = loss_residual(frames(G), x, filled, 3.0)
+    assert abs(slow.item() - exact.item()) < 1e-9  # the offset is the input's business:
+    assert offset.grad[0, :, JOINTS].sum(0).abs().max() < 1e-9  # no gradient along it
+    noise = rng.normal(0.0, 0.01, G.shape)
+    fast = loss_residual(frames(G + noise), x, x, 3.0).item()  # a clean input: the fast error is all there is
+    assert 0.8 * np.abs(noise).sum((1, 2)).mean() < fast < np.abs(noise).sum((1, 2)).mean()
+    filt = G + 0.02 * np.sin(np.arange(64) / 5.0)[:, None, None] + noise  # vs the post-step itself
+    from scipy.ndimage import gaussian_filter1d
+    step = filt + gaussian_filter1d(tracked - filt, 3.0, axis=0, mode="nearest", truncate=3.0)
+    assert abs(loss_residual(frames(filt), x, filled, 3.0).item() - np.abs(step - G).sum((1, 2)).mean()) < 1e-9

@@ -47,7 +47,11 @@ class GateConfig:
     over which the filter's output replaces it (smoothstep between); noise_window_s: the running
     median's length (s); spike_sigmas, spike_m: a residual over spike_sigmas * jitter + spike_m is a
     spike; fail_pad: frames around a failure (missing, frozen, spike) that are the filter's alone;
-    feather: frames over which that weight ramps down."""
+    feather: frames over which that weight ramps down. Measured on 14 corpus train clips (tracker
+    model, dropouts alone, filter / tuned Gaussian, translation-aligned / limb): pad 1 + feather 4
+    0.87 / 0.86, pad 0 + feather 1 0.80 / 0.76, pad 0 + feather 0 0.79 / 0.74 but a larger
+    acceleration error; the input residual (the first post-step) already bends the filter's fill of a
+    gap to meet the tracked frames on either side, so a wide ramp only blurs good frames."""
 
     enabled: bool = True
     keep_below_m: float = 0.002
@@ -55,8 +59,8 @@ class GateConfig:
     noise_window_s: float = 1.0
     spike_sigmas: float = 6.0
     spike_m: float = 0.008
-    fail_pad: int = 1
-    feather: int = 4
+    fail_pad: int = 0
+    feather: int = 1
 
     def __post_init__(self) -> None:
         if not 0 <= self.keep_below_m < self.filter_above_m:

@@ -13,7 +13,7 @@ from trumans.skeleton import NUM_JOINTS, forward_kinematics
 
 from trumans.refine.frame import IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ_R, OBJ_T, ROTATIONS
 
-__all__ = ["loss_off", "loss_vel", "loss_consist", "loss_imu", "loss_pose", "ACC_FACTOR"]
+__all__ = ["loss_off", "loss_vel", "loss_consist", "loss_imu", "loss_pose", "loss_residual", "ACC_FACTOR"]
 
 # Eq. 13 writes the acceleration increment as a_t τ²/2. With a_t defined as a second difference over
 # τ² (eq. 16), the exact trajectory satisfies (j_{t+1} - j_t) - (j_t - j_{t-1}) = a_t τ², so the
@@ -39,6 +39,21 @@ def loss_pose(x_hat: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     whole-body drift, which no filter can see, so it hardly constrains the body's pose itself."""
     J_hat, J = _joints(x_hat), _joints(x)
     return ((J_hat - J_hat[..., :1, :]) - (J - J[..., :1, :])).abs().sum((-1, -2)).mean()
+
+
+def loss_residual(x_hat: torch.Tensor, x: torch.Tensor, filled: torch.Tensor, sigma: float) -> torch.Tensor:
+    """(1/T) Σ_t Σ_i ‖(ĵ + G_σ(f − ĵ))_t^i − j_t^i‖₁: the joints as the input-residual post-step
+    (``trumans.refine.residual``) will return them, the filter's estimate ĵ plus the Gaussian
+    low-pass (σ frames) of the filled tracked joints f minus it, against the truth. Not in I'm-HOI:
+    it aims the network at what that step leaves to it (the high frequencies) instead of the slow
+    error the step takes from the input anyway. filled: (B, L, 235) the condition's tracked frame
+    vectors with gaps filled, metres, in the window's frame."""
+    from trumans.refine.filter import smooth_time  # the network's own Gaussian (the filter module imports this one's users)
+
+    J_hat, J, F = _joints(x_hat), _joints(x), _joints(filled)
+    B, L = J_hat.shape[:2]
+    low = smooth_time((F - J_hat).reshape(B, L, -1), sigma).reshape(B, L, NUM_JOINTS, 3)
+    return ((J_hat + low) - J).abs().sum((-1, -2)).mean()
 
 
 def loss_vel(x_hat: torch.Tensor, x: torch.Tensor) -> torch.Tensor:

@@ -33,7 +33,7 @@ from trumans.refine.filter import (FilterModel, FilterNetConfig, build_filter_mo
                                 prepare_windows, sample_x0)
 from trumans.refine.frame import (FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, pack_frames, resample_frames, to_frame,
                                window_frame)
-from trumans.refine.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_vel
+from trumans.refine.losses import loss_consist, loss_imu, loss_off, loss_pose, loss_residual, loss_vel
 from trumans.refine.wiener import JointWiener, fit_joint_wiener
 from trumans.model.checkpoint import Checkpoint
 from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
@@ -52,7 +52,7 @@ CONFIG_DIR = Path(__file__).parents[1] / "configs" / "filter"
 DEFAULT_CONFIG = "cpu"
 VAL_SEED = 20240601
 ABLATIONS = {  # --ablate NAME -> overrides
-    "regularisers": {"filter": {"w_off": 0.0, "w_vel": 0.0, "w_consist": 0.0, "w_imu": 0.0, "w_pose": 0.0}},
+    "regularisers": {"filter": {"w_off": 0.0, "w_vel": 0.0, "w_consist": 0.0, "w_imu": 0.0, "w_pose": 0.0, "w_residual": 0.0}},
     "imu": {"corruption": {"p_no_imu": 1.0}},
     "wiener": {"net": {"wiener_radius": 0}},
 }
@@ -67,7 +67,9 @@ class FilterSection:
     corrupted train windows the joints' linear skip is fitted on (``trumans.refine.wiener``), and as
     many of the real-motion corpus's train split (other skeletons: the fit then relies less on the
     dataset's body proportions) with wiener_real_windows. w_pose: the joints relative to the pelvis
-    (``loss_pose``, ours, on from the first step). categories: train and validate on windows of
+    (``loss_pose``, ours, on from the first step). w_residual: the joints after the input residual
+    (``loss_residual``, ours: x̂ plus the Gaussian of ``residual_sigma`` frames of tracked minus x̂, as
+    the first post-step returns them), on from the first step; 0 = off. categories: train and validate on windows of
     these object categories only (empty: all), e.g. to fine-tune a shared model for one category
     (``trumans train --task filter --init SHARED.pt --config chair.toml``); the vocabulary stays the data's."""
 
@@ -81,6 +83,8 @@ class FilterSection:
     w_consist: float = 0.02
     w_imu: float = 0.1
     w_pose: float = 3.0  # 0.1 / 1 / 3 / 10 measured (README): from 3 the network beats its skip
+    w_residual: float = 0.0
+    residual_sigma: float = 3.0
     wiener_windows: int = 1500
     wiener_real_windows: int = 1500
     categories: tuple[str, ...] = ()
@@ -92,8 +96,10 @@ class FilterSection:
             raise ValueError(f"wiener_real_windows must be >= 0, got {self.wiener_real_windows}")
         if not 0 <= self.simple_only <= self.consist_imu_from <= 1:
             raise ValueError(f"need 0 <= simple_only <= consist_imu_from <= 1, got {self.simple_only}, {self.consist_imu_from}")
-        if min(self.w_off, self.w_vel, self.w_consist, self.w_imu, self.w_pose) < 0:
+        if min(self.w_off, self.w_vel, self.w_consist, self.w_imu, self.w_pose, self.w_residual) < 0:
             raise ValueError("regulariser weights must be >= 0")
+        if not self.residual_sigma > 0:
+            raise ValueError(f"residual_sigma must be > 0 frames, got {self.residual_sigma}")
 
 
 @dataclass(frozen=True)
@@ -131,7 +137,7 @@ def phase_weights(cfg: FilterSection, frac: float) -> dict[str, float]:
     on1 = frac >= cfg.simple_only
     on2 = frac >= cfg.consist_imu_from
     return {"off": cfg.w_off * on1, "vel": cfg.w_vel * on1, "consist": cfg.w_consist * on2, "imu": cfg.w_imu * on2,
-            "pose": cfg.w_pose}
+            "pose": cfg.w_pose, "residual": cfg.w_residual}
 
 
 @dataclass
@@ -292,6 +298,9 @@ class FilterTask:
         terms = {"simple": out.terms["simple"], "off": loss_off(x_hat, clean), "vel": loss_vel(x_hat, clean),
                  "consist": loss_consist(x_hat, to(b.offsets)),
                  "imu": loss_imu(x_hat, clean, to(b.tracked), self.config.net.fps), "pose": loss_pose(x_hat, clean)}
+        if w["residual"] > 0:
+            filled = self.normalizer.denormalize(to(b.cond[..., :FRAME_DIM]))
+            terms["residual"] = loss_residual(x_hat, clean, filled, self.config.filter.residual_sigma)
         total = terms["simple"] + sum(w[k] * terms[k] for k in w if w[k] > 0)
         return TaskLoss(total, terms)
 

@@ -226,6 +226,27 @@ def test_a_carry_under_way_from_the_first_frame():
 
 
 
+def test_a_box_carried_from_the_first_frame_is_as_wide_as_the_carry_grip():
+    """The palms hold 25 cm apart on the first 5 frames, then settle 35 cm apart for the rest of the
+    carry (CMU 111_36: 25 cm on frame 0, 31-38 cm for 11 s). The box is sized by the carry's grip
+    (median palm distance), not by frame 0's: before, a 22-cm box left both palms 5-7 cm off it."""
+    t = np.arange(T, dtype=np.float64)
+    j = np.repeat(REST_JOINTS[None].astype(np.float64), T, 0)
+    j[..., 0] += t[:, None] / 60
+    half = np.where(t < 5, 0.125, 0.175)
+    for side, sign in (("left", 1), ("right", -1)):
+        p = np.stack([0.35 + t / 60, sign * half, np.full(T, 1.05)], -1)
+        j[:, J[f"{side}_wrist"]] = p + [0, 0, 0.04]
+        j[:, J[f"{side}_index1"]] = p - [0, 0, 0.04]
+    h = fit_handled_objects(j, wrist_rotations(), "Walk and carry")
+    (obj,) = h.objects
+    assert obj.meta["size"][1] == pytest.approx(0.35 - 2 * PALM_GAP)
+    assert h.grasp.all()
+    palms = palm_points(j)
+    centre = h.tracks[obj.name][:, :3, 3]
+    np.testing.assert_allclose(centre[:, 1], palms[:, :, 1].mean(1), atol=1e-9)  # between the palms
+
+
 def _pick_then_widen(drop_after: bool) -> np.ndarray:
     """(T, 24, 3): both palms (0.4 m apart) reach down to 0.3 m at PICK and carry the box at 1.05 m
     from frame 60; at frame 80 they open 0.15 m wider (over 5 frames) and hold so; with

@@ -13,7 +13,8 @@ apart at carry height for a second (a new grip on the box: a carry that walks of
 wider, CMU 111_36); an object never put down is carried
 to the clip's end. A clip described as carrying with no reach down whose palms stay
 ``BOX_MIN_SPAN_M`` or more and steadily (``STEADY_SPAN_M``) apart, above ``CARRY_ABOVE_M``, on
-``CARRY_SHARE`` of its frames carries a box from its first frame (``carried_from_start``).
+``CARRY_SHARE`` of its frames carries a box from its first frame (``carried_from_start``), as wide
+as the palms' median distance over the carry (``_carry_grip``), not their distance on the first frame.
 
 The object: one hand -> a bottle (``trumans.scenes.furniture.small_object``) gripped from the side, its
 grasp point ``PALM_GAP`` from the palm away from the body; two hands -> a box (category "box")
@@ -169,9 +170,11 @@ def _box(name: str, width: float, height: float) -> SceneObject:
     return SceneObject(name, "box", mesh, dof="free", dynamic=True, meta=meta)
 
 
-def _new_object(name: str, joints: np.ndarray, reach: Reach, rng: np.random.Generator) -> tuple[SceneObject, float]:
+def _new_object(name: str, joints: np.ndarray, reach: Reach, rng: np.random.Generator,
+                grip: float | None = None) -> tuple[SceneObject, float]:
     """The object grasped at ``reach`` and its bottom height (m, before choosing floor or support);
-    its pose puts the grasp at the palm(s) (module doc)."""
+    its pose puts the grasp at the palm(s) (module doc). grip: the palms' distance (m) a box is
+    sized by (``_carry_grip``); None: their distance at ``reach.frame``."""
     palms = palm_points(joints[reach.frame])  # (2, 3)
     if len(reach.hands) == 1:
         palm = palms[reach.hands[0]]
@@ -183,7 +186,7 @@ def _new_object(name: str, joints: np.ndarray, reach: Reach, rng: np.random.Gene
         obj.pose = yaw_pose(float(xy[0]), float(xy[1]), float(np.arctan2(-u[1], -u[0])))
         return obj, float(palm[2] - gz)
     across = palms[LEFT] - palms[RIGHT]
-    width = float(np.clip(np.linalg.norm(across) - 2 * PALM_GAP, *BOX_WIDTH_M))
+    width = float(np.clip((np.linalg.norm(across) if grip is None else grip) - 2 * PALM_GAP, *BOX_WIDTH_M))
     mid = palms.mean(axis=0)
     height = float(np.clip(mid[2] / GRIP_SHARE, *BOX_HEIGHT_M))
     obj = _box(name, width, height)
@@ -264,6 +267,15 @@ def _carry(track: np.ndarray, joints: np.ndarray, wrist_rot: np.ndarray, pick: R
     return held
 
 
+def _carry_grip(joints: np.ndarray, a: int, b: int) -> float:
+    """The palms' distance (m) of a two-hand carry on frames [a, b): its median. A box carried from
+    the first frame is sized by it, not by the first frame's distance: the first frame of a clip is
+    no grasp, and the palms may settle to another grip right after it (CMU 111_36: 25 cm on frame 0,
+    31-38 cm over the 11 s of the carry; a box sized by frame 0 left both palms 5-7 cm off it)."""
+    palms = palm_points(joints[a:max(b, a + 1)])
+    return float(np.median(np.linalg.norm(palms[:, LEFT] - palms[:, RIGHT], axis=-1)))
+
+
 def _spread_release(joints: np.ndarray, a: int, b: int, fps: float = 30.0) -> int | None:
     """First frame in (a, b) where the palms are RELEASE_SPREAD_M farther apart than they held the box,
     unless they then hold steadily (``_steady_carry``) at carry height: that is a new grip on the box,
@@ -325,7 +337,8 @@ def fit_handled_objects(joints: np.ndarray, wrist_rot: np.ndarray, description: 
                       and np.linalg.norm(out.tracks[o.name][pick.frame, :2, 3] - reach_xy) < SAME_OBJECT_M), None)
         if again is None:
             kind = "box" if len(pick.hands) == 2 else "bottle"
-            obj, bottom = _new_object(f"fit_{kind}_{len(out.objects)}", j, pick, rng)
+            grip = _carry_grip(j, 0, put.frame if put is not None else T) if pick.in_hand else None
+            obj, bottom = _new_object(f"fit_{kind}_{len(out.objects)}", j, pick, rng, grip)
             if not pick.in_hand:
                 obj.pose, obj.meta["support"] = _stand(obj, obj.pose, bottom, out.supports, j, pick.frame)
             else:

@@ -20,6 +20,12 @@
    except a carried (free) object: it is taken when a hand comes within ``hold_reach`` of it, held
    on while it is carried up after the predicted contact ends, until it touches down on a surface
    (``trumans.track.release``), and settles upright on the surface under it (``trumans.track.support``).
+   Which hands hold it is geometry's call as well as the network's (§4.2 takes the hand set from
+   the per-hand contacts): both hands hold it for as long as both palms carry it between them
+   (``two_hand_grip``), and a grip already under way when the contact starts (a box in the hands
+   from the first frame) takes it where the grip began (``two_hand_take``, looked for up to
+   ``GRIP_LOOKBACK_S`` before; its control point centres the object between the palms,
+   ``object_choice.two_hand_targets``).
 The result is a Sequence with the corrected joints / root and ``objects/<name>/pose`` for every
 dynamic object of the scene, plus ``extra``: ``contact_prob (T, 2)``, ``contact_mask (T, 2)`` (the
 predicted contacts without those with no surface within ``contact_reach`` of the hand, §4.2, and
@@ -50,13 +56,19 @@ from trumans.skeleton import JOINT_INDEX, forward_kinematics
 
 from trumans.track.release import carried_release, lift_off
 from trumans.track.support import SupportQuery
-from trumans.track.object_choice import ObjectQueries, choose_free_object, grasp_targets, object_candidates, release_support_gap
+from trumans.track.object_choice import (ObjectQueries, choose_free_object, grasp_targets, object_candidates,
+                                          release_support_gap, two_hand_targets)
 
 __all__ = ["TrackerConfig", "AttachedContact", "TrackResult", "contact_probabilities", "interval_classes",
-           "attach_detach", "attach_contact", "drive_object", "drive_contact", "clip_to_limits", "track"]
+           "attach_detach", "attach_contact", "drive_object", "drive_contact", "clip_to_limits", "between_palms",
+           "two_hand_grip", "two_hand_take", "with_both_hands", "track"]
 
 _WRIST = (JOINT_INDEX["left_wrist"], JOINT_INDEX["right_wrist"])
 PALMS_OUTSIDE_M = 0.08  # m, hand points holding a box between them are at most this much farther apart than its width
+GRIP_SPAN_TOL_M = 0.06  # m, two hands holding one object between them keep their distance this near its value at the take
+GRIP_MIN_S = 0.5  # s, ... for at least this long
+GRIP_MOVE_M = 0.10  # m, ... while their midpoint moves this far (they carry it, not rest on it)
+GRIP_LOOKBACK_S = 2.0  # s, a two-hand grip that holds at the predicted contact's start is looked for this far before it
 
 
 @dataclass(frozen=True)
@@ -76,7 +88,8 @@ class TrackerConfig:
     contacting hand point comes this near it (``_hold_while_carried``); contact_reach (m): an output
     contact (``extra['contact_mask']``) needs a surface of the scene this near the hand point on the
     corrected path (a localisation error of up to ~15 cm plus the hand's reach; §4.2 drops contacts
-    with nothing near as false positives)."""
+    with nothing near as false positives; also how near both hands must be to an object, before
+    the contact's control point, for a two-hand grip under way to take it: ``two_hand_take``)."""
 
     post: PostprocessConfig = field(default_factory=PostprocessConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
@@ -173,7 +186,7 @@ def _attach_window(n: int, fps: float, window_s: float = 1.0) -> int:
 
 def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: int, fps: float,
                   window_s: float = 1.0, approach_tol: float = 0.01,
-                  attach: Literal["approach", "stop"] = "approach") -> tuple[int, int]:
+                  attach: Literal["approach", "stop", "start"] = "approach") -> tuple[int, int]:
     """Refine a contact interval [start, end) to the frames the object is actually held (not in
     the paper; the contact labels switch on a few cm before the hand touches and off a few cm after
     it lets go, and the hands must not drag the object while reaching or retracting).
@@ -183,11 +196,12 @@ def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: 
     the interval; the first, as a hand lifting an object slides along its side and gets no further
     from it); ``"stop"``: at the slowest frame of the hands in that window (a hand stops on a
     piece of furniture before it pushes or pulls; unlike the distance, the speed does not depend
-    on the localisation offset). Detach after the slowest frame of the hands (speed smoothed over
-    ~0.07 s) within the last ``window_s`` (the hand stops before it lets go). Returns (attach,
+    on the localisation offset); ``"start"``: at ``start`` (the hands already hold it:
+    ``two_hand_take``). Detach after the slowest frame of the hands (speed smoothed over ~0.07 s)
+    within the last ``window_s`` (the hand stops before it lets go). Returns (attach,
     detach) frames, start <= attach < detach <= end."""
-    if attach not in ("approach", "stop"):
-        raise ValueError(f"attach must be 'approach' or 'stop', got {attach!r}")
+    if attach not in ("approach", "stop", "start"):
+        raise ValueError(f"attach must be 'approach', 'stop' or 'start', got {attach!r}")
     n = end - start
     w = _attach_window(n, fps, window_s)
     near = dist_at_rest[:w]
@@ -198,6 +212,8 @@ def attach_detach(hands: np.ndarray, dist_at_rest: np.ndarray, start: int, end: 
     # as the hands move while they slow down to let go
     smooth = gaussian_filter1d(np.asarray(hands, np.float64), sigma=max(0.033 * fps, 0.5), axis=0, mode="nearest")
     speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1).mean(-1)  # (n,) m/frame
+    if attach == "start":
+        first = start
     if attach == "stop":
         first = start + int(np.argmin(speed[:w]))
     lo = max(first - start + 1, n - w)
@@ -231,10 +247,98 @@ def drive_object(dof: str, seg: ContactSegment, hands: np.ndarray, wrist_rot: np
         return one_hand_motion(hands[:, main])
     if dof == "free":
         span = float(np.linalg.norm(hands[0, 0] - hands[0, 1]))
-        if seg.two_handed and TWO_HAND_SPAN_M <= span <= width + PALMS_OUTSIDE_M:  # a box between the palms
+        if seg.two_handed and between_palms(span, width):  # a box between the palms
             return two_hand_free_motion(hands[:, 0], hands[:, 1])
         return free_motion(wrist_rot[:, main], wrist_pos[:, main])
     raise ValueError(f"cannot drive an object of dof {dof!r}; movable dofs are slide, hinge, free")
+
+
+def between_palms(span: float, width: float) -> bool:
+    """Can two hand points ``span`` m apart hold an object of largest horizontal extent ``width`` m
+    between them (``drive_object``'s rule for a two-hand free segment): ``TWO_HAND_SPAN_M`` or more
+    apart (closer hands hold one small object) and at most ``PALMS_OUTSIDE_M`` farther apart than it is wide."""
+    return TWO_HAND_SPAN_M <= span <= width + PALMS_OUTSIDE_M
+
+
+def two_hand_grip(hands: np.ndarray, dist: np.ndarray, centre: np.ndarray, width: float, fps: float, reach: float,
+                  tol: float = GRIP_SPAN_TOL_M, min_s: float = GRIP_MIN_S, move: float = GRIP_MOVE_M) -> int:
+    """How many frames from the take both hands hold a free object between them, whichever hands the
+    contact network calls (0: not a two-hand grip). Not in the paper: iReplica takes the hand set
+    of each contact segment from the network's per-hand contacts (§4.2) and moves a free object
+    with the holding hand (§4.3, supp. §10); on real motion the network often calls a box carried
+    between the palms one-handed (issue 36.6, CMU 111_36: the left hand only, for 11 s), and the
+    box then rides on one wrist at the offset it was taken at, tens of cm from the hands. Geometry
+    decides instead: both palms are on the object at the take and move rigidly with one another.
+
+    hands: (n, 2, 3) the left / right hand points from the take frame on (index 0 = the take);
+    dist: (2,) their distances (m) to the object's surface at the take; centre: (3,) the object's
+    centre (world) at the take; width: its largest horizontal extent (m). A grip needs, at the
+    take, both hands within ``reach`` of its surface, the centre between them along the line
+    joining them, and hands that can hold it between them (``between_palms``). It lasts while their
+    distance (smoothed over ~0.1 s) stays within ``tol`` of its value at the take (a hand that lets
+    go or takes a new hold breaks it), and counts only when it lasts ``min_s`` or more while their
+    midpoint moves ``move`` or more (carried, not two hands resting on it). Returns the grip's length
+    in frames (<= n)."""
+    h = np.asarray(hands, np.float64)
+    n = len(h)
+    if n < 2 or not (np.asarray(dist) <= reach).all():
+        return 0
+    axis = h[0, 0] - h[0, 1]
+    span0 = float(np.linalg.norm(axis))
+    if not between_palms(span0, width):
+        return 0
+    along = float((np.asarray(centre, np.float64) - h[0, 1]) @ axis) / span0
+    if not 0.0 < along < span0:
+        return 0  # the object is not between the hands
+    span = gaussian_filter1d(np.linalg.norm(h[:, 0] - h[:, 1], axis=-1), sigma=max(0.05 * fps, 0.5), mode="nearest")
+    off = np.flatnonzero(np.abs(span - span[0]) > tol)
+    k = int(off[0]) if len(off) else n
+    mid = h[:k].mean(1)
+    if k < min_s * fps or np.linalg.norm(mid - mid[0], axis=-1).max() < move:
+        return 0
+    return k
+
+
+def two_hand_take(queries: ObjectQueries, name: str, pose: np.ndarray, hands: np.ndarray, lo: int, s0: int,
+                  fps: float, reach: float) -> int | None:
+    """The first frame b in [lo, s0] from which both hands hold free object ``name`` (at rest at
+    ``pose``) between them in one grip (``two_hand_grip``, within ``reach`` of its surface at b)
+    that lasts past the predicted contact's start ``s0``; None if there is none. hands: (T, 2, 3)
+    the hand points on the path corrected so far. Not in the paper: iReplica takes an object
+    where the network's contact starts (§4.2) and holds it from there (§4.3). A box already
+    carried between the palms when the motion begins (CMU 111_36, "walk and carry": in the hands
+    from frame 0, the contact predicted from frame 30) has been carried 46 cm by then; taken
+    there, the control point puts one hand on it where it stood and bends the body's path back by
+    that much. The hands' grip tells when it was really taken: it is the contact's, from b on."""
+    obj = queries.scene.objects[name]
+    m = s0 - lo + 1
+    if m < 1:
+        return None
+    H = np.asarray(hands[lo:], np.float64)
+    _, d = queries.closest(name, pose, H[:m].reshape(-1, 3))
+    d = d.reshape(m, 2)
+    centre = pose[:3, :3] @ obj.mesh.bounds.mean(0) + pose[:3, 3]
+    width = _width(obj)
+    for b in np.flatnonzero((d <= reach).all(1)):
+        if b + two_hand_grip(H[b:], d[b], centre, width, fps, reach) > m - 1:
+            return lo + int(b)
+    return None
+
+
+def with_both_hands(segs: tuple[ContactSegment, ...], lo: int, hi: int) -> tuple[ContactSegment, ...]:
+    """The contiguous segments ``segs`` of one contact with both hands holding on frames [lo, hi)
+    (``two_hand_grip``), cut again into runs of a constant hand set (§4.2's segments)."""
+    if hi <= lo or not segs:
+        return segs
+    s0, e0 = segs[0].start, segs[-1].end
+    code = np.zeros(e0 - s0, np.int64)
+    for sg in segs:
+        code[sg.start - s0:sg.end - s0] = int(sg.hands[0]) + 2 * int(sg.hands[1])
+    code[max(lo, s0) - s0:max(min(hi, e0), s0) - s0] = 3
+    cut = np.flatnonzero(np.diff(code)) + 1
+    bounds = np.r_[0, cut, len(code)]
+    return tuple(ContactSegment(s0 + int(b0), s0 + int(b1), (bool(code[b0] & 1), bool(code[b0] & 2)), segs[0].interval)
+                 for b0, b1 in zip(bounds[:-1], bounds[1:]) if code[b0])
 
 
 def clip_to_limits(obj: SceneObject, poses: np.ndarray) -> np.ndarray:
@@ -280,13 +384,15 @@ def drive_contact(it: AttachedContact, scene: Scene, poses: dict[str, np.ndarray
 
 def attach_contact(queries: ObjectQueries, name: str, pose: np.ndarray, span: np.ndarray,
                    segs: tuple[ContactSegment, ...], s0: int, fps: float,
-                   hand_radius: float) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
+                   hand_radius: float, attach: Literal["approach", "stop", "start"] | None = None
+                   ) -> tuple[tuple[ContactSegment, ...], int, np.ndarray, np.ndarray]:
     """A contact starting at frame ``s0`` attached to ``name`` (at ``pose``): its segments clipped to
     the held frames, the attach frame, and the contact points p_c (k, 3) with their targets
     ``hand_radius`` off them (k, 3) at that frame. span: (n, k, 3) contacting hand points. The
     attach frame is found on the hands' distance to the object's surface, or to its declared
     ``grasp_point`` (meta, object frame) when it has one: a hand reaching down over a small object
-    (a mouse) stays about as near its top while it is still moving in, and would drag it along."""
+    (a mouse) stays about as near its top while it is still moving in, and would drag it along.
+    attach: ``attach_detach``'s rule (None: "stop" for a sliding object, else "approach")."""
     near, dist, target = queries.contact_target(name, pose, span.reshape(-1, 3), hand_radius)
     meta = queries.scene.objects[name].meta
     if "grasp_point" in meta:  # held when the hand is there, not when it first comes near a surface
@@ -294,7 +400,7 @@ def attach_contact(queries: ObjectQueries, name: str, pose: np.ndarray, span: np
         dist = np.linalg.norm(span.reshape(-1, 3) - grasp, axis=-1)
     # a sliding object (furniture, a drawer) is taken when the hand stops on it: the measured
     # distance to it at rest is off by the localisation error (a chair's pull began 0.6 s late)
-    mode = "stop" if queries.scene.objects[name].dof == "slide" else "approach"
+    mode = attach or ("stop" if queries.scene.objects[name].dof == "slide" else "approach")
     a, d_end = attach_detach(span, dist.reshape(len(span), -1).mean(1), s0, s0 + len(span), fps, attach=mode)
     return _clip(segs, a, d_end), a, near.reshape(span.shape)[a - s0], target.reshape(span.shape)[a - s0]
 
@@ -336,8 +442,10 @@ def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str
     is within ``reach`` m of it (an object rides on the hand at the offset it is taken at, so one
     taken from farther would be held with nothing in the hand); the last segment run on to the frame
     the hands can let it go (``carried_release``: a contact that ends while the object is carried up
-    continues until it touches down on a surface, or to the end). None when no hand comes within
-    ``reach`` of it: the contact does not take it."""
+    continues until it touches down on a surface, or to the end); both hands hold it for as long
+    as both palms, within ``reach`` of it at the take, carry it between them (``two_hand_grip``),
+    whichever hands the contact calls. None when no hand comes within ``reach`` of it: the contact
+    does not take it."""
     last = segs[-1]
     others = {n: p[contact_end - 1] for n, p in poses.items() if n != name}
     ride = _ride(support.scene.objects[name], last, a, last.end, joints, wrist_rot, poses[name][a])
@@ -349,12 +457,19 @@ def _hold_while_carried(support: SupportQuery, queries: ObjectQueries, name: str
     if not len(near):
         return None
     a += int(near[0])
-    segs = _clip(segs, a, last.end)
+    obj = support.scene.objects[name]
+    held = hand_points(joints[a:])  # (T - a, 2, 3)
+    _, d0 = queries.closest(name, poses[name][a], held[0])
+    centre = poses[name][a, :3, :3] @ obj.mesh.bounds.mean(0) + poses[name][a, :3, 3]
+    both = a + two_hand_grip(held, d0, centre, _width(obj), fps, reach)  # both hands hold it on [a, both)
+    segs = with_both_hands(_clip(segs, a, last.end), a, both)
     last = segs[-1]
-    ride = _ride(support.scene.objects[name], last, a, len(joints), joints, wrist_rot, poses[name][a])
+    ride = _ride(obj, last, a, len(joints), joints, wrist_rot, poses[name][a])
     contact_end = max(contact_end, last.end)
     end = carried_release(support, name, ride, a, last.end, contact_end, others, fps)
-    return segs if end <= last.end else segs[:-1] + (ContactSegment(last.start, end, last.hands, last.interval),)
+    if end > last.end:
+        segs = segs[:-1] + (ContactSegment(last.start, end, last.hands, last.interval),)
+    return with_both_hands(segs, a, both)
 
 
 def _drive_all(interactions: list[AttachedContact], scene: Scene, base: dict[str, np.ndarray], joints: np.ndarray,
@@ -436,8 +551,20 @@ def track(seq: Sequence, scene: Scene, model: ContactModels, config: TrackerConf
             gaps = {n: _release_gap(queries, n, poses, segs, span, s0, fps, joints, wrist_rot, config.hand_radius)
                     for n, d in cands if d <= cands[0][1] + config.ambiguity}
             name = choose_free_object(cands, gaps, config.ambiguity)
-        segs, a, closest, goal = attach_contact(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius)
-        if cls[i] == "free":
+        mode = None
+        if cls[i] == "free":  # both hands already hold it between them: taken by both, where the grip began
+            lo = max(held_until, s0 - int(round(GRIP_LOOKBACK_S * fps)), 0)
+            b = two_hand_take(queries, name, poses[name][s0], hand_points(joints), lo, s0, fps, config.contact_reach)
+            if b is not None:
+                segs = with_both_hands((ContactSegment(b, s0, (True, True), i),) * (b < s0) + segs, b, s0 + 1)
+                s0, used, mode = b, [0, 1], "start"
+                span = hand_points(joints[s0:e1])
+        segs, a, closest, goal = attach_contact(queries, name, poses[name][s0], span, segs, s0, fps, config.hand_radius,
+                                                mode)
+        if mode == "start":  # held between the hands: centred between them
+            p0 = poses[name][s0]
+            goal = two_hand_targets(goal, span[a - s0], p0[:3, :3] @ scene.objects[name].mesh.bounds.mean(0) + p0[:3, 3])
+        elif cls[i] == "free":
             goal = grasp_targets(goal, span[a - s0], np.asarray(scene.objects[name].mesh.vertices), poses[name][s0])
         shift = (goal - span[a - s0])[:, :2]
         step = shift.mean(0) if config.correct else np.zeros(2)

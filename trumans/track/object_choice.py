@@ -14,7 +14,8 @@ import numpy as np
 from trumans.scenes.distance import SceneDistance
 from trumans.scenes.scene import Scene
 
-__all__ = ["ObjectQueries", "grasp_targets", "object_candidates", "release_support_gap", "choose_free_object"]
+__all__ = ["ObjectQueries", "grasp_targets", "two_hand_targets", "object_candidates", "release_support_gap",
+           "choose_free_object"]
 
 
 class ObjectQueries:
@@ -86,6 +87,25 @@ def grasp_targets(targets: np.ndarray, hands: np.ndarray, mesh_vertices: np.ndar
     out = np.array(targets, dtype=np.float64, copy=True)
     top = hands[:, 2] >= hi[2]
     out[top, :2] = 0.5 * (lo[:2] + hi[:2])
+    return out
+
+
+def two_hand_targets(targets: np.ndarray, hands: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Where two hands holding an object between them (``interactions.two_hand_take``) should be at
+    the grasp (not in the paper, whose free objects ride on one hand). targets: (2, 3) the
+    side-contact targets of the left and right hand points ``hands`` (2, 3); centre: (3,) the
+    object's centre (world). The closest-point targets say little along the hands' line (a hand
+    inside a box wider than the grip is sent to whichever face is nearer): along the horizontal
+    line through the hands, the object's centre goes midway between them; across it, the mean
+    side-contact correction stands. Both hands move by the same step (the body is rigid); returns
+    (2, 3) world."""
+    hands = np.asarray(hands, np.float64)
+    u = hands[0, :2] - hands[1, :2]
+    u = u / max(float(np.linalg.norm(u)), 1e-9)
+    step = (np.asarray(targets, np.float64) - hands)[:, :2].mean(0)
+    along = float((np.asarray(centre, np.float64)[:2] - hands[:, :2].mean(0)) @ u)
+    out = hands.copy()
+    out[:, :2] += step - (step @ u) * u + along * u
     return out
 
 

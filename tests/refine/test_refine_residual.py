@@ -114,3 +114,41 @@ def test_the_training_loss_sees_the_filter_as_the_residual_step_returns_it():
     from scipy.ndimage import gaussian_filter1d
     step = filt + gaussian_filter1d(tracked - filt, 3.0, axis=0, mode="nearest", truncate=3.0)
     assert abs(loss_residual(frames(filt), x, filled, 3.0).item() - np.abs(step - G).sum((1, 2)).mean()) < 1e-9
+
+
+def test_a_short_gap_in_clean_frames_is_splined_and_a_noisy_or_long_one_is_not():
+    """A 12-frame gap of the whole body in clean tracked motion: the cubic spline through the tracked
+    frames fills it (the output there much nearer the truth than the linear fill's, whatever the
+    filter drew); the frames outside the gap are the same either way. The same gap in 12-mm jitter,
+    and a 1-s gap, keep the linear fill exactly."""
+    from trumans.refine.frame import fill_missing_joints
+    from trumans.refine.residual import spline_gap_weights
+    from trumans.refine.tracked import TrackedBody
+
+    G = _smooth_motion(150)
+    rng = np.random.default_rng(3)
+    gap = slice(60, 72)
+    tracked = G.copy()
+    tracked[gap] = np.nan
+    filtered = fill_missing_joints(tracked)  # a filter that draws a straight line through the gap
+    spline = keep_low_frequencies(filtered, tracked, FPS, ResidualConfig(hold_feet=False))
+    linear = keep_low_frequencies(filtered, tracked, FPS, ResidualConfig(hold_feet=False, spline_gaps=False))
+    e_spline, e_linear = _err_mm(spline[gap], G[gap]), _err_mm(linear[gap], G[gap])
+    assert e_spline < 0.25 * e_linear and e_spline < 5.0, (e_spline, e_linear)
+    outside = np.ones(150, bool)
+    outside[gap] = False
+    np.testing.assert_allclose(spline[outside], linear[outside])
+    w = spline_gap_weights(TrackedBody.read(tracked), FPS)
+    assert (w[gap] == 1).all() and (w[:60] == 0).all() and (w[72:] == 0).all()
+    np.testing.assert_allclose(keep_low_frequencies(filtered, TrackedBody.read(tracked), FPS, ResidualConfig(hold_feet=False)),
+                               spline)  # the post-steps hand over the body they read once
+    noisy = G + rng.normal(0.0, 0.012, G.shape)
+    noisy[gap] = np.nan
+    assert not spline_gap_weights(TrackedBody.read(noisy), FPS).any()
+    np.testing.assert_allclose(keep_low_frequencies(filtered, noisy, FPS, ResidualConfig(hold_feet=False)),
+                               keep_low_frequencies(filtered, noisy, FPS, ResidualConfig(hold_feet=False, spline_gaps=False)))
+    long = G.copy()
+    long[40:80] = np.nan  # 1.3 s: longer than spline_max_s
+    assert not spline_gap_weights(TrackedBody.read(long), FPS).any()
+    with pytest.raises(ValueError, match="spline_below_m < linear_above_m"):
+        ResidualConfig(spline_below_m=0.01, linear_above_m=0.005)

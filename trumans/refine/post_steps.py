@@ -125,7 +125,7 @@ class PostStep:
 
 
 def _residual(clip: RefinedClip, config: ResidualConfig) -> np.ndarray:
-    return _with_body(clip.frames, keep_low_frequencies(_body(clip.frames), clip.tracked_body.joints, clip.fps, config))
+    return _with_body(clip.frames, keep_low_frequencies(_body(clip.frames), clip.tracked_body, clip.fps, config))
 
 
 def _body_drift(clip: RefinedClip, config: DriftConfig) -> np.ndarray:

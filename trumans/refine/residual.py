@@ -13,6 +13,16 @@ r's gaps (missing and frozen entries) filled linearly in time first, so a gap is
 filter's shape bent to meet the tracked frames on either side; G a Gaussian of ``sigma_frames``.
 The smoothing runs on the difference, not on the motion, so the detail the filter drew stays.
 
+Where the tracked frames around a short gap are clean, they say more about it than the filter does:
+a cubic spline through a joint's tracked frames fills a gap of up to ``spline_max_s`` far better
+(14 corpus train clips under the tracker model's dropouts, 2-20 frames: 12.7 mm in the gaps against
+the filter's 23.8 and a straight line's 28.5; PCHIP 19.2, Akima 17.7). Through jittery frames a
+spline swings with the noise, so (``spline_gap_weights``) the output on such a gap is the spline
+where the local jitter (``gate.input_noise``) is under ``spline_below_m``, filtered + G(r) as above
+where it is over ``linear_above_m``, and a smoothstep blend between (the spline replaces the
+output in the gap rather than r before the Gaussian, which would blur it: dropouts 0.63 -> 0.59 of
+a tuned Gaussian's error on the same clips).
+
 A planted foot must not take the input's low-passed jitter along (it would slide by centimetres a
 second and hide the stance from the foot lock after it): with ``hold_feet``, on the stances of the
 filter's own feet (``body_drift.stance_mask``) each foot joint's added residual is its mean over the
@@ -30,25 +40,37 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from scipy.interpolate import CubicSpline
+
+from trumans.easing import smoothstep
 from trumans.refine.body_drift import DriftConfig, stance_mask
 from trumans.refine.foot_lock import stance_corrections
 from trumans.refine.frame import fill_missing_joints
+from trumans.refine.gate import GateConfig, input_noise
+from trumans.refine.tracked import TrackedBody, as_tracked_body
 from trumans.skeleton import FOOT_JOINTS, NUM_JOINTS
 
-__all__ = ["ResidualConfig", "keep_low_frequencies"]
+__all__ = ["ResidualConfig", "keep_low_frequencies", "spline_gap_weights"]
 
 
 @dataclass(frozen=True)
 class ResidualConfig:
     """enabled: whether the post-step runs; sigma_frames: the Gaussian's std (frames at the filter's
     rate); hold_feet: planted foot joints keep one residual per stance, faded over ``fade_s``
-    seconds; stance: how stances are found (the body-drift fit's detection; only the detection is read)."""
+    seconds; stance: how stances are found (the body-drift fit's detection; only the detection is read);
+    spline_gaps: gaps of up to ``spline_max_s`` seconds in clean tracked frames are filled by a cubic
+    spline (module doc) - fully where the local jitter (std per axis, m) is under ``spline_below_m``,
+    not at all over ``linear_above_m`` (the gate's thresholds by default)."""
 
     enabled: bool = True
     sigma_frames: float = 3.0
     hold_feet: bool = True
     fade_s: float = 0.2
     stance: DriftConfig = DriftConfig()
+    spline_gaps: bool = True
+    spline_max_s: float = 0.5
+    spline_below_m: float = 0.002
+    linear_above_m: float = 0.005
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma_frames) and self.sigma_frames > 0):
@@ -57,14 +79,54 @@ class ResidualConfig:
             raise ValueError(f"residual fade_s must be >= 0, got {self.fade_s}")
         if not self.stance.enabled:
             raise ValueError("residual stance is the stance detection only: its enabled must stay true")
+        if not (np.isfinite(self.spline_max_s) and self.spline_max_s >= 0):
+            raise ValueError(f"residual spline_max_s must be >= 0 s, got {self.spline_max_s}")
+        if not 0 <= self.spline_below_m < self.linear_above_m:
+            raise ValueError(f"residual needs 0 <= spline_below_m < linear_above_m, got {self.spline_below_m}, "
+                             f"{self.linear_above_m}")
 
 
-def keep_low_frequencies(filtered: np.ndarray, tracked: np.ndarray, fps: float,
+def spline_gap_weights(body: TrackedBody, fps: float, config: ResidualConfig = ResidualConfig()) -> np.ndarray:
+    """(T, 24) in [0, 1]: how much of each missing entry of the tracked body is the cubic spline's
+    (module doc): 0 on observed entries, on gaps longer than ``spline_max_s`` and on gaps at either
+    end of a joint's track; inside a short gap, 1 - smoothstep of the local jitter between
+    ``spline_below_m`` and ``linear_above_m``."""
+    seen = body.seen
+    T = len(seen)
+    w = np.zeros(seen.shape)
+    if not config.spline_gaps or seen.all() or T < 4:
+        return w
+    longest = config.spline_max_s * fps
+    for j in np.flatnonzero(~seen.all(0) & (seen.sum(0) >= 4)):  # a spline needs 4 tracked frames
+        edge = np.diff(np.r_[1, seen[:, j].astype(np.int8), 1])
+        for a, b in zip(np.flatnonzero(edge == -1), np.flatnonzero(edge == 1)):  # gap [a, b)
+            if a > 0 and b < T and b - a <= longest:
+                w[a:b, j] = 1.0
+    if w.any():
+        noise = input_noise(body, fps, GateConfig(keep_below_m=config.spline_below_m, filter_above_m=config.linear_above_m))
+        w *= 1.0 - smoothstep((noise - config.spline_below_m) / (config.linear_above_m - config.spline_below_m))
+    return w
+
+
+def _spline_fill(body: TrackedBody, weights: np.ndarray) -> np.ndarray:
+    """(T, 24, 3): the tracked joints with each entry of positive ``weights`` the cubic spline
+    (``scipy.interpolate.CubicSpline``, not-a-knot) through that joint's tracked frames; NaN elsewhere
+    in the gaps."""
+    J = body.joints.copy()
+    t = np.arange(len(J), dtype=np.float64)
+    for j in np.flatnonzero((weights > 0).any(0)):
+        seen, fill = body.seen[:, j], weights[:, j] > 0
+        J[fill, j] = CubicSpline(t[seen], body.joints[seen, j], axis=0)(t[fill])
+    return J
+
+
+def keep_low_frequencies(filtered: np.ndarray, tracked: np.ndarray | TrackedBody, fps: float,
                          config: ResidualConfig = ResidualConfig()) -> np.ndarray:
-    """filtered (T, 24, 3) m (finite), tracked (T, 24, 3) m (NaN = missing) at ``fps`` -> filtered +
-    G(tracked - filtered), planted feet held (module docstring): (T, 24, 3) float64. A joint never
-    tracked keeps the filter's."""
-    F, X = np.asarray(filtered, np.float64), np.asarray(tracked, np.float64)
+    """filtered (T, 24, 3) m (finite), tracked (T, 24, 3) m (NaN = missing; or its ``TrackedBody``) at
+    ``fps`` -> filtered + G(tracked - filtered), short clean gaps splined, planted feet held (module
+    docstring): (T, 24, 3) float64. A joint never tracked keeps the filter's."""
+    body = tracked if isinstance(tracked, TrackedBody) else None
+    F, X = np.asarray(filtered, np.float64), np.asarray(tracked.joints if body is not None else tracked, np.float64)
     if F.ndim != 3 or F.shape[1:] != (NUM_JOINTS, 3) or X.shape != F.shape:
         raise ValueError(f"filtered and tracked joints must both be (T, {NUM_JOINTS}, 3), got {F.shape} and {X.shape}")
     if not np.isfinite(F).all():
@@ -74,6 +136,13 @@ def keep_low_frequencies(filtered: np.ndarray, tracked: np.ndarray, fps: float,
     r = fill_missing_joints(X - F)
     r = np.where(np.isfinite(r), r, 0.0)  # a joint never tracked: nothing to keep
     low = gaussian_filter1d(r, config.sigma_frames, axis=0, mode="nearest")
+    if config.spline_gaps and not np.isfinite(X).all():
+        body = body if body is not None else as_tracked_body(X)
+        w = spline_gap_weights(body, fps, config)
+        if w.any():
+            spline = _spline_fill(body, w)
+            take = w > 0
+            low[take] += w[take, None] * ((spline - F)[take] - low[take])
     if config.hold_feet and len(F) >= 2:
         planted = stance_mask(F, fps, config.stance)
         if planted.any():

@@ -86,16 +86,22 @@ def test_identity_filter_reproduces_input_across_windows(tmp_path):
     np.testing.assert_allclose(filt.refine_frames(f[:10], 30.0, "box", opts)[:, JOINTS], f[:10, JOINTS], atol=2e-4)
     out60 = filt.refine_frames(f[::1], 60.0, "box", opts)
     np.testing.assert_allclose(out60[:, JOINTS], f[:, JOINTS], atol=2e-3)
-    # NaN frames and joints: the output is complete, the gaps linearly interpolated (identity filter)
+    # NaN frames and joints: the output is complete, the gaps linearly interpolated (identity filter,
+    # the residual's spline for short clean gaps off)
     g = f.copy()
     g[20:30, :OBJ_T.stop] = np.nan
     g[50, :3] = np.nan
-    out = filt.refine_frames(g, 30.0, "box", opts)
+    linear = RefineOptions(post=replace(keep, residual=replace(keep.residual, spline_gaps=False)))
+    out = filt.refine_frames(g, 30.0, "box", linear)
     assert np.isfinite(out).all()
     np.testing.assert_allclose(out[60:, JOINTS], f[60:, JOINTS], atol=2e-4)
     lin = f[19, JOINTS] + (np.arange(1, 11) / 11)[:, None] * (f[30, JOINTS] - f[19, JOINTS])
     np.testing.assert_allclose(out[20:30, JOINTS], lin, atol=2e-4)
     np.testing.assert_allclose(out[50, :3], (f[49, :3] + f[51, :3]) / 2, atol=2e-4)
+    splined = filt.refine_frames(g, 30.0, "box", opts)  # by default: the spline through the tracked frames
+    np.testing.assert_allclose(splined[60:, JOINTS], f[60:, JOINTS], atol=2e-4)
+    err = lambda o: np.abs(o[20:30, JOINTS] - f[20:30, JOINTS]).mean()
+    assert err(splined) < 0.5 * err(out), (err(splined), err(out))
     with pytest.raises(ValueError, match=r"\(T, 235\)"):
         filt.refine_frames(f[:, :200], 30.0, "box")
     with pytest.raises(ValueError, match="'lamp' is unknown"):

@@ -56,21 +56,28 @@ class LockConfig:
 def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
     """(T, 4, 3): per foot joint of FOOT_JOINTS, the move that puts it on its stance's mean, faded
     linearly to 0 over ``fade`` frames on either side of the stance (where fades of neighbouring
-    stances overlap, the one with the larger weight wins)."""
+    stances overlap, the one with the larger weight wins; on a tie the earlier one). Vectorised over
+    frames: a frame's weight comes from the stance it is in or, outside, the nearer of the stances
+    before and after it (farther ones are farther still)."""
     T = len(J)
     out = np.zeros((T, len(FOOT_JOINTS), 3))
-    weight = np.zeros((T, len(FOOT_JOINTS)))
-    reach = int(np.ceil(fade)) if fade > 0 else 0  # frames beyond a stance with a weight above 0
+    t = np.arange(T)
     for k, j in enumerate(FOOT_JOINTS):
         edge = np.diff(np.r_[0, planted[:, k].astype(np.int8), 0])
-        for a, b in zip(np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1):  # each stance [a, b]
-            target = J[a:b + 1, j].mean(0)
-            lo, hi = max(0, a - reach), min(T, b + reach + 1)  # outside it the weight is 0
-            t = np.arange(lo, hi)
-            w = np.clip(1.0 - np.maximum(a - t, t - b) / max(fade, 1e-9), 0.0, 1.0) if fade > 0 else ((t >= a) & (t <= b)) * 1.0
-            take = w > weight[lo:hi, k]
-            out[lo:hi][take, k] = w[take, None] * (target - J[lo:hi][take, j])
-            weight[lo:hi][take, k] = w[take]
+        a, b = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1  # stances [a, b]
+        if not len(a):
+            continue
+        csum = np.concatenate([np.zeros((1, 3)), np.cumsum(J[:, j], axis=0)])
+        target = (csum[b + 1] - csum[a]) / (b - a + 1)[:, None]  # (n, 3) each stance's mean
+        prev = np.searchsorted(a, t, side="right") - 1  # the last stance starting at or before t
+        nxt = np.minimum(prev + 1, len(a) - 1)
+        d_prev = np.where(prev >= 0, t - b[np.maximum(prev, 0)], np.inf)  # <= 0 inside that stance
+        d_next = np.where(prev + 1 < len(a), a[nxt] - t, np.inf)
+        use_prev = d_prev <= d_next
+        which = np.where(use_prev, np.maximum(prev, 0), nxt)
+        d = np.minimum(d_prev, d_next)
+        w = np.clip(1.0 - d / max(fade, 1e-9), 0.0, 1.0) if fade > 0 else (d <= 0) * 1.0
+        out[:, k] = w[:, None] * (target[which] - J[:, j])
     return out
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_dilation, median_filter
+from scipy.ndimage import binary_dilation
 
 from trumans.easing import smoothstep
 from trumans.skeleton import NUM_JOINTS
@@ -82,14 +82,9 @@ def _check(joints: np.ndarray) -> np.ndarray:
 
 def _noise_residual(body: TrackedBody, fps: float, config: GateConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(local jitter (T, 24) m, cubic-fit residual (T, 24) m, observed (T, 24) bool) of a tracked body."""
-    seen, r = body.seen, body.residual
     win = max(3, int(round(config.noise_window_s * fps)) | 1)
     # the running median over observed frames: missing ones count as the joint's own median residual
-    med = body.residual_median if seen.any() else np.zeros(NUM_JOINTS)
-    rm = np.where(seen, r, np.nan_to_num(med)[None])
-    # one joint at a time: scipy's 1-D median filter is several times faster than its n-D one, same values
-    running = np.stack([median_filter(rm[:, j], size=win, mode="mirror") for j in range(rm.shape[1])], axis=1)
-    return running / (_NORM_MEDIAN * _RES_STD), r, seen
+    return body.running_median(win) / (_NORM_MEDIAN * _RES_STD), body.residual, body.seen
 
 
 def input_noise(tracked: np.ndarray | TrackedBody, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:

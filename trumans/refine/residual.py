@@ -41,6 +41,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from scipy.interpolate import CubicSpline
+from scipy.ndimage import label
 
 from trumans.easing import smoothstep
 from trumans.refine.body_drift import DriftConfig, stance_mask
@@ -96,12 +97,14 @@ def spline_gap_weights(body: TrackedBody, fps: float, config: ResidualConfig = R
     w = np.zeros(seen.shape)
     if not config.spline_gaps or seen.all() or T < 4:
         return w
-    longest = config.spline_max_s * fps
-    for j in np.flatnonzero(~seen.all(0) & (seen.sum(0) >= 4)):  # a spline needs 4 tracked frames
-        edge = np.diff(np.r_[1, seen[:, j].astype(np.int8), 1])
-        for a, b in zip(np.flatnonzero(edge == -1), np.flatnonzero(edge == 1)):  # gap [a, b)
-            if a > 0 and b < T and b - a <= longest:
-                w[a:b, j] = 1.0
+    gaps, n = label(~seen.T, structure=[[0, 0, 0], [1, 1, 1], [0, 0, 0]])  # (24, T) each joint's gaps, 0 = seen
+    if n:
+        length = np.bincount(gaps.ravel(), minlength=n + 1)
+        at_end = np.zeros(n + 1, bool)
+        at_end[gaps[:, [0, -1]].ravel()] = True  # a gap at either end of a track has one side only
+        ok = (length <= config.spline_max_s * fps) & ~at_end
+        ok[0] = False
+        w = (ok[gaps] & (seen.sum(0) >= 4)[:, None]).T.astype(np.float64)  # a spline needs 4 tracked frames
     if w.any():
         noise = input_noise(body, fps, GateConfig(keep_below_m=config.spline_below_m, filter_above_m=config.linear_above_m))
         w *= 1.0 - smoothstep((noise - config.spline_below_m) / (config.linear_above_m - config.spline_below_m))
@@ -114,9 +117,16 @@ def _spline_fill(body: TrackedBody, weights: np.ndarray) -> np.ndarray:
     in the gaps."""
     J = body.joints.copy()
     t = np.arange(len(J), dtype=np.float64)
-    for j in np.flatnonzero((weights > 0).any(0)):
-        seen, fill = body.seen[:, j], weights[:, j] > 0
-        J[fill, j] = CubicSpline(t[seen], body.joints[seen, j], axis=0)(t[fill])
+    todo = np.flatnonzero((weights > 0).any(0))
+    if not len(todo):
+        return J
+    # joints tracked on the same frames (a whole-body dropout) share one spline fit
+    _, group = np.unique(body.seen[:, todo].T, axis=0, return_inverse=True)
+    for g in np.unique(group):
+        js = todo[group.ravel() == g]
+        seen = body.seen[:, js[0]]
+        fill = (weights[:, js] > 0).any(1)
+        J[np.ix_(fill, js)] = CubicSpline(t[seen], body.joints[seen][:, js], axis=0)(t[fill])
     return J
 
 

@@ -8,10 +8,11 @@ network's condition). Units: metres; joints (T, 24, 3) z-up world.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+from scipy.ndimage import median_filter
 from scipy.signal import savgol_filter
 
 from trumans.skeleton import NUM_JOINTS
@@ -39,6 +40,7 @@ class TrackedBody:
     filled: np.ndarray
     seen: np.ndarray
     residual: np.ndarray
+    _running: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def read(cls, tracked: np.ndarray, filled: np.ndarray | None = None) -> TrackedBody:
@@ -61,6 +63,19 @@ class TrackedBody:
         observed): ``np.nanmedian`` of the residual with unobserved frames NaN, by one sort (nanmedian
         goes column by column when there are NaNs); read by the gate and the bone lengths alike."""
         return column_median(self.residual, self.seen)
+
+
+    def running_median(self, window: int) -> np.ndarray:
+        """(T, 24) m the running median of ``residual`` over ``window`` frames (mirrored ends), a missing
+        frame counting as its joint's ``residual_median`` (0 for a joint never observed); computed once
+        per window length (the gate and the residual's gap fill read the same one)."""
+        if window not in self._running:
+            med = self.residual_median if self.seen.any() else np.zeros(NUM_JOINTS)
+            rm = np.where(self.seen, self.residual, np.nan_to_num(med)[None])
+            # one joint at a time: scipy's 1-D median filter is several times faster than its n-D one, same values
+            self._running[window] = np.stack([median_filter(rm[:, j], size=window, mode="mirror")
+                                              for j in range(rm.shape[1])], axis=1) if rm.size else rm
+        return self._running[window]
 
 
 def column_median(values: np.ndarray, seen: np.ndarray) -> np.ndarray:

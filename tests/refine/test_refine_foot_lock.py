@@ -70,10 +70,31 @@ def test_a_swinging_foot_is_left_alone_and_corrections_fade_in():
     planted = stance_mask(J, FPS)[:, 0]  # FOOT_JOINTS[0]: the left ankle
     end = np.flatnonzero(planted)[np.flatnonzero(planted) < 110].max()
     target = J[:end + 1][planted[:end + 1], LA].mean(0)
-    out = _joints(lock_feet(g, FPS, LockConfig(fade_s=0.2)))
+    out = _joints(lock_feet(g, FPS, LockConfig(fade_s=0.2, toe_first=False)))  # the ankle's own fade
     for k in range(1, 6):  # 0.2 s = 6 frames
         np.testing.assert_allclose(out[end + k, LA] - J[end + k, LA], (1 - k / 6) * (target - J[end + k, LA]), atol=1e-9)
     np.testing.assert_array_equal(out[end + 6:, LA], J[end + 6:, LA])
+
+
+def test_a_held_toe_stays_put_when_the_filters_toe_bone_changes_length():
+    """The filter's toe bone is a few mm longer or shorter from frame to frame: placed at that
+    frame's length from the held ankle (``toe_first`` off) the toe base moves by the length's
+    changes; with the toe first (the ankle on the sphere of the clip's toe length around the held
+    toe) it stays on its target and the ankle stands still too."""
+    f, *_ = _standing()
+    J = _joints(f).copy()
+    rng = np.random.default_rng(4)
+    u = (J[:, LF] - J[:, LA]) / np.linalg.norm(J[:, LF] - J[:, LA], axis=-1, keepdims=True)
+    J[:, LF] += rng.uniform(-0.003, 0.003, (len(J), 1)) * u  # the toe bone's length varies by +-3 mm
+    f[:, JOINTS] = J.reshape(len(J), -1)
+    assert stance_mask(J, FPS)[:, [0, 2]].all()  # left ankle and toe base planted throughout
+    loose = _joints(lock_feet(f, FPS, LockConfig(toe_first=False)))
+    held = _joints(lock_feet(f, FPS))
+    assert np.ptp(loose[:, LF], axis=0).max() > 0.003  # it moves with the length
+    assert np.ptp(held[:, LF], axis=0).max() < 1e-9 and np.ptp(held[:, LA], axis=0).max() < 1e-9
+    np.testing.assert_allclose(held[0, LF], J[:, LF].mean(0), atol=1e-9)  # on the toe's stance mean
+    np.testing.assert_allclose(np.linalg.norm(held[:, LF] - held[:, LA], axis=-1),
+                               np.median(np.linalg.norm(J[:, LF] - J[:, LA], axis=-1)), atol=1e-9)
 
 
 def test_bad_inputs_and_nothing_to_lock():

@@ -124,6 +124,25 @@ def test_leg_swaps_are_read_from_the_sequence_and_undone(walk):
     assert not leg_swap_states(swapped, SwapConfig(switch_m=10.0)).any()
 
 
+def test_a_swap_right_after_a_gap_is_read_from_the_hips_against_the_shoulders(walk):
+    """A gap cuts the chain, and a piece that starts inside a swap gives the frame-to-frame travel
+    nothing to tell the two labellings apart: without the side cue (``side_weight`` 0) the reading
+    is wrong there; with it (the left hip on the left of the right hip along the shoulders' axis)
+    the swap is found exactly."""
+    swapped = walk.copy()
+    legs = list(LEFT_LEG) + list(RIGHT_LEG)
+    swapped[110:150, legs] = walk[110:150, list(RIGHT_LEG) + list(LEFT_LEG)]
+    swapped[100:110] = np.nan  # the tracker lost the body, came back with the legs swapped for 40 frames,
+    swapped[150:160] = np.nan  # and lost it again
+    truth = np.zeros(len(walk), bool)
+    truth[110:150] = True
+    np.testing.assert_array_equal(leg_swap_states(swapped), truth)
+    assert (leg_swap_states(swapped, SwapConfig(side_weight=0.0)) != truth).sum() == 40  # fewer swapped frames won
+    assert not leg_swap_states(walk).any() and not leg_swap_states(walk[:, :, [1, 0, 2]] * [1, -1, 1]).any()
+    with pytest.raises(ValueError, match="side_weight"):
+        SwapConfig(side_weight=-1.0)
+
+
 def test_held_joints_are_missing_single_repeats_are_not(walk):
     f = pack_frames(walk, None, np.broadcast_to(np.eye(4), (len(walk), 4, 4)))
     J = f[:, JOINTS].reshape(len(f), 24, 3)

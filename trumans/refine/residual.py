@@ -38,10 +38,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
-
 from scipy.interpolate import CubicSpline
-from scipy.ndimage import label
+from scipy.ndimage import gaussian_filter1d, label
 
 from trumans.easing import smoothstep
 from trumans.refine.body_drift import DriftConfig, stance_mask

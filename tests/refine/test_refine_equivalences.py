@@ -19,7 +19,7 @@ from trumans.model.diffusion import DiffusionConfig, GaussianDiffusion
 from trumans.model.episodes import Normalizer
 from trumans.model.nets.denoiser import Denoiser
 from trumans.rotations import matrix_to_6d, sixd_to_matrix, yaw_matrix
-from trumans.skeleton import NUM_JOINTS
+from trumans.skeleton import JOINT_INDEX, NUM_JOINTS
 
 
 def _fill_reference(frames):
@@ -140,14 +140,21 @@ def _viterbi_reference(J, cfg):
             step[:, a, b] = (((A[b][1:] - A[a][:-1]) ** 2).sum(-1) * both).sum(-1)
     linked = both.any(-1)
     sw, pr = cfg.switch_m ** 2, cfg.prior_m ** 2
-    unary = np.array([0.0, pr])
-    cost = unary.copy()
+    # the side cue: the left hip of each reading against the shoulders' left-right axis
+    ls, rs = JOINT_INDEX["left_shoulder"], JOINT_INDEX["right_shoulder"]
+    unary = np.zeros((T, 2))
+    for t in range(T):
+        axis = J[t, ls] - J[t, rs]
+        proj = float(np.dot(J[t, LEFT_LEG[0]] - J[t, RIGHT_LEG[0]], axis / max(np.linalg.norm(axis), 1e-9)))
+        proj = 0.0 if not np.isfinite(proj) else proj
+        unary[t] = [cfg.side_weight * min(proj, 0.0) ** 2, pr + cfg.side_weight * max(proj, 0.0) ** 2]
+    cost = unary[0].copy()
     back = np.zeros((T, 2), np.int8)
     for t in range(1, T):
         trans = np.array([[0.0, sw], [sw, 0.0]]) if linked[t - 1] else np.zeros((2, 2))
         tot = cost[:, None] + step[t - 1] + trans
         back[t] = tot.argmin(0)
-        cost = tot.min(0) + unary
+        cost = tot.min(0) + unary[t]
     path = np.empty(T, np.int8)
     path[-1] = int(cost.argmin())
     for t in range(T - 1, 0, -1):
@@ -160,12 +167,15 @@ def test_leg_swap_viterbi_on_python_floats_reads_the_same_states():
     t = np.arange(120)[:, None, None] / 30.0
     walk = rng.normal(0, 0.3, (1, NUM_JOINTS, 3)) + 0.05 * np.sin(2 * np.pi * t + rng.uniform(0, 6, (1, NUM_JOINTS, 3)))
     walk[:, list(LEFT_LEG)] += [0.0, 0.15, 0.0]  # the legs apart
+    ls, rs = JOINT_INDEX["left_shoulder"], JOINT_INDEX["right_shoulder"]
+    walk[:, ls] = walk[:, rs] + [0.0, 0.3, 0.0]  # shoulders and hips side by side, left on the left
+    walk[:, LEFT_LEG[0]] = walk[:, RIGHT_LEG[0]] + [0.0, 0.2, 0.0]
     swapped = walk.copy()
     legs, mirror = list(LEFT_LEG + RIGHT_LEG), list(RIGHT_LEG + LEFT_LEG)
     swapped[40:52, legs] = walk[40:52, mirror]
     swapped[70:75] = np.nan  # a gap cuts the chain
     for J in (walk, swapped, swapped + rng.normal(0, 0.01, swapped.shape)):
-        for cfg in (SwapConfig(), SwapConfig(switch_m=0.0, prior_m=0.0)):
+        for cfg in (SwapConfig(), SwapConfig(switch_m=0.0, prior_m=0.0), SwapConfig(side_weight=0.0), SwapConfig(side_weight=5.0)):
             got = leg_swap_states(J, cfg)
             np.testing.assert_array_equal(got, _viterbi_reference(J, cfg))
     assert leg_swap_states(swapped)[40:52].all() and leg_swap_states(swapped).sum() == 12

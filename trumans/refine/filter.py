@@ -21,6 +21,7 @@ from trumans.model.episodes import FeatureLayout, Normalizer
 from trumans.model.nets.denoiser import Denoiser, DenoiserConfig
 
 from trumans.refine.frame import COND_DIM, FRAME_DIM, IMU_FLAG, IMU_R, JOINTS, condition_features, to_frame, window_frame
+from trumans.refine.residual_basis import BASIS_KEY, ResidualBasis
 from trumans.refine.wiener import WIENER_RADIUS, JointWiener
 
 __all__ = ["FilterNetConfig", "filter_denoiser_config", "WindowInputs", "prepare_windows", "category_indices", "sample_x0", "FilterModel", "fit_normalizer",
@@ -274,6 +275,8 @@ def _check_filter(ck: Checkpoint) -> None:
         raise ValueError(f"the filter predicts x0, this checkpoint {ck.diffusion_config.prediction!r}")
     if ck.extra.get("wiener") is not None:
         JointWiener.from_extra(ck.extra["wiener"])  # shapes and finite values
+    if ck.extra.get(BASIS_KEY) is not None:
+        ResidualBasis.from_extra(ck.extra[BASIS_KEY])  # shape, finite, orthonormal
 
 
 # I'm-HOI filter checkpoints: fps; categories, window and overlap (frames) in extra

@@ -24,6 +24,7 @@ from trumans.refine.frame import (FRAME_DIM, IMU_A, IMU_FLAG, IMU_R, JOINTS, OBJ
 from trumans.refine.leg_swap import unswap_leg_frames
 from trumans.refine.outliers import drop_frozen_frames, drop_frozen_joints, drop_object_flips, unflip_object
 from trumans.refine.post_steps import PostStepsConfig, RefinedClip, run_post_steps
+from trumans.refine.residual_basis import BASIS_KEY, ResidualBasis
 from trumans.refine.tracked import TrackedBody
 from trumans.refine.windows import blend_windows, window_starts
 from trumans.model.checkpoint import Checkpoint, load_checkpoint
@@ -85,6 +86,8 @@ class HOIFilter:
         self.normalizer = ckpt.normalizer
         self.categories: list[str] = [str(c) for c in ckpt.extra["categories"]]
         (self.window, self.overlap), self.fps = filter_window(ckpt), float(ckpt.fps)
+        basis = ckpt.extra.get(BASIS_KEY)
+        self.residual_basis = None if basis is None else ResidualBasis.from_extra(basis)
 
     @classmethod
     def load(cls, path: str | Path | None = None, device: str | torch.device = "cpu") -> "HOIFilter":
@@ -133,7 +136,8 @@ class HOIFilter:
             blended = orthonormalize_6d(blend_windows(world, p["starts"], p["Tm"]))
             blended[:, IMU_FLAG] = np.round(np.clip(blended[:, IMU_FLAG], 0, 1))
             body = TrackedBody.read(p["tracked"][:, JOINTS].reshape(p["Tm"], -1, 3), filled=p["filled_joints"])
-            blended = run_post_steps(RefinedClip(blended, p["tracked"], self.fps, c, tracked_body=body), options.post)
+            blended = run_post_steps(RefinedClip(blended, p["tracked"], self.fps, c, tracked_body=body,
+                                                         residual_basis=self.residual_basis), options.post)
             results.append(resample_frames(blended, self.fps, r, num_out=p["T"]))
         return results
 

@@ -56,6 +56,7 @@ from trumans.refine.gate import GateConfig, gate_joints, noise_level
 from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
 from trumans.refine.residual import ResidualConfig, keep_low_frequencies
+from trumans.refine.residual_basis import ResidualBasis
 from trumans.refine.tracked import TrackedBody
 from trumans.skeleton import NUM_JOINTS
 
@@ -70,13 +71,16 @@ class RefinedClip:
     tracked: (T, 235) the tracked input resampled to the same frames (NaN = missing); fps: the
     filter's frames per second; category: the object's category; tracked_body: the tracked joints
     as the input guards read them (gaps filled, cubic-fit residual; ``tracked.TrackedBody``), read
-    once per clip: default read from ``tracked``, and ``dataclasses.replace`` hands it on."""
+    once per clip: default read from ``tracked``, and ``dataclasses.replace`` hands it on;
+    residual_basis: the filter checkpoint's subspace for the input residual (``residual_basis.py``;
+    None: the residual step's plain Gaussian)."""
 
     frames: np.ndarray
     tracked: np.ndarray
     fps: float
     category: str
     tracked_body: TrackedBody | None = None
+    residual_basis: ResidualBasis | None = None
 
     def __post_init__(self) -> None:
         F, R = np.shape(self.frames), np.shape(self.tracked)
@@ -125,7 +129,8 @@ class PostStep:
 
 
 def _residual(clip: RefinedClip, config: ResidualConfig) -> np.ndarray:
-    return _with_body(clip.frames, keep_low_frequencies(_body(clip.frames), clip.tracked_body, clip.fps, config))
+    return _with_body(clip.frames, keep_low_frequencies(_body(clip.frames), clip.tracked_body, clip.fps, config,
+                                                        clip.residual_basis))
 
 
 def _body_drift(clip: RefinedClip, config: DriftConfig) -> np.ndarray:

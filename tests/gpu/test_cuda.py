@@ -15,29 +15,45 @@ pytestmark = [pytest.mark.gpu,
               pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device (pytest -m gpu on a GPU machine)")]
 
 
-def _episode(device: str, guidance: float) -> np.ndarray:
+def _room() -> "SceneGrids":
+    """A 3 m room (no open3d needed): the floor, and a 0.45-m block 0.8 m ahead of the start."""
+    from trumans.scenes.occupancy import OccupancyGrid
+    from trumans.scenes.scene_grids import SceneGrids
+
+    v = 0.05
+    grid = np.zeros((60, 60, 50), bool)
+    grid[:, :, :4] = True  # z < 0
+    grid[46:56, 25:35, 4:13] = True  # x 0.8-1.3 m, y -0.25-0.25 m, up to 0.45 m
+    return SceneGrids(OccupancyGrid(grid, np.array([-1.5 + v / 2, -1.5 + v / 2, -0.2 + v / 2]), v))
+
+
+def _episode(device: str, guidance: float, room: bool = False) -> np.ndarray:
     from trumans.model.checkpoint import load_checkpoint
     from trumans.sample.rollout import start_context
     from trumans.sample.sampler import EpisodeSampler, Goal, SamplerConfig
 
     ck = load_checkpoint(MODELS_DIR / "generator.pt", kind="generator")
-    s = EpisodeSampler(ck, None, SamplerConfig(goal_guidance=guidance), device=device)
+    s = EpisodeSampler(ck, _room() if room else None, SamplerConfig(goal_guidance=guidance), device=device)
     ctx = start_context(ck, np.array([0.0, 0.0]), 0.0)
     labels = np.zeros((1, ck.L_epi, len(ck.vocabulary)), np.float32)
     labels[..., ck.vocabulary.index("walk")] = 1.0
-    return s.episode(ctx, labels, [Goal((1.0, 0.2))], generator=torch.Generator().manual_seed(0))
+    # with the room: a seated target on the last frames (the seat term) and the block (penetration, cleanup)
+    seated = tuple((f, 0.55) for f in range(ck.L_epi - 3, ck.L_epi)) if room else ()
+    goal = Goal((1.0, 0.2), heading=np.pi if room else None, pelvis_z=seated)
+    return s.episode(ctx, labels, [goal], generator=torch.Generator().manual_seed(0))
 
 
-@pytest.mark.parametrize("guidance", [0.0, 45.0])
-def test_sampler_episode_on_cuda_matches_cpu(guidance):
+@pytest.mark.parametrize("guidance,room", [(0.0, False), (45.0, False), (45.0, True)])
+def test_sampler_episode_on_cuda_matches_cpu(guidance, room):
     torch.backends.cuda.matmul.allow_tf32 = False
     torch.backends.cudnn.allow_tf32 = False
-    cpu, gpu = _episode("cpu", guidance), _episode("cuda", guidance)
+    cpu, gpu = _episode("cpu", guidance, room), _episode("cuda", guidance, room)
     assert gpu.shape == cpu.shape and np.isfinite(gpu).all()
     assert np.abs(gpu - cpu).max() < 0.01  # m: the same noise (drawn on the CPU), float rounding apart
 
 
 def test_generate_long_motion_on_cuda():
+    pytest.importorskip("open3d", reason="the default scene's queries need open3d (pip install open3d)")
     from trumans.api import generate
 
     seq = generate(seed=0, device="cuda", max_seconds=20.0)

@@ -14,9 +14,10 @@ from dataclasses import asdict, dataclass
 from typing import Literal
 
 import numpy as np
-import open3d as o3d
 import trimesh
 
+from trumans.scenes._open3d import open3d_module
+from trumans.scenes.raycast import to_o3d_scene
 from trumans.scenes.scene import SceneObject
 from trumans.rotations import yaw_matrix
 
@@ -88,10 +89,8 @@ def normalized_coords(obj: SceneObject, points: np.ndarray) -> np.ndarray:
 
 def closest_on_mesh(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
     """(N, 3) points -> (N, 3) closest points on ``mesh`` (same frame), via open3d ray casting."""
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
-                        o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
-    q = o3d.core.Tensor(np.ascontiguousarray(points, dtype=np.float32))
+    scene, _ = to_o3d_scene(mesh)
+    q = open3d_module().core.Tensor(np.ascontiguousarray(points, dtype=np.float32))
     return scene.compute_closest_points(q, nthreads=1)["points"].numpy().astype(np.float64)
 
 

@@ -25,6 +25,7 @@ from typing import Literal
 import numpy as np
 import torch
 
+from trumans.scenes._open3d import open3d_module
 from trumans.scenes.raycast import to_o3d_scene
 from trumans.track.objects import (dof_limits, dof_value, free_motion, hinge_frame, hinge_motion, one_hand_motion,
                                    rotation_about_axis, rotation_angles)
@@ -266,10 +267,9 @@ def put_down_pose(obj, pose: np.ndarray, supports: list) -> np.ndarray:
     top = hi[2] + 0.3
     ground = 0.0
     if supports:
-        import open3d as o3d
         rc, _ = to_o3d_scene(*supports)
         rays = np.concatenate([xy, np.full((len(xy), 1), top), np.tile([0.0, 0.0, -1.0], (len(xy), 1))], 1)
-        hit = rc.cast_rays(o3d.core.Tensor(rays.astype(np.float32)))["t_hit"].numpy()
+        hit = rc.cast_rays(open3d_module().core.Tensor(rays.astype(np.float32)))["t_hit"].numpy()
         z = top - hit[np.isfinite(hit)]
         ground = max(ground, float(z.max())) if len(z) else ground
     out[2, 3] += ground - lo[2]

@@ -261,7 +261,7 @@ class EpisodeSampler:
                carried: tuple[tuple[Goal, ...], ...] = ()) -> list[GuidanceTerm]:
         """The configured guidance terms (``SamplerConfig.guidance``) that act in this episode."""
         return build_terms(self.config.guidance, GuidanceInputs(cond, tuple(goals), self.layout, self.L, self.k,
-                                                                self.hip_width, self.sdf, tuple(carried)))
+                                                                self.hip_width, self.sdf, tuple(carried), self.device))
 
     def _guided_sample(self, model_fn, mask: torch.Tensor, given: torch.Tensor, terms: list[GuidanceTerm],
                        generator, cond: EpisodeCondition,
@@ -274,10 +274,10 @@ class EpisodeSampler:
         with no ``terms`` no step is guided."""
         d = self.diffusion
         B, L, F = given.shape
-        mean = torch.as_tensor(self.norm.mean, dtype=torch.float32)
-        std = torch.as_tensor(self.norm.std, dtype=torch.float32)
+        mean = torch.as_tensor(self.norm.mean, dtype=torch.float32, device=self.device)
+        std = torch.as_tensor(self.norm.std, dtype=torch.float32, device=self.device)
         x = torch.randn((B, L, F), generator=generator, dtype=torch.float32).to(self.device)
-        rotation, origin = canonical_to_world(cond)
+        rotation, origin = (m.to(self.device) for m in canonical_to_world(cond))
         ts = respaced_timesteps(d.steps, self.config.steps).tolist()
         first_guided = len(ts) - self.config.guided_steps if self.config.guided_steps else 0
         if not terms:

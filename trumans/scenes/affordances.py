@@ -45,13 +45,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import open3d as o3d
 import trimesh
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from trumans.rotations import Y_UP_TO_Z_UP
+from trumans.scenes._open3d import open3d_module
 from trumans.scenes.raycast import bodies_inside, check_mesh, nthreads, split_bodies, to_o3d_scene
 from trumans.scenes.scene import SceneObject
 from trumans.scenes.walkability import WalkMap
@@ -127,14 +127,14 @@ class _Columns:
     xy: np.ndarray = field(default=None)  # (N, 2) column centres
 
 
-def _cast_columns(rc: o3d.t.geometry.RaycastingScene, normals: np.ndarray, trust: bool, lo: np.ndarray,
+def _cast_columns(rc: "open3d.t.geometry.RaycastingScene", normals: np.ndarray, trust: bool, lo: np.ndarray,
                   shape: tuple[int, int], cell: float, z_top: float) -> _Columns:
     nx, ny = shape
     ii, jj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
     xy = lo + cell * np.stack([ii, jj], -1).reshape(-1, 2)
     rays = np.zeros((len(xy), 6), np.float32)
     rays[:, :2], rays[:, 2], rays[:, 5] = xy, z_top, -1.0
-    res = rc.list_intersections(o3d.core.Tensor(rays), nthreads=nthreads())
+    res = rc.list_intersections(open3d_module().core.Tensor(rays), nthreads=nthreads())
     splits = res["ray_splits"].numpy().astype(np.int64)
     t = res["t_hit"].numpy().astype(np.float64)
     prim = res["primitive_ids"].numpy().astype(np.int64)
@@ -288,7 +288,7 @@ def _sides(p: _Patch, rc, wm: WalkMap, main: np.ndarray, cfg: AffordanceConfig) 
         offs = np.array([-0.6, 0.0, 0.6]) * halfw
         origins = np.array([[*(p.centre + o * lat), p.height + dz] for dz in (0.2, 0.4) for o in offs])
         rays = np.concatenate([origins, np.tile([n[0], n[1], 0.0], (len(origins), 1))], 1).astype(np.float32)
-        t = rc.cast_rays(o3d.core.Tensor(rays), nthreads=nthreads())["t_hit"].numpy().astype(np.float64)
+        t = rc.cast_rays(open3d_module().core.Tensor(rays), nthreads=nthreads())["t_hit"].numpy().astype(np.float64)
         beyond = t - half
         hit = beyond <= cfg.back_m
         back_m = float(np.median(beyond[hit])) if hit.any() else np.inf
@@ -403,7 +403,7 @@ def _own_back(p: _Patch, back: _Side, rc) -> bool:
     lat, half, halfw = p.axes[1 - k], p.ext[k] / 2, p.ext[1 - k] / 2
     origins = np.array([[*(p.centre + s * (halfw + 0.1) * lat), p.height + 0.3] for s in (-1.0, 1.0)])
     rays = np.concatenate([origins, np.tile([n[0], n[1], 0.0], (2, 1))], 1).astype(np.float32)
-    t = rc.cast_rays(o3d.core.Tensor(rays), nthreads=nthreads())["t_hit"].numpy().astype(np.float64)
+    t = rc.cast_rays(open3d_module().core.Tensor(rays), nthreads=nthreads())["t_hit"].numpy().astype(np.float64)
     return bool(np.any(t - half > back.back_m + 0.025))  # any: a chair in a corner has a wall on one side
 
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import open3d as o3d
 import trimesh
+
+from trumans.scenes._open3d import open3d_module
 
 from trumans.scenes.raycast import Body, Watertight, bodies_inside, check_mesh, nthreads, split_bodies, to_o3d_scene
 
@@ -94,7 +95,7 @@ class SceneDistance:
                                   list(self.names), np.zeros(batch, bool))
         if self._scene is None:
             self._build_scene()
-        res = self._scene.compute_closest_points(o3d.core.Tensor(flat), nthreads=nthreads())
+        res = self._scene.compute_closest_points(open3d_module().core.Tensor(flat), nthreads=nthreads())
         closest = res["points"].numpy()
         normal = res["primitive_normals"].numpy()
         normal = normal / np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)

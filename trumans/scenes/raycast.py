@@ -22,8 +22,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import open3d as o3d
 import trimesh
+
+from trumans.scenes._open3d import open3d_module
 
 __all__ = ["nthreads", "Watertight", "to_o3d_scene", "Body", "split_parts", "split_bodies", "bodies_inside", "check_mesh"]
 
@@ -68,9 +69,10 @@ def check_mesh(mesh: trimesh.Trimesh, name: str = "mesh") -> None:
 
 
 def to_o3d_scene(*meshes: trimesh.Trimesh | tuple[np.ndarray, np.ndarray]
-                 ) -> tuple[o3d.t.geometry.RaycastingScene, list[int]]:
+                 ) -> tuple["open3d.t.geometry.RaycastingScene", list[int]]:
     """A RaycastingScene with one geometry per mesh (a Trimesh or a (vertices (V, 3) m, faces (F, 3)
     int) pair); returns (scene, geometry ids in order)."""
+    o3d = open3d_module()
     scene = o3d.t.geometry.RaycastingScene()
     ids = []
     for m in meshes:
@@ -85,7 +87,7 @@ def to_o3d_scene(*meshes: trimesh.Trimesh | tuple[np.ndarray, np.ndarray]
 class Body:
     """One solid tested on its own: a ray-casting scene, its AABB (2, 3), vote count, closed flag."""
 
-    scene: o3d.t.geometry.RaycastingScene
+    scene: "open3d.t.geometry.RaycastingScene"
     bounds: np.ndarray  # (2, 3) world, m
     nsamples: int
     closed: bool
@@ -98,7 +100,7 @@ class Body:
         if m.any():
             q = np.ascontiguousarray(points[m], dtype=np.float32)
             if self.closed:
-                t = o3d.core.Tensor(q)
+                t = open3d_module().core.Tensor(q)
                 occ = self.scene.compute_occupancy(t, nthreads=nthreads(), nsamples=self.nsamples).numpy()
                 out[m] = occ > 0.5
             else:  # majority vote of crossing parities over fixed spread directions
@@ -112,7 +114,7 @@ class Body:
         for i in range(0, len(q), chunk):  # chunked: rays take 24 * nsamples bytes per point
             qc = q[i:i + chunk]
             rays = np.concatenate(np.broadcast_arrays(qc[:, None, :], d[None]), axis=-1)  # (n, k, 6)
-            hits = self.scene.count_intersections(o3d.core.Tensor(np.ascontiguousarray(rays)), nthreads=nthreads())
+            hits = self.scene.count_intersections(open3d_module().core.Tensor(np.ascontiguousarray(rays)), nthreads=nthreads())
             votes[i:i + chunk] = ((hits.numpy() % 2) == 1).sum(axis=1) * 2 > self.nsamples
         return votes
 

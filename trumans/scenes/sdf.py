@@ -51,6 +51,7 @@ class SceneSDF:
         self.hi = self.lo + occ.voxel * (torch.as_tensor(grid.shape, dtype=torch.float32) - 1)
         self.voxel = float(occ.voxel)
         self._with_gradient: torch.Tensor | None = None  # (1, 4, z, y, x): the field and its gradient, lazily
+        self._device_copies: dict[tuple[str, str], torch.Tensor] = {}  # (name, device) -> a copy there
         self.floor_z = float(floor_z)
         self._enclosed: SceneSDF | None = None
         self._clearance: dict[tuple[float, float], tuple[np.ndarray, np.ndarray]] = {}
@@ -97,11 +98,21 @@ class SceneSDF:
             self._clearance[key] = (m.astype(np.float64), self.lo[:2].numpy().astype(np.float64))
         return self._clearance[key]
 
+    def _on(self, name: str, tensor: torch.Tensor, device: torch.device) -> torch.Tensor:
+        """``tensor`` on ``device``: itself on its own device, else a copy made once and kept."""
+        if tensor.device == device:
+            return tensor
+        key = (name, str(device))
+        if key not in self._device_copies:
+            self._device_copies[key] = tensor.to(device)
+        return self._device_copies[key]
+
     def __call__(self, points: torch.Tensor) -> torch.Tensor:
         """points (..., 3) world m -> (...,) signed distance, m (outside the grid: the border value)."""
-        u = 2.0 * (points - self.lo) / (self.hi - self.lo) - 1.0  # [-1, 1] per axis, x y z order
+        lo, hi = self._on("lo", self.lo, points.device), self._on("hi", self.hi, points.device)
+        u = 2.0 * (points - lo) / (hi - lo) - 1.0  # [-1, 1] per axis, x y z order
         flat = u.reshape(1, 1, 1, -1, 3)
-        out = F.grid_sample(self.volume.to(points.device), flat, mode="bilinear", padding_mode="border",
+        out = F.grid_sample(self._on("volume", self.volume, points.device), flat, mode="bilinear", padding_mode="border",
                             align_corners=True)
         return out.reshape(points.shape[:-1])
 
@@ -118,8 +129,9 @@ class SceneSDF:
         """points (..., 3) world m -> the signed distance (...,) m and its spatial gradient (..., 3)
         (central differences of the field at the voxel centres, interpolated trilinearly: smooth
         across cells, unlike the derivative of the trilinear field itself)."""
-        u = 2.0 * (points - self.lo) / (self.hi - self.lo) - 1.0
-        out = F.grid_sample(self.gradient_volume().to(points.device), u.reshape(1, 1, 1, -1, 3), mode="bilinear",
+        lo, hi = self._on("lo", self.lo, points.device), self._on("hi", self.hi, points.device)
+        u = 2.0 * (points - lo) / (hi - lo) - 1.0
+        out = F.grid_sample(self._on("gradient", self.gradient_volume(), points.device), u.reshape(1, 1, 1, -1, 3), mode="bilinear",
                             padding_mode="border", align_corners=True)[0, :, 0, 0]  # (4, N)
         return out[0].reshape(points.shape[:-1]), out[1:].T.reshape(points.shape)
 

@@ -71,7 +71,8 @@ class GuidanceInputs:
     frames); goals: one ``Goal`` per sample; layout: the feature layout; L, k: episode and context
     frames; hip_width: m, the body's hip line length (heading term); sdf: the scene's field for the
     penetration term, or None; carried: per sample, goals of the earlier episode whose frame this
-    episode makes again (``SamplerConfig.overlap``), ``frame`` counted in this episode (pelvis too)."""
+    episode makes again (``SamplerConfig.overlap``), ``frame`` counted in this episode (pelvis too);
+    device: the sampler's torch device."""
 
     cond: EpisodeCondition
     goals: tuple[Goal, ...]
@@ -81,6 +82,7 @@ class GuidanceInputs:
     hip_width: float
     sdf: SceneSDF | None
     carried: tuple[tuple[Goal, ...], ...] = ()  # per sample: the earlier episode's goals due in this one's frames
+    device: torch.device | str = "cpu"  # where the sampler's tensors live: the terms build theirs there
 
 
 class GuidanceTerm(Protocol):

@@ -79,7 +79,8 @@ class GoalTerm:
             for g in goals:
                 if g.guide:
                     add(b, g, g.frame % L, canonical(b, g.point))
-        return cls(targets) if targets else None
+        dev = inputs.device
+        return cls([(b, f, cols, W.to(dev), t.to(dev)) for b, f, cols, W, t in targets]) if targets else None
 
     def loss(self, prediction: Prediction) -> torch.Tensor:
         loss = prediction.x0.new_zeros(())

@@ -63,9 +63,9 @@ class SeatTerm:
         targets = []
         for b, g in enumerate(inputs.goals):
             if g.pelvis_z:
-                frames = torch.as_tensor([f % inputs.L for f, _ in g.pelvis_z], dtype=torch.long)
-                z = torch.as_tensor([h for _, h in g.pelvis_z], dtype=torch.float32)
-                targets.append((b, frames, col, config.weight * torch.eye(len(z)), config.weight * z))
+                frames = torch.as_tensor([f % inputs.L for f, _ in g.pelvis_z], dtype=torch.long, device=inputs.device)
+                z = torch.as_tensor([h for _, h in g.pelvis_z], dtype=torch.float32, device=inputs.device)
+                targets.append((b, frames, col, config.weight * torch.eye(len(z), device=inputs.device), config.weight * z))
         return cls(targets) if targets else None
 
     def loss(self, prediction: Prediction) -> torch.Tensor:

@@ -182,3 +182,32 @@ def carried_box_clip(T: int = 40, seed: int = 0, imu: bool = True) -> Sequence:
         ob.imu_acc = simulate_imu_acc(pose[:, :3, 3], 30.0).astype(np.float32)
     return Sequence(joints=joints, fps=30.0, rotations=matrix_to_6d(R).astype(np.float32), root_pos=root,
                     objects={"box_0": ob, "lamp": ObjectTrack(pose=np.tile(np.eye(4), (T, 1, 1)), category="lamp")})
+
+
+def seated(seconds: float = 8.0, fps: float = 30.0) -> np.ndarray:
+    """(T, 24, 3): a body sitting on a 0.45 m seat: thighs horizontal, shins vertical, trunk upright."""
+    from trumans.skeleton import JOINT_INDEX as J
+
+    j = REST_JOINTS.copy()
+    hip_z, knee_z = j[J["left_hip"], 2], j[J["left_knee"], 2]
+    thigh = hip_z - knee_z
+    drop = hip_z - 0.5
+    up = [J[n] for n in ("pelvis", "left_hip", "right_hip", "spine1", "spine2", "spine3", "neck", "head", "left_collar",
+                         "right_collar", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist",
+                         "right_wrist", "left_index1", "right_index1")]
+    j[up, 2] -= drop
+    for side in ("left", "right"):
+        for n in ("knee", "ankle", "foot"):
+            j[J[f"{side}_{n}"], 0] += thigh
+        j[J[f"{side}_knee"], 2] = j[J[f"{side}_hip"], 2]
+    return np.repeat(j[None], int(seconds * fps), 0)
+
+
+def sit_stand_take(fps: float = 30.0) -> np.ndarray:
+    """(T, 24, 3) z-up m: 1.5 s standing (the rest pose), a 0.8-s cosine blend into ``seated``'s pose
+    (from frame round(1.5 fps)), 3 s seated, a 0.8-s blend back, 1.5 s standing."""
+    stand, sit = REST_JOINTS[None], seated(1.0)[:1]
+    n, still = int(0.8 * fps), int(round(1.5 * fps))
+    w = (0.5 - 0.5 * np.cos(np.linspace(0, np.pi, n)))[:, None, None]
+    return np.concatenate([np.repeat(stand, still, 0), stand + w * (sit - stand), np.repeat(sit, 2 * still, 0),
+                           sit + w * (stand - sit), np.repeat(stand, still, 0)]).astype(np.float32)

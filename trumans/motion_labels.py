@@ -4,8 +4,11 @@ transitions between them, named with the synthetic vocabulary (``trumans.synth.v
 Per frame (z up, metres): hip height (the hip joints' midpoint, the same in every skeleton convention)
 against the standing hip height (where the body stands straight),
 hip ground speed, heading rate, trunk tilt (hips -> neck against vertical) and thigh angle.
-States are smoothed with a 0.5 s majority window; the frames between standing and a sitting /
-lying state become ``sit_down`` / ``stand_up`` / ``lie_down`` / ``get_up``.
+States are smoothed with a 0.5 s majority window. Each posture change around a sitting / lying run is
+then labelled whole, as the procedural takes label it: ``sit_down`` / ``lie_down`` from the last upright
+frame (hips at >= 97 % of the standing height) until the hips settle at the held height, ``stand_up``
+/ ``get_up`` from the last settled frame until the hips are upright again (issue 35: the sit state
+began at 88 % of the standing height, so ``sit_down`` held 8 % of the real takes' hip drop).
 """
 from __future__ import annotations
 
@@ -20,6 +23,8 @@ MOTION_STATES: tuple[str, ...] = ("stand", "walk", "turn", "sit_down", "sit", "s
 J = JOINT_INDEX
 WALK_SPEED = 0.35  # m/s, pelvis ground speed (0.5 s mean) above which the body walks
 TURN_RATE = np.deg2rad(45.0)  # rad/s heading rate above which a body that does not walk turns
+UPRIGHT = 0.97  # hips at this share of the standing hip height or above: the body is upright
+SETTLED = 0.05  # hips within this share of the drop (or 2 cm) of their held height: settled
 
 
 def body_features(joints: np.ndarray, fps: float) -> dict[str, np.ndarray]:
@@ -65,20 +70,35 @@ def label_states(joints: np.ndarray, fps: float) -> np.ndarray:
     base[sit] = MOTION_STATES.index("sit")
     base[lie] = MOTION_STATES.index("lie")
     base = _majority(base, max(1, int(round(0.5 * fps))))
-    upright = rel > 0.92
-    longest = int(round(3 * fps))  # a transition lasts at most 3 s
-    core = base.copy()
-    held = np.isin(core, [MOTION_STATES.index("sit"), MOTION_STATES.index("lie")])
+    return _transitions(base, f["h"], float(f["h_stand"]), fps)
+
+
+def _transitions(base: np.ndarray, h: np.ndarray, h_stand: float, fps: float) -> np.ndarray:
+    """Relabel the posture changes around each held ``sit`` / ``lie`` run of ``base`` (T,) as the
+    transition states, each covering the whole change of hip height ``h`` (T,) m: ``sit_down`` /
+    ``lie_down`` from the last upright frame (hips at >= ``UPRIGHT`` of ``h_stand``) until the hips
+    settle at the held height (the run's median, within ``SETTLED`` of the drop or 2 cm);
+    ``stand_up`` / ``get_up`` from the last settled frame until the hips are upright again. A
+    transition reaches at most 3 s outside its held run and never into another held run."""
+    base = base.copy()
+    T = len(base)
+    upright = h >= UPRIGHT * h_stand
+    longest = int(round(3 * fps))
+    held = np.isin(base, [MOTION_STATES.index("sit"), MOTION_STATES.index("lie")])
     for state, before, after in (("sit", "sit_down", "stand_up"), ("lie", "lie_down", "get_up")):
-        for s, e in segments(core == MOTION_STATES.index(state)):
+        for s, e in segments(base == MOTION_STATES.index(state)):
+            h_held = float(np.median(h[s:e]))
+            tol = max(0.01, SETTLED * (h_stand - h_held))
+            off = np.abs(h[s:e] - h_held)
+            settled = np.flatnonzero(off <= max(tol, off.min())) + s
             i = s
             while i > max(0, s - longest) and not upright[i - 1] and not held[i - 1]:
                 i -= 1
-            base[i:s] = MOTION_STATES.index(before)
+            base[i:settled[0]] = MOTION_STATES.index(before)
             i = e
             while i < min(T, e + longest) and not upright[i] and not held[i]:
                 i += 1
-            base[e:i] = MOTION_STATES.index(after)
+            base[settled[-1] + 1:i] = MOTION_STATES.index(after)
     return base
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import standing_body
+from helpers import sit_stand_take, standing_body
 from trumans.actions import ActionInterval, labels_from_intervals
 from trumans.dataset import content_hash, write_index
 from trumans.sequence import Sequence, save_sequence
@@ -87,3 +87,19 @@ def test_a_dataset_splits_real_and_procedural_takes(tmp_path):
         label_timing.dataset_timing(tmp_path, "nope")
     with pytest.raises(FileNotFoundError, match="index.json"):
         label_timing.dataset_timing(tmp_path / "sequences")
+
+
+def test_the_corpus_stored_states_against_the_labeller(tmp_path):
+    from trumans.mocap_corpus import MocapClip, write_corpus
+    from trumans.motion_labels import MOTION_STATES
+
+    J = sit_stand_take(FPS)
+    old = np.zeros(len(J), np.int64)  # a corpus written with a short sit_down: 4 frames at the drop's start
+    old[49:53] = MOTION_STATES.index("sit_down")
+    old[53:-60] = MOTION_STATES.index("sit")
+    path = tmp_path / "corpus.npz"
+    write_corpus(path, [MocapClip("01_01", "01", "sit", "train", FPS, J, old)], {})
+    res = label_timing.corpus_timing("train", path)
+    assert res["corpus"]["sit_down"]["done"][-1] < 0.5
+    assert res["relabelled"]["sit_down"]["done"][-1] > 0.85 and res["relabelled"]["stand_up"]["count"] == 1
+    assert label_timing.corpus_timing("test", path) == {"corpus": {}, "relabelled": {}}

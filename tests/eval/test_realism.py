@@ -12,7 +12,7 @@ from trumans.eval.realism import (STATISTICS, RealismClip, bootstrap_range, clip
 from trumans.skeleton import JOINT_INDEX as J
 from trumans.skeleton import REST_JOINTS
 
-from helpers import TEST_DATA
+from helpers import TEST_DATA, seated, sit_stand_take
 
 FPS = 30.0
 
@@ -33,23 +33,6 @@ def walker(seconds=6.0, speed=1.0, cadence=120.0, bob=0.02):
     return j
 
 
-def seated(seconds=8.0):
-    """A body sitting on a 0.45 m seat: thighs horizontal, shins vertical, trunk upright."""
-    j = REST_JOINTS.copy()
-    hip_z, knee_z = j[J["left_hip"], 2], j[J["left_knee"], 2]
-    thigh = hip_z - knee_z
-    drop = hip_z - 0.5
-    up = [J[n] for n in ("pelvis", "left_hip", "right_hip", "spine1", "spine2", "spine3", "neck", "head", "left_collar",
-                         "right_collar", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist",
-                         "right_wrist", "left_index1", "right_index1")]
-    j[up, 2] -= drop
-    for side in ("left", "right"):
-        for n in ("knee", "ankle", "foot"):
-            j[J[f"{side}_{n}"], 0] += thigh
-        j[J[f"{side}_knee"], 2] = j[J[f"{side}_hip"], 2]
-    return np.repeat(j[None], int(seconds * FPS), 0)
-
-
 # ------------------------------------------------------------------------------------ states
 
 def test_states_of_a_walker_and_a_sitter():
@@ -61,6 +44,23 @@ def test_states_of_a_walker_and_a_sitter():
     lying[..., [0, 2]] = lying[..., [2, 0]]  # body along x, at the rest pose's height scale
     lying[..., 2] = 0.1 + 0.05 * (lying[..., 2] > lying[:, :1, 2])
     assert (label_states(lying, FPS) == MOTION_STATES.index("lie")).all()
+
+
+def test_transition_labels_cover_the_whole_posture_change():
+    """A stand -> sit -> stand take with 0.8-s cosine transitions: ``sit_down`` and ``stand_up`` hold
+    the whole hip drop and rise (each label starts with the hips within 10 % of the change from where
+    they were and ends within 10 % of where they go), ``sit`` only the settled frames."""
+    take, (n, drop_start) = sit_stand_take(FPS), (int(0.8 * FPS), 45)
+    st = label_states(take, FPS)
+    hips = 0.5 * (take[:, J["left_hip"], 2] + take[:, J["right_hip"], 2])
+    top, low = hips[0], hips[drop_start + n + 10]
+    for name, frm, to in (("sit_down", top, low), ("stand_up", low, top)):
+        runs = segments(st == MOTION_STATES.index(name))
+        assert len(runs) == 1, (name, runs)
+        s, e = runs[0]
+        assert abs(hips[s] - frm) < 0.1 * abs(top - low) and abs(hips[e - 1] - to) < 0.1 * abs(top - low), (name, s, e)
+    sitting = np.flatnonzero(st == MOTION_STATES.index("sit"))
+    assert np.abs(hips[sitting] - low).max() < 0.05 * (top - low)
 
 
 def test_segments():

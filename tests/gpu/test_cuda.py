@@ -86,3 +86,10 @@ def test_refine_on_cuda_matches_cpu():
     cpu = HOIFilter.load(None, device="cpu").refine_frames(f, 30.0, "box", opts)
     gpu = HOIFilter.load(None, device="cuda").refine_frames(f, 30.0, "box", opts)
     assert np.isfinite(gpu).all() and np.abs(gpu - cpu).max() < 0.01
+
+
+def test_train_bench_on_cuda_in_bf16():
+    from trumans.train.bench import bench_steps
+
+    r = bench_steps("cpu-small", steps=3, batch_size=4, device="cuda", precision="bf16")
+    assert r["device"].startswith("cuda") and r["finite"] and r["seconds_per_step"] > 0

@@ -17,9 +17,13 @@ from scipy.ndimage import uniform_filter1d
 
 from .skeleton import JOINT_INDEX
 
-__all__ = ["MOTION_STATES", "body_features", "label_states", "segments"]
+__all__ = ["MOTION_STATES", "MOTION_TYPES", "body_features", "label_states", "motion_types", "segments"]
 
 MOTION_STATES: tuple[str, ...] = ("stand", "walk", "turn", "sit_down", "sit", "stand_up", "lie_down", "lie", "get_up")
+# The coarser motion types results are reported by (issue 36): groups of states, and picking up (from labels).
+MOTION_TYPES: tuple[str, ...] = ("walk", "sit", "lie", "get_up", "pick_up")
+_STATES_OF = {"walk": ("walk", "turn"), "sit": ("sit_down", "sit", "stand_up"), "lie": ("lie_down", "lie"),
+              "get_up": ("get_up",)}
 J = JOINT_INDEX
 WALK_SPEED = 0.35  # m/s, pelvis ground speed (0.5 s mean) above which the body walks
 TURN_RATE = np.deg2rad(45.0)  # rad/s heading rate above which a body that does not walk turns
@@ -115,3 +119,16 @@ def segments(mask: np.ndarray) -> list[tuple[int, int]]:
     m = np.concatenate([[False], np.asarray(mask, bool), [False]])
     d = np.flatnonzero(np.diff(m.astype(np.int8)))
     return list(zip(d[::2].tolist(), d[1::2].tolist()))
+
+
+def motion_types(joints: np.ndarray, fps: float, pick_up: np.ndarray | None = None) -> np.ndarray:
+    """(T, len(MOTION_TYPES)) bool per frame: walk / sit / lie / get_up from the body's own states
+    (``label_states``, the same rule for real and synthetic motion), pick_up from ``pick_up`` (T,) bool
+    (a clip's description or action labels; None: never)."""
+    s = np.asarray(label_states(joints, fps))
+    out = np.zeros((len(s), len(MOTION_TYPES)), bool)
+    for i, t in enumerate(MOTION_TYPES[:-1]):
+        out[:, i] = np.isin(s, [MOTION_STATES.index(n) for n in _STATES_OF[t]])
+    if pick_up is not None:
+        out[:, -1] = np.asarray(pick_up, bool)
+    return out

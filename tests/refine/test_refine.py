@@ -426,3 +426,43 @@ def test_a_track_never_observed_is_refused_not_invented(tmp_path):
     f[:, 216:225] = np.nan  # the object is never seen
     with pytest.raises(ValueError, match="object's pose is missing \\(NaN\\) on every frame"):
         filt.refine_frames(f, 30.0, "box")
+
+
+def test_window_motion_types_and_the_balanced_batch(tmp_path):
+    """Windows know their body motion types from the joints; balance_types draws that share of a
+    batch type by type (only windows of a present type), and 0 leaves the uniform draw unchanged."""
+    from helpers import sit_stand_take
+    from trumans.refine.data import window_motion_types
+    from trumans.train.tasks import make_task
+
+    J = sit_stand_take().astype(np.float64)  # stand 1.5 s, sit down, sit 3 s, stand up, stand
+    human = np.concatenate([J.reshape(len(J), -1), np.zeros((len(J), ROTATIONS.stop - 72))], -1).astype(np.float32)
+    starts = np.arange(0, len(J) - 32 + 1, 16)
+    fw = FilterWindows(human=[human], objects=[np.zeros((len(J), 19), np.float32)], offsets=np.zeros((1, 24, 3)),
+                       windows=np.stack([np.zeros_like(starts), starts, np.zeros_like(starts)], -1),
+                       categories=np.zeros(len(starts), np.int64), category_names=["box"], files=["x"], window=32,
+                       fps=30.0)
+    types = window_motion_types(fw, min_frames=8)
+    assert types.shape == (len(starts), 4) and not types[:, 0].any() and not types[:, 2:].any()  # no walk, lie, get-up
+    sits = types[:, 1]
+    assert not sits[0] and sits[len(starts) // 2] and not sits[-1]  # standing at both ends, seated in the middle
+    assert not window_motion_types(fw, min_frames=33).any()  # more frames than a window holds
+
+    data = _dataset(tmp_path / "data")
+    over = {"net": NET.to_dict(), "diffusion": DIFF.to_dict(), "train": {"batch_size": 8},
+            "filter": {"val_windows": 2, "val_sampling_steps": 2, "stride": 4, "wiener_windows": 8,
+                       "wiener_real_windows": 8}}
+    plain = make_task("filter", overrides=over)
+    plain.setup(data, tmp_path / "a", is_main=True, barrier=lambda: None, prev=None, progress=False)
+    zero = make_task("filter", overrides={**over, "filter": {**over["filter"], "balance_types": 0.0}})
+    zero.setup(data, tmp_path / "b", is_main=True, barrier=lambda: None, prev=None, progress=False)
+    torch.testing.assert_close(plain.batch(3, 0, 1).x0, zero.batch(3, 0, 1).x0)  # 0 = the uniform draw
+    full = make_task("filter", overrides={**over, "filter": {**over["filter"], "balance_types": 1.0}})
+    full.setup(data, tmp_path / "c", is_main=True, barrier=lambda: None, prev=None, progress=False)
+    present = window_motion_types(full.train_data).any(0)
+    assert present.any()
+    for step in range(3):
+        b = full.batch(step, 0, 1)
+        assert b.x0.shape == (8, 16, FRAME_DIM) and torch.isfinite(b.x0).all()
+    with pytest.raises(ValueError, match="balance_types is a share"):
+        make_task("filter", overrides={**over, "filter": {**over["filter"], "balance_types": 1.5}})

@@ -49,15 +49,13 @@ from scipy.signal import savgol_filter
 
 from trumans.skeleton import FOOT_JOINTS, JOINT_INDEX, NUM_JOINTS, PARENTS, SPINE
 
+from trumans.motion_labels import MOTION_TYPES, motion_types
 from trumans.refine.frame import fill_missing_joints
 
 __all__ = ["MOTION_TYPES", "BodyClip", "FIGURES", "translation_aligned_errors", "limb_errors", "clip_errors",
            "gauss_smooth", "savgol_smooth", "tune_smoother", "motion_types", "real_body_clips", "synthetic_body_clips",
            "corrupt_family", "family_names", "benchmark"]
 
-MOTION_TYPES: tuple[str, ...] = ("walk", "sit", "lie", "get_up", "pick_up")
-_STATES_OF = {"walk": ("walk", "turn"), "sit": ("sit_down", "sit", "stand_up"), "lie": ("lie_down", "lie"),
-              "get_up": ("get_up",)}
 FIGURES: tuple[str, ...] = ("mpjpe_mm", "tmpjpe_mm", "limb_mm", "accel_mm", "skate_cm_s", "under_floor", "under_floor_pct",
                             "ra_mpjpe_mm", "bone_dev_pct")
 GAUSS_SIGMAS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0)
@@ -172,21 +170,6 @@ def tune_smoother(kind: str, pairs: list[tuple[np.ndarray, np.ndarray]]) -> floa
     smooth, grid = {"gauss": (gauss_smooth, GAUSS_SIGMAS), "savgol": (savgol_smooth, SAVGOL_WINDOWS)}[kind]
     err = {p: np.mean([translation_aligned_errors(smooth(tr, p), cl).mean() for tr, cl in pairs]) for p in grid}
     return min(err, key=err.get)
-
-
-def motion_types(joints: np.ndarray, fps: float, pick_up: np.ndarray | None = None) -> np.ndarray:
-    """(T, len(MOTION_TYPES)) bool per frame: walk / sit / lie / get_up from the body's own states
-    (``trumans.motion_labels.label_states``, the same rule for real and synthetic motion), pick_up
-    from ``pick_up`` (T,) bool (a clip's description or action labels; None: never)."""
-    from trumans.motion_labels import MOTION_STATES, label_states
-
-    s = np.asarray(label_states(joints, fps))
-    out = np.zeros((len(s), len(MOTION_TYPES)), bool)
-    for i, t in enumerate(MOTION_TYPES[:-1]):
-        out[:, i] = np.isin(s, [MOTION_STATES.index(n) for n in _STATES_OF[t]])
-    if pick_up is not None:
-        out[:, -1] = np.asarray(pick_up, bool)
-    return out
 
 
 def real_body_clips(split: str, max_clips: int | None = None, seed: int = 0) -> list[BodyClip]:

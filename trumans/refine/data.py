@@ -20,14 +20,16 @@ from trumans.dataset import Dataset
 from trumans.refine.corrupt import add_clean_imu
 from trumans.refine.frame import FRAME_DIM, IMU_FLAG, OBJ_T, ROTATIONS, pack_frames
 from trumans.ik.fit import offsets_from_joints
+from trumans.motion_labels import MOTION_TYPES, motion_types
 from trumans.resample import resample_sequence
 from trumans.rotations import matrix_to_6d, sixd_to_matrix
 from trumans.sequence import Sequence
 from trumans.skeleton import WRISTS
 
-__all__ = ["FilterWindows", "load_filter_windows", "window_objects"]
+__all__ = ["FilterWindows", "load_filter_windows", "window_motion_types", "window_objects"]
 
 _WRISTS = list(WRISTS)
+_BODY_TYPES = MOTION_TYPES[:4]  # walk, sit, lie, get_up: read from the body itself
 _MOVE_MIN_M = 0.02
 _M_PER_RAD = 0.5
 
@@ -88,6 +90,23 @@ def window_objects(seq: Sequence, starts: np.ndarray, length: int) -> list[str]:
     dist = np.linalg.norm(t[:, :, :, None] - wr[None], axis=-1).min((-1, -2))  # (K, N)
     pick = np.where(motion.max(0) >= _MOVE_MIN_M, motion.argmax(0), dist.argmin(0))
     return [names[k] for k in pick]
+
+
+def window_motion_types(data: FilterWindows, min_frames: int = 8) -> np.ndarray:
+    """(N, 4) bool: whether each window holds at least ``min_frames`` frames of each body motion type
+    (walk, sit, lie, get_up: ``MOTION_TYPES[:4]``; ``trumans.motion_labels.motion_types`` on each
+    sequence's whole joints, so a window's labels see the motion around it)."""
+    per_seq = [motion_types(h[:, :72].reshape(len(h), 24, 3).astype(np.float64), data.fps)[:, :len(_BODY_TYPES)]
+               for h in data.human]
+    out = np.zeros((len(data.windows), len(_BODY_TYPES)), bool)
+    for s_idx, t in enumerate(per_seq):
+        rows = np.flatnonzero(data.windows[:, 0] == s_idx)
+        if not len(rows):
+            continue
+        c = np.concatenate([np.zeros((1, len(_BODY_TYPES)), np.int64), np.cumsum(t, 0)])  # (T + 1, 4)
+        st = data.windows[rows, 1]
+        out[rows] = (c[st + data.window] - c[st]) >= min_frames
+    return out
 
 
 def load_filter_windows(data_dir: str, split: str, window: int, stride: int, fps: float,

@@ -141,14 +141,16 @@ def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stan
     stand = standing_state(offsets, _vec2(stand_pos, "stand_pos"), sit_yaw)
     seated = seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)
     (rot0, root0), (rot1, root1) = (seated, stand) if up else (stand, seated)
-    T = int(round((rng.uniform(1.7, 2.5) if up else rng.uniform(1.5, 2.1)) * fps)) + 1
+    # Sit-down 2.2-3.0 s: other labs' sitters lower their hips 10 -> 90 % in 0.87-2.10 s and move them back
+    # at 0.19-0.40 m/s at most (issue 35); 1.5-2.1 s gave 0.73-0.93 s and 0.43-0.56 m/s.
+    T = int(round((rng.uniform(1.7, 2.5) if up else rng.uniform(2.2, 3.0)) * fps)) + 1
     s = np.linspace(0.0, 1.0, T)
     if up:  # lean forward first (pelvis still on the seat), then rise as the trunk straightens
         peak = rng.uniform(0.3, 0.4)
         w_pose, w_xy, w_z = ease((s - 0.15) / 0.85), ease((s - 0.1) / 0.7), ease((s - peak + 0.05) / (1.05 - peak))
         bump = np.where(s < peak, ease(s / peak), 1.0 - ease((s - peak) / (1.0 - peak)))
     else:  # hips back and down while the trunk hinges forward
-        w_pose, w_xy, w_z = ease(s), ease(s / 0.85), ease((s - 0.08) / 0.92)
+        w_pose, w_xy, w_z = ease(s), ease(s), ease((s - 0.08) / 0.92)  # hips back over the whole descent
         bump = np.sin(np.pi * s) ** 1.5
     root = np.empty((T, 3))
     root[:, :2] = root0[:2] + w_xy[:, None] * (root1[:2] - root0[:2])
@@ -161,10 +163,11 @@ def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stan
     rot[:, j] = euler_to_matrix(np.stack([z, 0.3 * lean, z], -1), "ZYX") @ rot[:, j]
     # Arms: brought forward with the trunk so the hands stay near the thighs (``arm_swing`` 1), a
     # little further on some takes; 0 leaves them hanging from the leaning trunk (towards the seat).
-    arms = arm_swing * rng.uniform(0.2, 0.6)
-    for side in ("left", "right"):
+    # Each arm its own share (people are not mirror-symmetric: real wrist heights differ ~1.5 cm).
+    arms = arm_swing * rng.uniform(0.2, 0.6) * rng.uniform(0.75, 1.25, 2)
+    for side, a_side in zip(("left", "right"), arms):
         j = JOINT_INDEX[f"{side}_shoulder"]
-        rot[:, j] = euler_to_matrix(np.stack([z, -arms * lean, z], -1), "ZYX") @ rot[:, j]
+        rot[:, j] = euler_to_matrix(np.stack([z, -a_side * lean, z], -1), "ZYX") @ rot[:, j]
     a, b = (0.6, 0.95) if up else (0.05, 0.4)  # the staggered foot's step (fractions of the transfer)
     u = np.clip((s - a) / (b - a), 0.0, 1.0)
     w = (1.0 - ease(u) if up else ease(u))[:, None, None]  # 0: standing places, 1: seated ones
@@ -191,7 +194,7 @@ def sit_down(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stand
     facing away from it) to ``seated_state(offsets, seat_center, sit_yaw, stand_pos, stagger=stagger)``:
     hips go back and down with a forward hip-hinge lean, the arms come forward with the trunk
     (``arm_swing`` scales that, e.g. 0 at a desk), feet planted (leg IK) but for the staggered foot's
-    short step early on. Label 'sit_down'; about 1.5-2.1 s."""
+    short step early on. Label 'sit_down'; about 2.2-3.0 s."""
     return _transfer(offsets, seat_center, sit_yaw, stand_pos, rng, fps, arm_swing, up=False, stagger=stagger)
 
 

@@ -28,7 +28,7 @@ from torch import nn
 from trumans.version import __version__
 from trumans.dataset import Dataset
 from trumans.refine.corrupt import CorruptionConfig, corrupt, vary_skeleton
-from trumans.refine.data import FilterWindows, load_filter_windows
+from trumans.refine.data import FilterWindows, load_filter_windows, window_motion_types
 from trumans.refine.filter import (FilterModel, FilterNetConfig, build_filter_model, filter_denoiser_config, fit_normalizer,
                                 prepare_windows, sample_x0)
 from trumans.refine.frame import (FRAME_DIM, JOINTS, OBJ_R, OBJ_T, fill_missing, pack_frames, resample_frames, to_frame,
@@ -88,8 +88,11 @@ class FilterSection:
     wiener_windows: int = 1500
     wiener_real_windows: int = 1500
     categories: tuple[str, ...] = ()
+    balance_types: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.balance_types <= 1.0:
+            raise ValueError(f"balance_types is a share of the batch in [0, 1], got {self.balance_types}")
         if self.stride < 1 or self.val_windows < 1 or self.val_sampling_steps < 1 or self.wiener_windows < 1:
             raise ValueError("stride, val_windows, val_sampling_steps and wiener_windows must be >= 1")
         if self.wiener_real_windows < 0:
@@ -231,6 +234,8 @@ class FilterTask:
         val = load_filter_windows(data_dir, "val", net.window, net.window, net.fps, self.categories)
         if fc.categories:
             self.train_data, val = self.train_data.only(fc.categories), val.only(fc.categories)
+        self.type_pools = ([np.flatnonzero(col) for col in window_motion_types(self.train_data).T if col.any()]
+                           if fc.balance_types > 0 else [])
         self.seed = seed
         if prev is not None:
             self.normalizer = prev.normalizer
@@ -281,6 +286,10 @@ class FilterTask:
         rng = np.random.default_rng([self.seed, step, rank])
         per = max(1, self.config.train.batch_size // world)
         idx = rng.integers(0, len(self.train_data), per)
+        if self.type_pools:  # balance_types: this share drawn type by type (no extra draws when 0)
+            for b in np.flatnonzero(rng.random(per) < self.config.filter.balance_types):
+                pool = self.type_pools[rng.integers(len(self.type_pools))]
+                idx[b] = pool[rng.integers(len(pool))]
         return make_batch(self.train_data, idx, self.normalizer, self.config.corruption, rng,
                           progress=step / max(self.config.train.steps, 1))
 

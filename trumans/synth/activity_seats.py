@@ -10,7 +10,7 @@ from trumans.contacts.rule import JOINT_RADIUS
 from trumans.skeleton import SEAT, forward_kinematics
 from . import hands, lying, posture
 from .motion import Motion, yaw_of
-from .moves import MAX_PENETRATION, approach, check_clean, idle, walk_to, world_point
+from .moves import MAX_PENETRATION, approach, check_clean, walk_to, world_point
 from .room import RoomContext
 from .take import Skip, TakeState
 
@@ -78,7 +78,7 @@ def _sit_on(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
             seated: Callable[[np.ndarray, float, np.ndarray, posture.Stagger], None] | None = None,
             near: np.ndarray | None = None) -> None:
     """Walk to the seat ``name``, sit down, sit (``seated(seat, yaw, stand, stagger)``, default an
-    idle), stand up, stand a moment; one foot staggered from the sit-down to the stand-up."""
+    idle), stand up; one foot staggered from the sit-down to the stand-up."""
     obj = ctx.scene.objects[name]
     pose = st.poses.get(name, obj.pose)
     seat, yaw, stand, stagger = _seat(obj, pose, st.offsets, rng, near)
@@ -94,7 +94,6 @@ def _sit_on(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str
     else:
         seated(seat, yaw, stand, stagger)
     st.append(_posture_change(ctx, st, rng, posture.stand_up, args, "stand_up", stagger))
-    st.append(idle(ctx, st, rng, 0.4, 1.5))  # people stand a moment before walking off (real 0.37-1.47 s, issue 35)
 
 
 def run_sit(ctx: RoomContext, st: TakeState, rng: np.random.Generator, name: str) -> None:

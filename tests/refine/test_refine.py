@@ -127,7 +127,7 @@ def test_refine_sequence_and_cli(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert '"object": "box_0"' in printed
     assert json.loads(printed.strip().splitlines()[-1])["post_steps"] == ["residual", "body_drift", "foot_lock", "rest_pooling",
-                                                                            "hand_link", "gate", "bones", "floor"]
+                                                                            "hand_link", "gate", "smoother", "bones", "floor"]
     # same seed, same output
     filt = HOIFilter.load(ck)
     a, _ = filt.refine_sequence(s, options=RefineOptions(num_steps=2, eta=1.0, seed=3))
@@ -406,7 +406,7 @@ def test_post_steps_follow_the_options_and_the_category():
 
     d = PostStepsConfig()
     hinge_any = replace(d, hinge=replace(d.hinge, any_category=True))
-    guards = ["gate", "bones", "floor"]
+    guards = ["gate", "smoother", "bones", "floor"]
     first = ["residual", "body_drift", "foot_lock"]
     assert RefineOptions().post_steps("door") == first + ["rest_pooling", "hand_link", "hinge"] + guards
     assert RefineOptions().post_steps("cup") == first + ["rest_pooling", "hand_link"] + guards
@@ -415,7 +415,7 @@ def test_post_steps_follow_the_options_and_the_category():
                          ).post_steps("door") == first + ["rest_pooling"] + guards
     assert RefineOptions(post=hinge_any.switched(rest_pooling=False)).post_steps("door") == first + guards  # the hinge needs pooled rests
     assert RefineOptions(post=d.switched(residual=False, body_drift=False, foot_lock=False, rest_pooling=False, gate=False,
-                                         bones=False, floor=False)).post_steps("door") == []
+                                         smoother=False, bones=False, floor=False)).post_steps("door") == []
 
 
 def test_a_track_never_observed_is_refused_not_invented(tmp_path):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from trumans.refine.body_drift import DriftConfig, stance_mask
-from trumans.refine.foot_lock import LockConfig, lock_feet
+from trumans.refine.foot_lock import LockConfig, lock_feet, stance_corrections
 from trumans.refine.frame import FRAME_DIM, JOINTS, OBJ_T, ROTATIONS
 from trumans.rotations import axis_angle_to_matrix, matrix_to_6d, sixd_to_matrix
 from trumans.skeleton import JOINT_INDEX, LEG_CHAINS, forward_kinematics, rest_offsets
@@ -41,7 +41,7 @@ def test_a_wandering_planted_foot_is_pinned_and_the_leg_follows_consistently():
     f, R, root, off = _standing()
     J0 = _joints(f)
     assert np.ptp(J0[:, LA], axis=0).max() > 0.01  # the foot wanders by over 1 cm
-    out = lock_feet(f, FPS)
+    out = lock_feet(f, FPS, LockConfig(hold_s=0.0))  # each stance on its mean
     J = _joints(out)
     assert np.ptp(J[:, LA], axis=0).max() < 1e-6 and np.ptp(J[:, LF], axis=0).max() < 1e-6  # one stance: pinned
     for a, b in zip(LEG[:-1], LEG[1:]):  # bone lengths kept in every frame
@@ -70,7 +70,7 @@ def test_a_swinging_foot_is_left_alone_and_corrections_fade_in():
     planted = stance_mask(J, FPS)[:, 0]  # FOOT_JOINTS[0]: the left ankle
     end = np.flatnonzero(planted)[np.flatnonzero(planted) < 110].max()
     target = J[:end + 1][planted[:end + 1], LA].mean(0)
-    out = _joints(lock_feet(g, FPS, LockConfig(fade_s=0.2, toe_first=False)))  # the ankle's own fade
+    out = _joints(lock_feet(g, FPS, LockConfig(fade_s=0.2, toe_first=False, hold_s=0.0)))  # the ankle's own fade
     for k in range(1, 6):  # 0.2 s = 6 frames
         np.testing.assert_allclose(out[end + k, LA] - J[end + k, LA], (1 - k / 6) * (target - J[end + k, LA]), atol=1e-9)
     np.testing.assert_array_equal(out[end + 6:, LA], J[end + 6:, LA])
@@ -88,13 +88,54 @@ def test_a_held_toe_stays_put_when_the_filters_toe_bone_changes_length():
     J[:, LF] += rng.uniform(-0.003, 0.003, (len(J), 1)) * u  # the toe bone's length varies by +-3 mm
     f[:, JOINTS] = J.reshape(len(J), -1)
     assert stance_mask(J, FPS)[:, [0, 2]].all()  # left ankle and toe base planted throughout
-    loose = _joints(lock_feet(f, FPS, LockConfig(toe_first=False)))
-    held = _joints(lock_feet(f, FPS))
+    loose = _joints(lock_feet(f, FPS, LockConfig(toe_first=False, hold_s=0.0)))
+    held = _joints(lock_feet(f, FPS, LockConfig(hold_s=0.0)))
     assert np.ptp(loose[:, LF], axis=0).max() > 0.003  # it moves with the length
     assert np.ptp(held[:, LF], axis=0).max() < 1e-9 and np.ptp(held[:, LA], axis=0).max() < 1e-9
     np.testing.assert_allclose(held[0, LF], J[:, LF].mean(0), atol=1e-9)  # on the toe's stance mean
     np.testing.assert_allclose(np.linalg.norm(held[:, LF] - held[:, LA], axis=-1),
                                np.median(np.linalg.norm(J[:, LF] - J[:, LA], axis=-1)), atol=1e-9)
+
+
+def _planted_left_ankle(T: int, frames: slice) -> np.ndarray:
+    planted = np.zeros((T, 4), bool)
+    planted[frames, 0] = True  # FOOT_JOINTS[0]: the left ankle
+    return planted
+
+
+def test_a_long_stance_follows_the_feet_slow_shift_and_drops_the_jitter():
+    """hold_s > 0: within a 4-s stance the target is the ankle's Gaussian-weighted mean over the
+    stance's own frames, so a slow 1 cm/s shift (a foot rolling or sliding on a bed) is followed
+    where the mean would leave it up to 2 cm off, and the 3-mm jitter is gone."""
+    T = 120
+    rng = np.random.default_rng(0)
+    clean = np.zeros((T, 24, 3))
+    clean[:, LA, 0] = np.linspace(0.0, 0.04, T)  # 4 cm over 4 s
+    J = clean + rng.normal(0.0, 0.003, clean.shape)
+    planted = _planted_left_ankle(T, slice(None))
+    follow = J[:, LA] + stance_corrections(J, planted, 6.0, smooth=30.0)[:, 0]
+    pinned = J[:, LA] + stance_corrections(J, planted, 6.0)[:, 0]
+    np.testing.assert_allclose(pinned, np.broadcast_to(J[:, LA].mean(0), pinned.shape), atol=1e-12)
+    err_follow = np.linalg.norm(follow - clean[:, LA], axis=-1)
+    err_pinned = np.linalg.norm(pinned - clean[:, LA], axis=-1)
+    assert err_pinned.max() > 0.018 and err_follow.max() < 0.5 * err_pinned.max()
+    assert err_follow[40:80].max() < 0.003  # well inside the stance (over a sigma from its ends): on the shift
+    step_in = np.linalg.norm(np.diff(J[:, LA], axis=0), axis=-1).mean()
+    step_out = np.linalg.norm(np.diff(follow, axis=0), axis=-1).mean()
+    assert step_out < 0.1 * step_in  # the frame-to-frame slide: the shift's 0.3 mm, not the jitter's ~5 mm
+
+
+def test_a_short_stance_is_all_but_pinned_whatever_hold_s():
+    """A 0.5-s walking stance under a 1-s hold: the Gaussian weights over its 15 frames are nearly
+    equal, so the target is within a fraction of a millimetre of the stance mean."""
+    T = 60
+    rng = np.random.default_rng(1)
+    J = rng.normal(0.0, 0.004, (T, 24, 3))
+    planted = _planted_left_ankle(T, slice(20, 35))
+    held = J[:, LA] + stance_corrections(J, planted, 6.0, smooth=30.0)[:, 0]
+    assert np.ptp(held[20:35], axis=0).max() < 0.1 * np.ptp(J[20:35, LA], axis=0).max()
+    np.testing.assert_allclose(held[20:35].mean(0), J[20:35, LA].mean(0), atol=3e-4)
+    np.testing.assert_array_equal(held[:14], J[:14, LA])  # farther than the 6-frame fade: untouched
 
 
 def test_bad_inputs_and_nothing_to_lock():
@@ -105,6 +146,8 @@ def test_bad_inputs_and_nothing_to_lock():
         lock_feet(f, 0.0)
     with pytest.raises(ValueError, match="fade_s"):
         LockConfig(fade_s=-1.0)
+    with pytest.raises(ValueError, match="hold_s"):
+        LockConfig(hold_s=float("nan"))
     g = f.copy()
     g[5, 0] = np.nan
     np.testing.assert_array_equal(lock_feet(g, FPS), g)  # missing joints: left as they are

@@ -18,6 +18,7 @@ from trumans.refine.object_rest import RestConfig, pool_rest
 from trumans.refine.post_args import add_post_step_arguments, post_steps_config
 from trumans.refine.post_steps import STEPS, PostStepsConfig, RefinedClip, run_post_steps
 from trumans.refine.residual import keep_low_frequencies
+from trumans.refine.smoother_blend import blend_with_smoother
 
 from helpers import carried_box_clip
 
@@ -47,7 +48,7 @@ def test_the_documented_order_and_reported_names():
     import trumans.refine.post_steps as mod
 
     names = [s.name for s in STEPS]
-    assert names == ["residual", "body_drift", "foot_lock", "rest_pooling", "hinge", "gate", "bones", "floor"] == [
+    assert names == ["residual", "body_drift", "foot_lock", "rest_pooling", "hinge", "gate", "smoother", "bones", "floor"] == [
         f.name for f in fields(PostStepsConfig)]
     doc = mod.__doc__
     assert [doc.index(f"``{n}``") for n in names] == sorted(doc.index(f"``{n}``") for n in names)
@@ -55,10 +56,10 @@ def test_the_documented_order_and_reported_names():
     no_hinge = [n for n in names if n != "hinge"]
     assert d.runs("door") == names and d.runs("cup") == no_hinge
     assert d.steps_for("door") == ["residual", "body_drift", "foot_lock", "rest_pooling", "hand_link", "hinge", "gate",
-                                   "bones", "floor"]
+                                   "smoother", "bones", "floor"]
     assert replace(d, hinge=replace(d.hinge, any_category=True)).runs("cup") == names
     assert replace(d, hinge=replace(d.hinge, categories=("cup",))).runs("door") == no_hinge
-    assert d.switched(rest_pooling=False).runs("door") == ["residual", "body_drift", "foot_lock", "gate", "bones", "floor"]  # the hinge needs pooled rests
+    assert d.switched(rest_pooling=False).runs("door") == ["residual", "body_drift", "foot_lock", "gate", "smoother", "bones", "floor"]  # the hinge needs pooled rests
 
 
 def test_run_applies_the_steps_in_order_with_their_configs():
@@ -73,6 +74,7 @@ def test_run_applies_the_steps_in_order_with_their_configs():
     want = pool_rest(want, clip.tracked, FPS, cfg.rest_pooling)
     want = fit_hinge(want, clip.tracked, cfg.hinge)
     J = gate_joints(body(want), tracked, FPS, cfg.gate)
+    J = blend_with_smoother(J.astype(np.float32), tracked, FPS, cfg.smoother)  # (the gate's output as stored)
     J = project_bone_lengths(J, input_bone_lengths(tracked, noise_level(tracked), cfg.bones))
     J = keep_above_floor(J, FPS, floor_offset(tracked, cfg.floor), cfg.floor)
     want = want.astype(np.float32)
@@ -97,14 +99,15 @@ def test_a_disabled_step_changes_nothing(name):
 def test_a_parameter_reaches_its_step():
     clip = _clip()
     only_drift = PostStepsConfig().switched(residual=False, foot_lock=False, rest_pooling=False, hinge=False, gate=False,
-                                            bones=False, floor=False)
+                                            smoother=False, bones=False, floor=False)
     only_drift = replace(only_drift, body_drift=replace(only_drift.body_drift, min_rms_m=0.0))  # any drift it fits
     slow = replace(only_drift, body_drift=replace(only_drift.body_drift, speed_m_s=1.0))  # the clip walks: only a fast threshold finds stances
     np.testing.assert_array_equal(run_post_steps(clip, slow), remove_body_drift(clip.frames, FPS, slow.body_drift))
     assert not np.array_equal(run_post_steps(clip, slow), run_post_steps(clip, only_drift))
     # the hinge's turn threshold: above any turn, the hinge step leaves the object as it is
     door = _clip("door")
-    only_hinge = PostStepsConfig().switched(residual=False, foot_lock=False, gate=False, bones=False, floor=False)
+    only_hinge = PostStepsConfig().switched(residual=False, foot_lock=False, gate=False, smoother=False, bones=False,
+                                            floor=False)
     stiff = replace(only_hinge, hinge=replace(only_hinge.hinge, min_turn_deg=180.0))
     no_hinge = only_hinge.switched(hinge=False)
     np.testing.assert_array_equal(run_post_steps(door, stiff), run_post_steps(door, no_hinge))

@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from trumans.ik.limb import two_bone_positions
 from trumans.rotations import least_rotation, matrix_to_6d, sixd_to_matrix
@@ -46,27 +47,39 @@ class LockConfig:
     enabled: whether the post-step runs (``trumans.refine.post_steps``). toe_first: a held toe base is
     placed first, at the clip's one toe-bone length (module doc); 14 corpus train clips, skate of the
     output's feet: the training corruption 3.3 -> 1.7 cm/s, jitter 2.8 -> 1.3, the tracker model 3.9
-    -> 2.9; limbs within 0.1 mm."""
+    -> 2.9; limbs within 0.1 mm. hold_s: with 0, each stance's foot joint is pinned to its mean; above
+    0, to its own Gaussian low-pass of std ``hold_s`` within the stance (``stance_corrections``), so a
+    long stance (standing, sitting, lying) follows the foot's slow roll and shift instead of one point,
+    while a walking stance (well under ``hold_s``) is still all but pinned. The mean was chosen on
+    procedural feet, which do not roll; on the corpus's 68 held-out real clips it cost 8-10 % of the
+    limb error (docs/refine.md, "The foot lock on real feet"). vertical: the lock moves the height
+    too (False: the horizontal slide only)."""
 
     enabled: bool = True
     fade_s: float = 0.2
     stance: DriftConfig = DriftConfig()
     toe_first: bool = True
+    hold_s: float = 1.0
+    vertical: bool = True
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.fade_s) and self.fade_s >= 0):
             raise ValueError(f"lock fade_s must be >= 0, got {self.fade_s}")
+        if not (np.isfinite(self.hold_s) and self.hold_s >= 0):
+            raise ValueError(f"lock hold_s must be >= 0 s, got {self.hold_s}")
         if not self.stance.enabled:
             raise ValueError("lock stance is the stance detection only: its enabled must stay true (switch the "
                              "foot lock off with the lock's own enabled, the drift fit with body_drift.enabled)")
 
 
-def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.ndarray:
-    """(T, 4, 3): per foot joint of FOOT_JOINTS, the move that puts it on its stance's mean, faded
-    linearly to 0 over ``fade`` frames on either side of the stance (where fades of neighbouring
-    stances overlap, the one with the larger weight wins; on a tie the earlier one). Vectorised over
-    frames: a frame's weight comes from the stance it is in or, outside, the nearer of the stances
-    before and after it (farther ones are farther still)."""
+def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float, smooth: float = 0.0) -> np.ndarray:
+    """(T, 4, 3): per foot joint of FOOT_JOINTS, the move that puts it on its stance's mean (``smooth``
+    = 0) or, with ``smooth`` > 0, on its own Gaussian low-pass of std ``smooth`` frames within the
+    stance (edges held), faded linearly to 0 over ``fade`` frames on either side of the stance (outside
+    a stance the target is the stance's value at its nearer end; where fades of neighbouring stances
+    overlap, the one with the larger weight wins; on a tie the earlier one). Vectorised over frames:
+    a frame's weight comes from the stance it is in or, outside, the nearer of the stances before and
+    after it (farther ones are farther still)."""
     T = len(J)
     out = np.zeros((T, len(FOOT_JOINTS), 3))
     t = np.arange(T)
@@ -75,8 +88,15 @@ def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.nd
         a, b = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1  # stances [a, b]
         if not len(a):
             continue
-        csum = np.concatenate([np.zeros((1, 3)), np.cumsum(J[:, j], axis=0)])
-        target = (csum[b + 1] - csum[a]) / (b - a + 1)[:, None]  # (n, 3) each stance's mean
+        if smooth > 0:  # each stance's own low-pass: the foot follows its slow roll, not its jitter
+            path = J[:, j].copy()
+            for s0, s1 in zip(a, b):  # a Gaussian-weighted mean over the stance's own frames
+                seg = J[s0:s1 + 1, j]
+                norm = gaussian_filter1d(np.ones(len(seg)), smooth, mode="constant")
+                path[s0:s1 + 1] = gaussian_filter1d(seg, smooth, axis=0, mode="constant") / norm[:, None]
+        else:
+            csum = np.concatenate([np.zeros((1, 3)), np.cumsum(J[:, j], axis=0)])
+            mean = (csum[b + 1] - csum[a]) / (b - a + 1)[:, None]  # (n, 3) each stance's mean
         prev = np.searchsorted(a, t, side="right") - 1  # the last stance starting at or before t
         nxt = np.minimum(prev + 1, len(a) - 1)
         d_prev = np.where(prev >= 0, t - b[np.maximum(prev, 0)], np.inf)  # <= 0 inside that stance
@@ -85,7 +105,11 @@ def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float) -> np.nd
         which = np.where(use_prev, np.maximum(prev, 0), nxt)
         d = np.minimum(d_prev, d_next)
         w = np.clip(1.0 - d / max(fade, 1e-9), 0.0, 1.0) if fade > 0 else (d <= 0) * 1.0
-        out[:, k] = w[:, None] * (target[which] - J[:, j])
+        if smooth > 0:  # inside a stance its own frame; outside, the stance's nearer end
+            target = path[np.where(d_prev <= 0, t, np.where(use_prev, b[which], a[which]))]
+        else:
+            target = mean[which]
+        out[:, k] = w[:, None] * (target - J[:, j])
     return out
 
 
@@ -104,7 +128,9 @@ def lock_feet(frames: np.ndarray, fps: float, config: LockConfig = LockConfig())
     planted = stance_mask(J, fps, config.stance)
     if not planted.any():
         return f.astype(frames.dtype)
-    delta = stance_corrections(J, planted, config.fade_s * fps)
+    delta = stance_corrections(J, planted, config.fade_s * fps, config.hold_s * fps)
+    if not config.vertical:
+        delta[..., 2] = 0.0
     new = J.copy()
     for side, (hip, knee, ankle, toe) in enumerate(LEG_CHAINS):
         d_ankle, d_toe = delta[:, side], delta[:, 2 + side]  # FOOT_JOINTS: left/right ankle, left/right foot

@@ -34,7 +34,7 @@ from trumans.skeleton import NUM_JOINTS
 
 from trumans.refine.tracked import TrackedBody, as_tracked_body
 
-__all__ = ["GateConfig", "input_noise", "noise_level", "gate_weights", "gate_joints"]
+__all__ = ["GateConfig", "input_noise", "noise_level", "failure_mask", "gate_weights", "gate_joints"]
 
 _RES_STD = np.sqrt(1.0 - 7.0 / 21.0)  # residual std of SG(7, 3) on white noise, per unit noise std
 _NORM_MEDIAN = 1.5382  # median of the norm of a 3D standard normal: sqrt(chi2_3 median 2.366)
@@ -102,13 +102,22 @@ def noise_level(tracked: np.ndarray | TrackedBody) -> np.ndarray:
     return np.nan_to_num(med) / (_NORM_MEDIAN * _RES_STD)
 
 
+def failure_mask(tracked: np.ndarray | TrackedBody, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
+    """(T, 24) bool: the entries of tracked joints (T, 24, 3) m (NaN = missing; or their
+    ``TrackedBody``) at ``fps`` that are failures: missing (frozen entries were made missing before)
+    or spikes (a cubic-fit residual over ``spike_sigmas`` x the local jitter + ``spike_m``)."""
+    noise, r, seen = _noise_residual(as_tracked_body(tracked), fps, config)
+    return ~seen | (r > config.spike_sigmas * _RES_STD * noise + config.spike_m)
+
+
 def gate_weights(tracked: np.ndarray | TrackedBody, fps: float, config: GateConfig = GateConfig()) -> np.ndarray:
     """The filter's weight per frame and joint (T, 24) in [0, 1] for tracked joints (T, 24, 3) m
-    (NaN = missing; or their ``TrackedBody``) at ``fps``: 1 on failures (missing, spikes; widened by
+    (NaN = missing; or their ``TrackedBody``) at ``fps``: 1 on failures (``failure_mask``; widened by
     ``fail_pad``, ramped down over ``feather`` frames), else by the local jitter (``input_noise``)."""
-    noise, r, seen = _noise_residual(as_tracked_body(tracked), fps, config)
+    body = as_tracked_body(tracked)
+    noise = _noise_residual(body, fps, config)[0]
     w = smoothstep((noise - config.keep_below_m) / (config.filter_above_m - config.keep_below_m))
-    fail = ~seen | (r > config.spike_sigmas * _RES_STD * noise + config.spike_m)
+    fail = failure_mask(body, fps, config)
     if config.fail_pad > 0:
         fail = binary_dilation(fail, np.ones((2 * config.fail_pad + 1, 1), bool))
     f = fail.astype(np.float64)

@@ -10,8 +10,8 @@ filter's rate goes through ``STEPS`` in this order (``run_post_steps``):
    (``body_drift.py``), only where the fitted drift is over ``min_rms_m`` (5 cm rms): on real
    motion it reads 4-14 mm from clean feet that roll and pivot, and a smaller fit costs more than it
    corrects (docs/refine.md). It moves every joint, and the steps after it read the corrected body.
-3. ``foot_lock`` - each planted foot joint is held at one point per stance, the legs following by
-   IK (``foot_lock.py``). After the drift fit, which reads the same stances: the lock pins the
+3. ``foot_lock`` - each planted foot joint is held on its stance (all but one point for a short
+   one, its slow path for a long one), the legs following by IK (``foot_lock.py``). After the drift fit, which reads the same stances: the lock pins the
    feet where the drift-corrected body stands.
 4. ``rest_pooling`` - one object pose per rest, pooled over the whole rest; with ``hand_link``,
    moves held rigidly by a wrist follow it and tie the rests on either side (``object_rest.py``).
@@ -24,10 +24,14 @@ filter's rate goes through ``STEPS`` in this order (``run_post_steps``):
    input is there, joint by joint (``gate.py``: clean input comes back as it came; missing, frozen
    and spiking entries are the filter's). After the steps that change the body: it judges their
    result against the input.
-7. ``bones`` - every bone gets the input's own length, measured robustly over the tracked frames
-   (``bones.py``): any skeleton's proportions come back as they went in. After the gate: the
-   blend of two bodies does not keep lengths.
-8. ``floor`` - the body's height from its planted feet on z = 0, and no foot joint under the floor
+7. ``smoother`` - where the filter disagrees with a Gaussian smoother of the input by more than the
+   input's noise explains, the smoother takes an inverse-variance share, joint by joint, feet left to
+   the lock (``smoother_blend.py``). After the gate: on clean input the gate hands the input back
+   and the share stays ~0.
+8. ``bones`` - every bone gets the input's own length, measured robustly over the tracked frames
+   (``bones.py``): any skeleton's proportions come back as they went in. After the gate and the
+   smoother: the blend of two bodies does not keep lengths.
+9. ``floor`` - the body's height from its planted feet on z = 0, and no foot joint under the floor
    (``floor.py``). Last: it moves the body as one piece, so the lengths stay.
 
 Every step has one signature, ``apply(clip: RefinedClip, config) -> frames (T, 235)``, and its own
@@ -57,6 +61,7 @@ from trumans.refine.object_hinge import HingeConfig, fit_hinge
 from trumans.refine.object_rest import RestConfig, pool_rest
 from trumans.refine.residual import ResidualConfig, keep_low_frequencies
 from trumans.refine.residual_basis import ResidualBasis
+from trumans.refine.smoother_blend import BlendConfig, blend_with_smoother
 from trumans.refine.tracked import TrackedBody
 from trumans.skeleton import NUM_JOINTS
 
@@ -163,6 +168,10 @@ def _gate(clip: RefinedClip, config: GateConfig) -> np.ndarray:
     return _with_body(clip.frames, gate_joints(_body(clip.frames), clip.tracked_body, clip.fps, config))
 
 
+def _smoother(clip: RefinedClip, config: BlendConfig) -> np.ndarray:
+    return _with_body(clip.frames, blend_with_smoother(_body(clip.frames), clip.tracked_body, clip.fps, config))
+
+
 def _bones(clip: RefinedClip, config: BonesConfig) -> np.ndarray:
     body = clip.tracked_body
     lengths = input_bone_lengths(body.joints, noise_level(body), config)
@@ -198,6 +207,9 @@ STEPS: tuple[PostStep, ...] = (
     PostStep("gate", "gate", GateConfig, _gate,
              "blend the body with the tracked input by the input's local jitter: clean input comes back as it came "
              "(trumans.refine.gate)"),
+    PostStep("smoother", "smoother-blend", BlendConfig, _smoother,
+             "blend in a Gaussian smoother of the input where the filter disagrees with it by more than the input's "
+             "noise explains, by inverse-variance weights (trumans.refine.smoother_blend)"),
     PostStep("bones", "input-bones", BonesConfig, _bones,
              "give every bone the input's own length, measured over the tracked frames (trumans.refine.bones)"),
     PostStep("floor", "floor", FloorConfig, _floor,
@@ -215,6 +227,7 @@ class PostStepsConfig:
     rest_pooling: RestConfig = field(default_factory=RestConfig)
     hinge: HingeConfig = field(default_factory=HingeConfig)
     gate: GateConfig = field(default_factory=GateConfig)
+    smoother: BlendConfig = field(default_factory=BlendConfig)
     bones: BonesConfig = field(default_factory=BonesConfig)
     floor: FloorConfig = field(default_factory=FloorConfig)
 

@@ -171,7 +171,8 @@ def test_fit_lying_prefers_the_chosen_knees_up_reach():
 @pytest.mark.parametrize("seed", range(6))
 def test_sit_down_lowers_the_hips_at_a_real_pace(seed):
     """Issue 35's real sitters: hips 10 -> 90 % of their drop in 0.87-2.10 s, moved back at
-    0.19-0.40 m/s at most."""
+    0.19-0.40 m/s at most; the two wrists not mirror images (real heights differ ~1.5 cm), from a
+    child stream that leaves the take's generator where it was."""
     off = rest_offsets(1.0)
     j = _joints(posture.sit_down(off, SEAT, SIT_YAW, STAND_POS, np.random.default_rng(seed)))
     h = j[:, 0, 2]
@@ -180,3 +181,5 @@ def test_sit_down_lowers_the_hips_at_a_real_pace(seed):
     assert 0.87 <= descent <= 2.1
     back = -(np.gradient(j[:, 0, :2], axis=0) * 30.0) @ FWD
     assert 0.15 < back.max() <= 0.40
+    wrists = j[:, [J["left_wrist"], J["right_wrist"]], 2]
+    assert np.abs(wrists[:, 0] - wrists[:, 1]).max() > 0.003

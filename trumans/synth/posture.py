@@ -163,10 +163,13 @@ def _transfer(offsets: np.ndarray, seat_center: np.ndarray, sit_yaw: float, stan
     rot[:, j] = euler_to_matrix(np.stack([z, 0.3 * lean, z], -1), "ZYX") @ rot[:, j]
     # Arms: brought forward with the trunk so the hands stay near the thighs (``arm_swing`` 1), a
     # little further on some takes; 0 leaves them hanging from the leaning trunk (towards the seat).
-    arms = arm_swing * rng.uniform(0.2, 0.6)
-    for side in ("left", "right"):
+    # Each arm its own share (people are not mirror-symmetric: real wrist heights differ ~1.5 cm),
+    # drawn from a child stream (``Generator.spawn`` leaves ``rng``'s own position alone), so every
+    # later draw of the take is what it was before the arms were told apart.
+    arms = arm_swing * rng.uniform(0.2, 0.6) * rng.spawn(1)[0].uniform(0.75, 1.25, 2)
+    for side, a_side in zip(("left", "right"), arms):
         j = JOINT_INDEX[f"{side}_shoulder"]
-        rot[:, j] = euler_to_matrix(np.stack([z, -arms * lean, z], -1), "ZYX") @ rot[:, j]
+        rot[:, j] = euler_to_matrix(np.stack([z, -a_side * lean, z], -1), "ZYX") @ rot[:, j]
     a, b = (0.6, 0.95) if up else (0.05, 0.4)  # the staggered foot's step (fractions of the transfer)
     u = np.clip((s - a) / (b - a), 0.0, 1.0)
     w = (1.0 - ease(u) if up else ease(u))[:, None, None]  # 0: standing places, 1: seated ones

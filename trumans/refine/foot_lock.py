@@ -91,9 +91,10 @@ def stance_corrections(J: np.ndarray, planted: np.ndarray, fade: float, smooth: 
         if smooth > 0:  # each stance's own low-pass: the foot follows its slow roll, not its jitter
             path = J[:, j].copy()
             for s0, s1 in zip(a, b):  # a Gaussian-weighted mean over the stance's own frames
-                seg = J[s0:s1 + 1, j]
-                norm = gaussian_filter1d(np.ones(len(seg)), smooth, mode="constant")
-                path[s0:s1 + 1] = gaussian_filter1d(seg, smooth, axis=0, mode="constant") / norm[:, None]
+                n = s1 - s0 + 1  # the kernel cut at the stance's length: the rest would weigh zeros only
+                w = gaussian_filter1d(np.c_[J[s0:s1 + 1, j], np.ones(n)], smooth, axis=0, mode="constant",
+                                      radius=min(int(4.0 * smooth + 0.5), n - 1))
+                path[s0:s1 + 1] = w[:, :3] / w[:, 3:]
         else:
             csum = np.concatenate([np.zeros((1, 3)), np.cumsum(J[:, j], axis=0)])
             mean = (csum[b + 1] - csum[a]) / (b - a + 1)[:, None]  # (n, 3) each stance's mean
